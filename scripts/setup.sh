@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Set up the project from PyPI wheels (no ROS apt install needed): make .venv/ with ROS 2 Jazzy
+# and the dev tools, then build the colcon workspace ros2_ws/ into ros2_ws/{build,install,log}.
+# Idempotent: re-running only reinstalls when tools/requirements.txt or the constraints changed.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+root=$PWD
+venv=$root/.venv
+
+if [[ ! -x $venv/bin/python ]]; then
+  echo "setup: creating .venv"
+  python3.11 -m venv "$venv"
+fi
+
+stamp=$(cat tools/requirements.txt tools/constraints-jazzy.txt | sha256sum | cut -d' ' -f1)
+if [[ $(cat "$venv/.requirements-stamp" 2>/dev/null) != "$stamp" ]]; then
+  echo "setup: installing tools/requirements.txt (log: .venv/pip-install.log)"
+  if ! "$venv/bin/python" -m pip install -c tools/constraints-jazzy.txt -r tools/requirements.txt \
+      >"$venv/pip-install.log" 2>&1; then
+    tail -n 40 "$venv/pip-install.log" >&2
+    echo "setup: pip install failed" >&2
+    exit 1
+  fi
+  echo "$stamp" >"$venv/.requirements-stamp"
+else
+  echo "setup: requirements up to date"
+fi
+
+"$venv/bin/python" scripts/fix_wheel_cmake_paths.py
+
+echo "setup: building ros2_ws"
+export PATH=$venv/bin:$PATH VIRTUAL_ENV=$venv
+export AMENT_PREFIX_PATH=$venv CMAKE_PREFIX_PATH=$venv
+cd ros2_ws
+colcon --log-base log build --symlink-install --base-paths src --metas "$root/colcon.meta"
