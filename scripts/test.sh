@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Set up, then lint (ruff), type-check (mypy) and test (pytest) the project.
+# Extra arguments go to pytest: scripts/test.sh -k foo
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+bash scripts/setup.sh
+source scripts/env.sh
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST PYTHONDONTWRITEBYTECODE=1
+
+echo "test: ruff check"
+ruff check
+
+# mypy checks the paths pyproject.toml lists that exist yet, one at a time: every ROS package
+# has its own test/ folder, and checked together their test modules would share names.
+mapfile -t mypy_paths < <(python -c '
+import os, tomllib
+for p in tomllib.load(open("pyproject.toml", "rb"))["tool"]["mypy"]["files"]:
+    if os.path.exists(p):
+        print(p)
+')
+for p in "${mypy_paths[@]}"; do
+  echo "test: mypy $p"
+  mypy "$p"
+done
+
+echo "test: pytest"
+rc=0
+pytest "$@" || rc=$?
+if ((rc == 5)); then
+  echo "test: pytest collected no tests; that counts as a failure" >&2
+fi
+exit "$rc"
