@@ -1,0 +1,37 @@
+"""efficient_comm: write a ROS 2 node once, run it standalone, composed or under test.
+
+Where things live (read ARCHITECTURE.md for the why):
+
+* ``handle``     the node-handle interface components are written against (the gateway);
+* ``standalone`` one component = one rclpy node = one process (``ros2 run``);
+* ``container``  many components in one process, by reference, on the
+  ``executor`` (consecutive, one thread) over the in-process ``bus``;
+* ``testing``    a handle with no DDS and a manual clock, for users' own tests;
+* ``config``     container files; ``dds`` keeping in-process and DDS delivery apart;
+* ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing.
+
+Everything public is re-exported here once; modules starting with ``_`` are private.
+"""
+
+from ._clock import ManualClock as ManualClock
+from ._clock import SystemClock as SystemClock
+from ._clock import from_msg as from_msg
+from ._clock import to_msg as to_msg
+from .config import ComponentSpec as ComponentSpec
+from .container import Container as Container
+from .container import LoadedComponent as LoadedComponent
+from .container import LoadReport as LoadReport
+from .errors import ComponentError as ComponentError
+from .errors import ConfigError as ConfigError
+from .errors import DdsSetupError as DdsSetupError
+from .errors import EfficientCommError as EfficientCommError
+from .errors import ExecutorError as ExecutorError
+from .errors import MessageMutatedError as MessageMutatedError
+from .errors import NameResolutionError as NameResolutionError
+from .errors import ParameterError as ParameterError
+from .errors import TopicTypeError as TopicTypeError
+from .executor import ConsecutiveExecutor as ConsecutiveExecutor
+from .handle import NodeHandle as NodeHandle
+from .standalone import Standalone as Standalone
+from .standalone import standalone_main as standalone_main
+from .stats import StatsSnapshot as StatsSnapshot

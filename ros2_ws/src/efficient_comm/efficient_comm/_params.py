@@ -1,0 +1,200 @@
+"""Parameters: one behaviour on two stores (an rclpy node's, or a local one with no DDS).
+
+Both stores follow rclpy's rules, so a component cannot tell them apart: a parameter has
+the type of its default, a deployment override wins over the default, setting another type
+or an undeclared name fails, and on-change callbacks can veto a change by raising.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from typing import Any
+
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterAlreadyDeclaredException,
+    ParameterImmutableException,
+    ParameterNotDeclaredException,
+)
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from .errors import ConfigError, ParameterError
+from .handle import ParameterCallback, ParameterValue
+
+# -- the ROS 2 params-file layout -------------------------------------------------------
+
+
+def _node_pattern(key: str) -> re.Pattern[str]:
+    """rcl's node-name wildcards: ``*`` one token, ``**`` any number of tokens."""
+    key = key if key.startswith("/") else "/" + key
+    parts = []
+    for token in key.split("/")[1:]:
+        if token == "**":
+            parts.append(r"(/[^/]+)*")
+        else:
+            parts.append("/" + re.escape(token).replace(r"\*", "[^/]+"))
+    return re.compile("".join(parts) + "$")
+
+
+def _flatten(prefix: str, values: Mapping[str, Any], out: dict[str, Any]) -> None:
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            _flatten(name + ".", value, out)
+        else:
+            out[name] = value
+
+
+def overrides_for(document: Any, node_fqn: str, *, source: str) -> dict[str, Any]:
+    """Parameters a params-file ``document`` gives the node ``node_fqn``.
+
+    ``document`` is the parsed YAML of a ROS 2 params file::
+
+        /**:                      # or a node name, /ns/name, /ns/*, ...
+          ros__parameters:
+            rate_hz: 20.0
+
+    Later matching keys override earlier ones, as in rcl.
+    """
+    if document is None:
+        return {}
+    if not isinstance(document, Mapping):
+        raise ConfigError(f"{source}: parameters must be a mapping in the params-file layout")
+    out: dict[str, Any] = {}
+    for key, section in document.items():
+        if not isinstance(section, Mapping) or "ros__parameters" not in section:
+            raise ConfigError(
+                f"{source}: entry {key!r} has no 'ros__parameters' (params-file layout: "
+                "'<node>: {ros__parameters: {name: value}}')"
+            )
+        if _node_pattern(str(key)).match(node_fqn):
+            values = section["ros__parameters"] or {}
+            if not isinstance(values, Mapping):
+                raise ConfigError(f"{source}: {key}.ros__parameters must be a mapping")
+            _flatten("", values, out)
+    return out
+
+
+# -- the two stores -----------------------------------------------------------------------
+
+
+def _same_type(declared: Any, value: Any) -> bool:
+    if isinstance(declared, bool) or isinstance(value, bool):
+        return isinstance(declared, bool) and isinstance(value, bool)
+    if isinstance(declared, list | tuple):
+        return isinstance(value, list | tuple) and (
+            not declared or not value or _same_type(declared[0], value[0])
+        )
+    return type(declared) is type(value)
+
+
+def _run_callbacks(callbacks: list[ParameterCallback], changes: Mapping[str, Any]) -> None:
+    for callback in callbacks:
+        try:
+            callback(changes)
+        except ValueError as exc:  # ParameterError is a ValueError too
+            raise ParameterError(f"parameter change {dict(changes)} rejected: {exc}") from exc
+
+
+class LocalParameters:
+    """Parameters of a node that has no rcl node behind it (test and DDS-free backends)."""
+
+    def __init__(self, overrides: Mapping[str, Any]) -> None:
+        self._overrides = dict(overrides)
+        self._values: dict[str, Any] = {}
+        self._read_only: set[str] = set()
+        self._callbacks: list[ParameterCallback] = []
+
+    def declare(
+        self, name: str, default: ParameterValue, *, description: str, read_only: bool
+    ) -> ParameterValue:
+        del description  # kept by the rclpy store, where ros2 param describe shows it
+        if name in self._values:
+            raise ParameterError(f"parameter {name!r} is already declared")
+        value = self._overrides.get(name, default)
+        if not _same_type(default, value):
+            raise ParameterError(
+                f"parameter {name!r}: override {value!r} is not of the declared type "
+                f"{type(default).__name__}"
+            )
+        self._values[name] = value
+        if read_only:
+            self._read_only.add(name)
+        return value
+
+    def get(self, name: str) -> ParameterValue:
+        try:
+            return self._values[name]
+        except KeyError:
+            raise ParameterError(f"parameter {name!r} is not declared") from None
+
+    def set(self, name: str, value: ParameterValue) -> None:
+        current = self.get(name)
+        if name in self._read_only:
+            raise ParameterError(f"parameter {name!r} is read-only")
+        if not _same_type(current, value):
+            raise ParameterError(
+                f"parameter {name!r} is {type(current).__name__}, cannot set {value!r}"
+            )
+        _run_callbacks(self._callbacks, {name: value})
+        self._values[name] = value
+
+    def add_callback(self, callback: ParameterCallback) -> None:
+        self._callbacks.append(callback)
+
+
+class RclpyParameters:
+    """The same behaviour on a real rclpy node, so ``ros2 param`` sees and sets them."""
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._callbacks: list[ParameterCallback] = []
+        node.add_on_set_parameters_callback(self._on_set)
+
+    def _on_set(self, params: list[Parameter]) -> SetParametersResult:
+        try:
+            _run_callbacks(self._callbacks, {p.name: p.value for p in params})
+        except ParameterError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def declare(
+        self, name: str, default: ParameterValue, *, description: str, read_only: bool
+    ) -> ParameterValue:
+        descriptor = ParameterDescriptor(description=description, read_only=read_only)
+        try:
+            param = self._node.declare_parameter(name, default, descriptor)
+        except (
+            ParameterAlreadyDeclaredException,
+            InvalidParameterTypeException,
+            InvalidParameterValueException,
+        ) as exc:
+            raise ParameterError(f"parameter {name!r}: {exc}") from exc
+        return param.value  # type: ignore[no-any-return]
+
+    def get(self, name: str) -> ParameterValue:
+        try:
+            return self._node.get_parameter(name).value  # type: ignore[no-any-return]
+        except ParameterNotDeclaredException:
+            raise ParameterError(f"parameter {name!r} is not declared") from None
+
+    def set(self, name: str, value: ParameterValue) -> None:
+        self.get(name)
+        try:
+            result = self._node.set_parameters([Parameter(name, value=value)])[0]
+        except (
+            ParameterImmutableException,
+            InvalidParameterTypeException,
+            InvalidParameterValueException,
+            TypeError,
+        ) as exc:
+            raise ParameterError(f"parameter {name!r}: {exc}") from exc
+        if not result.successful:
+            raise ParameterError(result.reason or f"parameter {name!r} rejected")
+
+    def add_callback(self, callback: ParameterCallback) -> None:
+        self._callbacks.append(callback)

@@ -1,0 +1,41 @@
+"""QoS normalisation and the compatibility rules DDS applies between two endpoints."""
+
+from __future__ import annotations
+
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+from .handle import QoSLike
+
+
+def to_profile(qos: QoSLike) -> QoSProfile:
+    if isinstance(qos, QoSProfile):
+        return qos
+    if isinstance(qos, bool) or not isinstance(qos, int) or qos < 0:
+        raise TypeError(f"qos must be a QoSProfile or a non-negative depth, not {qos!r}")
+    return QoSProfile(depth=qos)
+
+
+def queue_limit(profile: QoSProfile) -> int | None:
+    """How many messages a subscriber may hold: None for KEEP_ALL."""
+    if profile.history == HistoryPolicy.KEEP_ALL:
+        return None
+    return max(1, int(profile.depth))
+
+
+def is_transient_local(profile: QoSProfile) -> bool:
+    return profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+
+
+def compatible(pub: QoSProfile, sub: QoSProfile) -> bool:
+    """DDS request/offer: a subscriber may not ask for more than the publisher offers."""
+    if (
+        sub.reliability == ReliabilityPolicy.RELIABLE
+        and pub.reliability == ReliabilityPolicy.BEST_EFFORT
+    ):
+        return False
+    return not (is_transient_local(sub) and not is_transient_local(pub))

@@ -1,0 +1,220 @@
+"""In-process topics: publishers hand the very message object to each subscriber.
+
+A :class:`Bus` belongs to one container. It only keeps the wiring (who publishes and who
+subscribes on which topic, with which QoS); *when* a callback runs is the executor's
+business (:mod:`efficient_comm.executor`). Endpoints talking to other processes are added
+on top by :mod:`efficient_comm.container`.
+
+Delivery follows what ROS users expect from DDS:
+
+* a subscriber only hears publishers with compatible QoS (reliability, durability);
+* a queued subscriber keeps at most ``depth`` messages (KEEP_LAST); older ones are dropped
+  and counted;
+* a TRANSIENT_LOCAL publisher keeps its last ``depth`` messages and replays them to a
+  TRANSIENT_LOCAL subscriber that joins later.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from rclpy.qos import QoSProfile
+
+from ._qos import compatible, is_transient_local, queue_limit
+from .errors import TopicTypeError
+
+if TYPE_CHECKING:
+    from .executor import ConsecutiveExecutor
+    from .handle import Logger
+    from .stats import CallbackStats
+
+
+class LocalSubscription:
+    """A callback on a topic, with its queue for deferred (breadth-first) delivery."""
+
+    __slots__ = (
+        "active",
+        "callback",
+        "logger",
+        "queue",
+        "qos",
+        "stats",
+        "topic",
+    )
+
+    def __init__(
+        self,
+        topic: Topic,
+        callback: Callable[[Any], None],
+        qos: QoSProfile,
+        stats: CallbackStats,
+        logger: Logger,
+    ) -> None:
+        self.topic = topic
+        self.callback = callback
+        self.qos = qos
+        self.stats = stats
+        self.logger = logger
+        self.queue: deque[tuple[Any, bytes | None, str]] = deque(maxlen=queue_limit(qos))
+        self.active = True
+
+    @property
+    def topic_name(self) -> str:
+        return self.topic.name
+
+    def run_one(self, executor: ConsecutiveExecutor) -> None:
+        """Deliver the oldest queued message (the executor's ready queue calls this)."""
+        if self.queue and self.active:
+            msg, fp, origin = self.queue.popleft()
+            executor.deliver(self, msg, fp, origin)
+
+
+class LocalPublisher:
+    """Publishes on a topic; ``dds`` is the writer for peers in other processes, if any.
+
+    The container keeps ``dds_matched`` up to date from DDS matched events, so the common
+    case (nobody outside listens) costs one attribute test per publish.
+    """
+
+    __slots__ = (
+        "_executor",
+        "_history",
+        "_msg_type",
+        "_subs",
+        "dds",
+        "dds_always",
+        "dds_matched",
+        "name",
+        "qos",
+        "topic",
+    )
+
+    def __init__(
+        self, topic: Topic, qos: QoSProfile, executor: ConsecutiveExecutor, name: str
+    ) -> None:
+        self.topic = topic
+        self.qos = qos
+        self.name = name
+        self._executor = executor
+        self._msg_type = topic.msg_type
+        self._subs: tuple[LocalSubscription, ...] = ()
+        self._history: deque[Any] | None = (
+            deque(maxlen=queue_limit(qos)) if is_transient_local(qos) else None
+        )
+        # Set by the container when this publisher also has a DDS writer.
+        self.dds: Any = None
+        self.dds_always = False
+        self.dds_matched = 0
+
+    @property
+    def topic_name(self) -> str:
+        return self.topic.name
+
+    def publish(self, msg: Any, /) -> None:
+        if type(msg) is not self._msg_type:
+            raise TypeError(
+                f"{self.topic.name} carries {self._msg_type.__name__}, "
+                f"not {type(msg).__name__}"
+            )
+        if self.dds is not None and (self.dds_matched or self.dds_always):
+            self.dds.publish(msg)
+        if self._history is not None:
+            self._history.append(msg)
+        if self._subs:
+            self._executor.dispatch(self._subs, msg, self.name)
+
+    def history(self) -> list[Any]:
+        return list(self._history or ())
+
+
+class Topic:
+    __slots__ = ("msg_type", "name", "publishers", "subscriptions")
+
+    def __init__(self, name: str, msg_type: type) -> None:
+        self.name = name
+        self.msg_type = msg_type
+        self.publishers: list[LocalPublisher] = []
+        self.subscriptions: list[LocalSubscription] = []
+
+    def rewire(self) -> None:
+        """Recompute, per publisher, the subscribers it may reach (done on (un)subscribe)."""
+        for pub in self.publishers:
+            pub._subs = tuple(
+                s for s in self.subscriptions if s.active and compatible(pub.qos, s.qos)
+            )
+
+
+class Bus:
+    """All in-process topics of one container."""
+
+    def __init__(self, executor: ConsecutiveExecutor) -> None:
+        self._executor = executor
+        self._topics: dict[str, Topic] = {}
+
+    def topic(self, name: str, msg_type: type) -> Topic:
+        topic = self._topics.get(name)
+        if topic is None:
+            topic = self._topics[name] = Topic(name, msg_type)
+        elif topic.msg_type is not msg_type:
+            raise TopicTypeError(
+                f"topic {name} already carries {_type_name(topic.msg_type)} in this process, "
+                f"cannot use it with {_type_name(msg_type)}"
+            )
+        return topic
+
+    def topics(self) -> dict[str, type]:
+        return {name: t.msg_type for name, t in self._topics.items()}
+
+    def add_publisher(
+        self, name: str, msg_type: type, qos: QoSProfile, *, owner: str
+    ) -> LocalPublisher:
+        topic = self.topic(name, msg_type)
+        pub = LocalPublisher(topic, qos, self._executor, owner)
+        topic.publishers.append(pub)
+        topic.rewire()
+        return pub
+
+    def add_subscription(
+        self,
+        name: str,
+        msg_type: type,
+        callback: Callable[[Any], None],
+        qos: QoSProfile,
+        *,
+        stats: CallbackStats,
+        logger: Logger,
+    ) -> LocalSubscription:
+        topic = self.topic(name, msg_type)
+        sub = LocalSubscription(topic, callback, qos, stats, logger)
+        topic.subscriptions.append(sub)
+        topic.rewire()
+        if is_transient_local(qos):
+            for pub in topic.publishers:
+                if compatible(pub.qos, qos):
+                    for msg in pub.history():
+                        self._executor.enqueue(sub, msg, None)
+        return sub
+
+    def remove_publisher(self, pub: LocalPublisher) -> None:
+        topic = pub.topic
+        if pub in topic.publishers:
+            topic.publishers.remove(pub)
+        self._drop_if_unused(topic)
+
+    def remove_subscription(self, sub: LocalSubscription) -> None:
+        sub.active = False
+        topic = sub.topic
+        if sub in topic.subscriptions:
+            topic.subscriptions.remove(sub)
+            topic.rewire()
+        self._drop_if_unused(topic)
+
+    def _drop_if_unused(self, topic: Topic) -> None:
+        if not topic.publishers and not topic.subscriptions:
+            self._topics.pop(topic.name, None)
+
+
+def _type_name(msg_type: type) -> str:
+    return f"{msg_type.__module__.split('.')[0]}/{msg_type.__name__}"

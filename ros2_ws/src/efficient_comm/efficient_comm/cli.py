@@ -1,0 +1,40 @@
+"""Console scripts: ``container`` (a component container) and ``standalone`` (one node)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from rclpy.utilities import remove_ros_args
+
+from .container import Container
+from .dds import prepare_process
+from .standalone import cli as standalone
+
+
+def container(argv: Sequence[str] | None = None) -> int:
+    """``container [--config FILE ...] [--name NAME] [--strategy S] [--no-dds]``."""
+    argv = list(sys.argv if argv is None else argv)
+    parser = argparse.ArgumentParser(
+        prog="container", description="Run components from container files in one process."
+    )
+    parser.add_argument("--config", action="append", default=[], help="container YAML file")
+    parser.add_argument("--name", default="container", help="the container's node name")
+    parser.add_argument("--namespace", default="/")
+    parser.add_argument("--strategy", choices=["depth_first", "breadth_first"],
+                        default="depth_first")
+    parser.add_argument("--no-dds", action="store_true")
+    args = parser.parse_args(remove_ros_args(argv)[1:])
+    prepare_process()
+    with Container(args.name, namespace=args.namespace, dds=not args.no_dds,
+                   strategy=args.strategy) as c:
+        for path in args.config:
+            report = c.load_file(path)
+            for loaded in report.loaded:
+                c.logger.info(f"loaded {loaded.class_path} as {loaded.full_node_name}")
+        c.spin()
+    return 0
+
+
+__all__ = ["container", "standalone"]

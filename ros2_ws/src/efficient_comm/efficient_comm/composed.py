@@ -1,0 +1,331 @@
+"""The composed backend: a component's handle inside a :class:`~efficient_comm.Container`.
+
+Publishing goes through the container's bus (by reference, on the consecutive executor).
+When the container talks DDS, each component also gets a real rclpy node, so that the
+ROS graph shows it (``ros2 node list``, ``ros2 topic info``, ``ros2 param``) and peers in
+other processes can reach it: every publisher has a DDS writer that is written to only
+while DDS reports a matched reader (always, for TRANSIENT_LOCAL, so late joiners get the
+history), and every subscription has a DDS reader. The participant ignores its own
+endpoints (:mod:`efficient_comm.dds`), so nothing is delivered twice.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import deque
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+
+from ._names import Resolver, check_node_name, fully_qualified
+from ._params import LocalParameters, RclpyParameters
+from ._qos import is_transient_local, to_profile
+from .bus import LocalPublisher, LocalSubscription
+from .errors import ComponentError
+from .handle import (
+    Clock,
+    Logger,
+    MessageCallback,
+    ParameterCallback,
+    ParameterValue,
+    QoSLike,
+)
+
+if TYPE_CHECKING:
+    from .container import Container
+    from .executor import ExecutorTimer
+
+
+class RecordingLogger:
+    """A logger for nodes without rcl logging: Python ``logging``, plus the last records.
+
+    Tests read :attr:`records` (``(level, message)`` pairs) to assert on warnings.
+    """
+
+    def __init__(self, name: str, *, keep: int = 1000) -> None:
+        self._log = logging.getLogger("efficient_comm" + name.replace("/", "."))
+        self.records: deque[tuple[str, str]] = deque(maxlen=keep)
+
+    def _emit(self, level: str, message: str) -> None:
+        self.records.append((level, message))
+        self._log.log(logging.getLevelName(level.upper()), message)
+
+    def debug(self, message: str, /) -> None:
+        self._emit("debug", message)
+
+    def info(self, message: str, /) -> None:
+        self._emit("info", message)
+
+    def warning(self, message: str, /) -> None:
+        self._emit("warning", message)
+
+    def error(self, message: str, /) -> None:
+        self._emit("error", message)
+
+
+class LocalService:
+    """A service callback reachable by in-process clients without DDS."""
+
+    __slots__ = ("callback", "handle", "service_name", "srv_type", "stats")
+
+    def __init__(
+        self, handle: ComposedHandle, srv_type: type, name: str, callback: Callable[..., Any]
+    ) -> None:
+        self.handle = handle
+        self.srv_type = srv_type
+        self.service_name = name
+        self.callback = callback
+        self.stats = handle._container.executor.registry.add(
+            handle.fully_qualified_name, "service", name
+        )
+
+    def serve(self, request: Any) -> Any:
+        """Run the callback with stats; returns the response or raises."""
+        start = time.perf_counter_ns()
+        try:
+            return self.callback(request, self.srv_type.Response())
+        except Exception:
+            self.stats.exceptions += 1
+            raise
+        finally:
+            self.stats.record(start, time.perf_counter_ns() - start)
+
+
+class ComposedClient:
+    """Calls an in-process service directly, or a remote one over DDS."""
+
+    def __init__(self, handle: ComposedHandle, srv_type: type, name: str) -> None:
+        self._handle = handle
+        self._srv_type = srv_type
+        self._name = name
+        node = handle.rclpy_node
+        self._dds = node.create_client(srv_type, name) if node is not None else None
+
+    @property
+    def srv_name(self) -> str:
+        return self._name
+
+    def service_is_ready(self) -> bool:
+        if self._name in self._handle._container._services:
+            return True
+        return self._dds is not None and self._dds.service_is_ready()
+
+    def call_async(self, request: Any, /) -> Future:
+        local = self._handle._container._services.get(self._name)
+        if local is None and self._dds is not None:
+            return self._dds.call_async(request)
+        future = Future()
+        if local is None:
+            return future  # like rclpy: nobody answers until a server appears
+        logger = self._handle.logger
+
+        def serve() -> None:
+            try:
+                future.set_result(local.serve(request))
+            except Exception as exc:
+                logger.error(f"service {self._name} raised: {exc!r}")
+                future.set_exception(exc)
+
+        self._handle._container.executor.post(serve)
+        return future
+
+    def destroy(self) -> None:
+        if self._dds is not None and self._handle.rclpy_node is not None:
+            self._handle.rclpy_node.destroy_client(self._dds)
+
+
+class ComposedHandle:
+    """The node handle of one composed component. Created by the container."""
+
+    def __init__(
+        self,
+        container: Container,
+        *,
+        name: str,
+        namespace: str,
+        remappings: Mapping[str, str],
+        parameters: Mapping[str, Any],
+    ) -> None:
+        self._container = container
+        self._name, self._namespace = check_node_name(name, namespace)
+        self._fqn = fully_qualified(self._name, self._namespace)
+        self._resolver = Resolver(self._name, self._namespace, remappings)
+        self._publishers: list[LocalPublisher] = []
+        self._subscriptions: list[LocalSubscription] = []
+        self._timers: list[ExecutorTimer] = []
+        self._services: list[str] = []
+        self._clients: list[ComposedClient] = []
+        self.rclpy_node: Node | None = None
+        self._logger: Logger
+        self._params: LocalParameters | RclpyParameters
+        if container.context is not None:
+            node = Node(
+                self._name,
+                namespace=self._namespace,
+                context=container.context,
+                use_global_arguments=False,
+                parameter_overrides=[Parameter(k, value=v) for k, v in parameters.items()],
+            )
+            self.rclpy_node = node
+            self._logger = node.get_logger()
+            self._params = RclpyParameters(node)
+        else:
+            self._logger = RecordingLogger(self._fqn)
+            self._params = LocalParameters(parameters)
+
+    # -- identity ----------------------------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        return self._name
+
+    @property
+    def namespace(self) -> str:
+        return self._namespace
+
+    @property
+    def fully_qualified_name(self) -> str:
+        return self._fqn
+
+    @property
+    def logger(self) -> Logger:
+        return self._logger
+
+    @property
+    def clock(self) -> Clock:
+        return self._container.executor.clock
+
+    def resolve(self, topic: str) -> str:
+        """The full name ``topic`` has for this node (namespace and remapping applied)."""
+        return self._resolver.resolve(topic)
+
+    # -- communication -------------------------------------------------------------------
+
+    def create_publisher(
+        self, msg_type: type, topic: str, *, qos: QoSLike = 10
+    ) -> LocalPublisher:
+        name = self.resolve(topic)
+        profile = to_profile(qos)
+        pub = self._container.bus.add_publisher(name, msg_type, profile, owner=self._fqn)
+        node = self.rclpy_node
+        if node is not None:
+
+            def matched(status: Any, pub: LocalPublisher = pub) -> None:
+                pub.dds_matched = status.current_count
+
+            pub.dds = node.create_publisher(
+                msg_type, name, profile, event_callbacks=PublisherEventCallbacks(matched=matched)
+            )
+            pub.dds_always = is_transient_local(profile)
+            pub.dds_matched = pub.dds.get_subscription_count()
+        self._publishers.append(pub)
+        return pub
+
+    def create_subscription(
+        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
+    ) -> LocalSubscription:
+        name = self.resolve(topic)
+        profile = to_profile(qos)
+        executor = self._container.executor
+        stats = executor.registry.add(self._fqn, "subscription", name)
+        sub = self._container.bus.add_subscription(
+            name, msg_type, callback, profile, stats=stats, logger=self._logger
+        )
+        node = self.rclpy_node
+        if node is not None:
+            # Only peers in other processes reach this reader (local endpoints are ignored).
+            remote = (sub,)
+            node.create_subscription(
+                msg_type, name, lambda msg: executor.dispatch(remote, msg, "dds"), profile
+            )
+        self._subscriptions.append(sub)
+        return sub
+
+    def create_timer(self, period_s: float, callback: Callable[[], None]) -> ExecutorTimer:
+        executor = self._container.executor
+        stats = executor.registry.add(self._fqn, "timer", getattr(callback, "__qualname__", ""))
+        timer = executor.create_timer(period_s, callback, stats=stats, logger=self._logger)
+        self._timers.append(timer)
+        return timer
+
+    def create_service(
+        self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
+    ) -> LocalService:
+        full = self.resolve(name)
+        services = self._container._services
+        if full in services:
+            raise ComponentError(
+                f"service {full} is already provided in this process by "
+                f"{services[full].handle.fully_qualified_name}"
+            )
+        service = services[full] = LocalService(self, srv_type, full, callback)
+        self._services.append(full)
+        node = self.rclpy_node
+        if node is not None:
+            logger = self._logger
+
+            def serve_remote(request: Any, response: Any) -> Any:
+                try:
+                    return service.serve(request)
+                except Exception as exc:  # rclpy would let it escape from the executor
+                    logger.error(f"service {full} raised: {exc!r}")
+                    return response
+
+            node.create_service(srv_type, full, serve_remote)
+        return service
+
+    def create_client(self, srv_type: type, name: str) -> ComposedClient:
+        client = ComposedClient(self, srv_type, self.resolve(name))
+        self._clients.append(client)
+        return client
+
+    # -- parameters ----------------------------------------------------------------------
+
+    def declare_parameter(
+        self,
+        name: str,
+        default: ParameterValue,
+        *,
+        description: str = "",
+        read_only: bool = False,
+    ) -> ParameterValue:
+        return self._params.declare(name, default, description=description, read_only=read_only)
+
+    def get_parameter(self, name: str) -> ParameterValue:
+        return self._params.get(name)
+
+    def set_parameter(self, name: str, value: ParameterValue) -> None:
+        self._params.set(name, value)
+
+    def add_on_parameter_change(self, callback: ParameterCallback) -> None:
+        self._params.add_callback(callback)
+
+    # -- teardown ------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Remove every endpoint, timer and service this handle created, and its node."""
+        bus = self._container.bus
+        for pub in self._publishers:
+            bus.remove_publisher(pub)
+        for sub in self._subscriptions:
+            bus.remove_subscription(sub)
+        for timer in self._timers:
+            timer.cancel()
+        for client in self._clients:
+            client.destroy()
+        for service in self._services:
+            self._container._services.pop(service, None)
+        self._publishers.clear()
+        self._subscriptions.clear()
+        self._timers.clear()
+        self._services.clear()
+        self._clients.clear()
+        self._container.executor.registry.remove_node(self._fqn)
+        if self.rclpy_node is not None:
+            self.rclpy_node.destroy_node()
+            self.rclpy_node = None

@@ -1,0 +1,106 @@
+"""Keeping in-process delivery and DDS apart, so no message arrives twice.
+
+Composed components hand messages to each other by reference; DDS carries them only to and
+from other processes. For that, the process's DDS participant must not match its own
+endpoints, or a composed subscriber would get every in-process message a second time
+through DDS. Fast DDS (the Jazzy default) offers exactly this as the participant property
+``fastdds.ignore_local_endpoints``; :func:`prepare_process` turns it on through the
+default XML profile, keeping any profile the user already points
+``FASTRTPS_DEFAULT_PROFILES_FILE`` to.
+
+Fast DDS reads that profile once, when the process creates its first participant. So call
+:func:`prepare_process` before anything in the process calls ``rclpy.init`` (the container
+entry point and the test fixtures do). The container checks the result with a probe and
+raises :class:`~efficient_comm.errors.DdsSetupError` rather than deliver duplicates.
+
+A process prepared this way should host its ROS nodes as components: two plain rclpy nodes
+sharing one context (one participant) no longer hear each other over DDS. Nodes in other
+contexts or other processes are unaffected.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import uuid
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from rclpy.context import Context
+from std_msgs.msg import Empty
+
+PROFILES_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
+IGNORE_LOCAL = "fastdds.ignore_local_endpoints"
+_NS = "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"
+_MARK = "efficient_comm-profile"
+
+
+def _child(parent: ET.Element, tag: str) -> ET.Element:
+    found = parent.find(tag)
+    if found is None:
+        found = parent.find(f"{{{_NS}}}{tag}")
+    return found if found is not None else ET.SubElement(parent, tag)
+
+
+def _with_ignore_local(source: Path | None) -> str:
+    """The XML of ``source`` (or an empty profile set) with the property set to true."""
+    ET.register_namespace("", _NS)
+    if source is not None:
+        root = ET.parse(source).getroot()
+    else:
+        root = ET.Element(f"{{{_NS}}}profiles")
+    profiles = root if root.tag.endswith("profiles") else _child(root, "profiles")
+    participant = next(
+        (
+            p
+            for p in profiles
+            if p.tag.endswith("participant") and p.get("is_default_profile") == "true"
+        ),
+        None,
+    )
+    if participant is None:
+        participant = ET.SubElement(
+            profiles, "participant", profile_name=_MARK, is_default_profile="true"
+        )
+    properties = _child(_child(_child(participant, "rtps"), "propertiesPolicy"), "properties")
+    for prop in properties:
+        name = prop.find("name") if prop.find("name") is not None else prop.find(f"{{{_NS}}}name")
+        if name is not None and name.text == IGNORE_LOCAL:
+            properties.remove(prop)
+    prop = ET.SubElement(properties, "property")
+    ET.SubElement(prop, "name").text = IGNORE_LOCAL
+    ET.SubElement(prop, "value").text = "true"
+    return ET.tostring(root, encoding="unicode")
+
+
+def prepare_process() -> None:
+    """Make DDS participants created from now on ignore their own endpoints (idempotent)."""
+    current = os.environ.get(PROFILES_ENV)
+    if current and _MARK in Path(current).name:
+        return
+    xml = _with_ignore_local(Path(current) if current else None)
+    fd, path = tempfile.mkstemp(prefix=f"{_MARK}-", suffix=".xml")
+    with os.fdopen(fd, "w") as out:
+        out.write(xml)
+    os.environ[PROFILES_ENV] = path
+
+
+def local_endpoints_ignored(context: Context) -> bool:
+    """Probe: does a publisher in ``context`` match a subscription in the same context?"""
+    import rclpy
+
+    node = rclpy.create_node(
+        f"_efficient_comm_probe_{uuid.uuid4().hex[:8]}",
+        context=context,
+        enable_rosout=False,
+        start_parameter_services=False,
+        use_global_arguments=False,
+    )
+    try:
+        topic = f"/_efficient_comm_probe_{uuid.uuid4().hex}"
+        pub = node.create_publisher(Empty, topic, 1)
+        node.create_subscription(Empty, topic, lambda _msg: None, 1)
+        # Same-participant matching is synchronous in DDS: no wait is needed.
+        return pub.get_subscription_count() == 0
+    finally:
+        node.destroy_node()

@@ -1,0 +1,1 @@
+"""Example components and the demo pipeline (``python -m efficient_comm.examples.demo``)."""

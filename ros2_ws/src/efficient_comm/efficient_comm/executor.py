@@ -1,0 +1,385 @@
+"""The consecutive executor: all composed components, one thread, callbacks back to back.
+
+RoboFrame ran the components of a process consecutively in one thread: a published message
+is handed to its subscribers right away, with no queue, no wake-up and no lock. This
+executor does the same for ROS 2 in Python, with a selectable order:
+
+* ``"depth_first"`` (default): ``publish()`` calls every in-process subscriber before it
+  returns, so a pipeline runs to its end inside the publisher's call. Deterministic, and
+  the cheapest possible hand-over. Nesting deeper than :data:`MAX_NESTING` (a cycle of
+  components) falls back to queuing so the stack cannot overflow.
+* ``"breadth_first"``: ``publish()`` queues the message; the executor delivers queued
+  messages in publication order once the current callback returns. QoS depth bounds each
+  subscriber's queue.
+
+Timers run on the executor's clock (real ROS time, or a :class:`ManualClock` advanced by
+:meth:`ConsecutiveExecutor.advance`). DDS entities (subscriptions from other processes,
+services, clients, graph events) are waited on through an rclpy executor inside, only when
+the container talks DDS. A callback that raises is logged and counted; the others go on.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import threading
+import time
+import traceback
+from collections import deque
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Literal, Protocol
+
+from ._clock import ManualClock, SystemClock
+from .errors import ExecutorError, MessageMutatedError
+from .guard import MutationReport, fingerprint
+from .stats import CallbackStats, StatsRegistry, StatsSnapshot
+
+if TYPE_CHECKING:
+    from rclpy.executors import Executor as RclpyExecutor
+
+    from .bus import LocalSubscription
+    from .handle import Clock, Logger
+
+Strategy = Literal["depth_first", "breadth_first"]
+#: False, True (log and record each mutation) or "raise" (also raise MessageMutatedError).
+GuardMode = bool | Literal["raise"]
+
+#: Depth-first calls nest at most this deep before further deliveries are queued.
+MAX_NESTING = 32
+#: While callbacks keep the executor busy, DDS is still polled at least this often.
+DDS_POLL_INTERVAL_NS = 1_000_000
+
+
+class _Runnable(Protocol):
+    def run_one(self, executor: ConsecutiveExecutor) -> None: ...
+
+
+class _Task:
+    """A one-off call queued on the executor (local service requests and the like)."""
+
+    __slots__ = ("fn",)
+
+    def __init__(self, fn: Callable[[], None]) -> None:
+        self.fn = fn
+
+    def run_one(self, executor: ConsecutiveExecutor) -> None:
+        self.fn()
+
+
+class ExecutorTimer:
+    """A periodic callback on the executor's clock; the handle's ``create_timer`` result."""
+
+    __slots__ = (
+        "_executor",
+        "_generation",
+        "callback",
+        "canceled",
+        "logger",
+        "next_ns",
+        "period_ns",
+        "stats",
+    )
+
+    def __init__(
+        self,
+        executor: ConsecutiveExecutor,
+        period_ns: int,
+        callback: Callable[[], None],
+        stats: CallbackStats,
+        logger: Logger,
+    ) -> None:
+        self._executor = executor
+        self.period_ns = period_ns
+        self.callback = callback
+        self.stats = stats
+        self.logger = logger
+        self.canceled = False
+        self._generation = 0
+        self.next_ns = 0
+
+    @property
+    def timer_period_ns(self) -> int:
+        return self.period_ns
+
+    def cancel(self) -> None:
+        self.canceled = True
+        self._generation += 1
+
+    def is_canceled(self) -> bool:
+        return self.canceled
+
+    def reset(self) -> None:
+        """Restart the period from now (and un-cancel), as rclpy's ``Timer.reset``."""
+        self.canceled = False
+        self._generation += 1
+        self._executor._schedule(self, self._executor.clock.now_ns() + self.period_ns)
+
+
+class ConsecutiveExecutor:
+    """Runs the callbacks of composed components one after another in a single thread."""
+
+    def __init__(
+        self,
+        *,
+        strategy: Strategy = "depth_first",
+        clock: Clock | None = None,
+        guard_mutation: GuardMode = False,
+        logger: Logger | None = None,
+    ) -> None:
+        if strategy not in ("depth_first", "breadth_first"):
+            raise ExecutorError(f"unknown strategy {strategy!r}")
+        self.strategy: Strategy = strategy
+        self.clock: Clock = clock or SystemClock()
+        self._manual = isinstance(self.clock, ManualClock)
+        self._depth_first = strategy == "depth_first"
+        self._guard: GuardMode = guard_mutation
+        self._logger = logger
+        self._ready: deque[_Runnable] = deque()
+        self._timers: list[tuple[int, int, int, ExecutorTimer]] = []
+        self._seq = itertools.count()
+        self._nesting = 0
+        # Time spent in callbacks nested inside the running one (depth-first), so that
+        # each callback's statistics show its own cost, not its downstream pipeline's.
+        self._nested_ns = 0
+        self._thread: int | None = None
+        self._stop = False
+        self._wake_event = threading.Event()
+        self._dds: RclpyExecutor | None = None
+        self._last_dds_poll = 0
+        self.registry = StatsRegistry()
+        self.mutations: list[MutationReport] = []
+
+    # -- wiring --------------------------------------------------------------------------
+
+    def attach_dds(self, rclpy_executor: RclpyExecutor) -> None:
+        """Wait on DDS entities through ``rclpy_executor`` (the container adds its nodes)."""
+        self._dds = rclpy_executor
+
+    def create_timer(
+        self, period_s: float, callback: Callable[[], None], *, stats: CallbackStats, logger: Logger
+    ) -> ExecutorTimer:
+        if not period_s > 0:
+            raise ValueError(f"timer period must be positive, got {period_s!r}")
+        timer = ExecutorTimer(self, round(period_s * 1e9), callback, stats, logger)
+        self._schedule(timer, self.clock.now_ns() + timer.period_ns)
+        self._wake()
+        return timer
+
+    def _schedule(self, timer: ExecutorTimer, due_ns: int) -> None:
+        timer.next_ns = due_ns
+        heapq.heappush(self._timers, (due_ns, next(self._seq), timer._generation, timer))
+
+    def post(self, fn: Callable[[], None]) -> None:
+        """Run ``fn`` in the executor thread soon; safe to call from any thread."""
+        self._ready.append(_Task(fn))
+        self._wake()
+
+    # -- delivery (the hot path) -----------------------------------------------------------
+
+    def dispatch(self, subs: tuple[LocalSubscription, ...], msg: Any, origin: str) -> None:
+        """Hand ``msg`` to ``subs`` now (depth-first) or queue it (breadth-first)."""
+        fp = fingerprint(msg) if self._guard else None
+        owner = self._thread
+        if (
+            self._depth_first
+            and (owner is None or owner == threading.get_ident())
+            and self._nesting < MAX_NESTING
+        ):
+            self._nesting += 1
+            try:
+                for sub in subs:
+                    self.deliver(sub, msg, fp)
+            finally:
+                self._nesting -= 1
+            return
+        for sub in subs:
+            self.enqueue(sub, msg, fp, origin=origin)
+        if owner is not None and owner != threading.get_ident():
+            self._wake()
+
+    def enqueue(
+        self, sub: LocalSubscription, msg: Any, fp: bytes | None, *, origin: str = ""
+    ) -> None:
+        queue = sub.queue
+        if queue.maxlen is not None and len(queue) == queue.maxlen:
+            sub.stats.dropped += 1
+        queue.append((msg, fp, origin))
+        self._ready.append(sub)
+
+    def deliver(
+        self, sub: LocalSubscription, msg: Any, fp: bytes | None, origin: str = ""
+    ) -> None:
+        if fp is not None and origin and fingerprint(msg) != fp:
+            # Changed while queued: the publisher kept modifying what it had published.
+            self._report(MutationReport(sub.topic.name, f"publisher {origin} after publishing"))
+            fp = fingerprint(msg)
+        stats = sub.stats
+        outer = self._nested_ns
+        self._nested_ns = 0
+        start = time.perf_counter_ns()
+        try:
+            sub.callback(msg)
+        except Exception:
+            stats.exceptions += 1
+            sub.logger.error(
+                f"callback on {sub.topic.name} raised:\n{traceback.format_exc().rstrip()}"
+            )
+        end = time.perf_counter_ns()
+        stats.record(start, end - start - self._nested_ns)
+        self._nested_ns = outer + end - start
+        if fp is not None and fingerprint(msg) != fp:
+            self._report(MutationReport(sub.topic.name, f"subscriber {stats.node} ({stats.name})"))
+
+    def _report(self, report: MutationReport) -> None:
+        self.mutations.append(report)
+        if self._logger is not None:
+            self._logger.error(str(report))
+        if self._guard == "raise":
+            raise MessageMutatedError(str(report))
+
+    def _run_timer(self, timer: ExecutorTimer) -> None:
+        stats = timer.stats
+        self._nested_ns = 0
+        start = time.perf_counter_ns()
+        try:
+            timer.callback()
+        except Exception:
+            stats.exceptions += 1
+            timer.logger.error(f"timer callback raised:\n{traceback.format_exc().rstrip()}")
+        stats.record(start, time.perf_counter_ns() - start - self._nested_ns)
+        self._nested_ns = 0
+
+    # -- the loop --------------------------------------------------------------------------
+
+    def _run_ready(self) -> bool:
+        ready = self._ready
+        if not ready:
+            return False
+        while ready:
+            ready.popleft().run_one(self)
+        return True
+
+    def _run_due_timers(self, now_ns: int) -> bool:
+        timers = self._timers
+        ran = False
+        while timers and timers[0][0] <= now_ns:
+            due, _, generation, timer = heapq.heappop(timers)
+            if generation != timer._generation or timer.canceled:
+                continue
+            # Next deadline from the previous one (no drift); skip missed periods.
+            nxt = due + timer.period_ns
+            if nxt <= now_ns:
+                nxt = now_ns + timer.period_ns - (now_ns - due) % timer.period_ns
+            self._schedule(timer, nxt)
+            self._run_timer(timer)
+            self._run_ready()
+            ran = True
+        return ran
+
+    def _next_deadline(self) -> int | None:
+        timers = self._timers
+        while timers and (timers[0][2] != timers[0][3]._generation or timers[0][3].canceled):
+            heapq.heappop(timers)
+        return timers[0][0] if timers else None
+
+    def _wake(self) -> None:
+        if self._dds is not None:
+            self._dds.wake()
+        else:
+            self._wake_event.set()
+
+    def _wait(self, timeout_s: float) -> None:
+        if self._dds is not None:
+            self._last_dds_poll = time.monotonic_ns()
+            self._dds.spin_once(timeout_sec=timeout_s)
+        else:
+            self._wake_event.wait(timeout_s)
+            self._wake_event.clear()
+
+    def spin_once(self, timeout_s: float | None = None) -> None:
+        """Run what is ready and due; if nothing was, wait up to ``timeout_s`` for work."""
+        with self._owning():
+            did = self._run_ready()
+            if not self._manual:
+                did = self._run_due_timers(self.clock.now_ns()) or did
+            if did:
+                if (
+                    self._dds is not None
+                    and time.monotonic_ns() - self._last_dds_poll > DDS_POLL_INTERVAL_NS
+                ):
+                    self._wait(0.0)
+                    self._run_ready()
+                return
+            wait = 3600.0 if timeout_s is None else timeout_s
+            deadline = None if self._manual else self._next_deadline()
+            if deadline is not None:
+                wait = min(wait, max(0.0, (deadline - self.clock.now_ns()) / 1e9))
+            self._wait(wait)
+            self._run_ready()
+
+    def spin(self) -> None:
+        """Run until :meth:`shutdown` (from a callback or another thread) or Ctrl-C."""
+        self._stop = False
+        while not self._stop:
+            self.spin_once(0.1)
+
+    def spin_until(self, predicate: Callable[[], bool], *, timeout_s: float) -> bool:
+        """Spin until ``predicate()`` holds; False if ``timeout_s`` passed first."""
+        end = time.monotonic() + timeout_s
+        while not predicate():
+            left = end - time.monotonic()
+            if left <= 0:
+                return False
+            self.spin_once(min(left, 0.05))
+        return True
+
+    def spin_for(self, duration_s: float) -> None:
+        end = time.monotonic() + duration_s
+        while (left := end - time.monotonic()) > 0 and not self._stop:
+            self.spin_once(left)
+
+    def advance(self, duration_s: float) -> None:
+        """Move a manual clock forward, running every timer that falls due on the way."""
+        clock = self.clock
+        if not isinstance(clock, ManualClock):
+            raise ExecutorError("advance() needs an executor on a ManualClock")
+        target = clock.now_ns() + round(duration_s * 1e9)
+        with self._owning():
+            self._run_ready()
+            while (deadline := self._next_deadline()) is not None and deadline <= target:
+                clock.set_ns(max(deadline, clock.now_ns()))
+                self._run_due_timers(deadline)
+            clock.set_ns(target)
+            self._run_ready()
+
+    def shutdown(self) -> None:
+        self._stop = True
+        self._wake()
+
+    def stats(self) -> list[StatsSnapshot]:
+        """Execution time and frequency of every callback (see :mod:`efficient_comm.stats`)."""
+        return self.registry.snapshot()
+
+    def _owning(self) -> _Owner:
+        return _Owner(self)
+
+
+class _Owner:
+    """Marks the current thread as the executor's while it runs callbacks."""
+
+    __slots__ = ("_executor", "_outer")
+
+    def __init__(self, executor: ConsecutiveExecutor) -> None:
+        self._executor = executor
+        self._outer: int | None = None
+
+    def __enter__(self) -> None:
+        ex = self._executor
+        me = threading.get_ident()
+        self._outer = ex._thread
+        if self._outer is not None and self._outer != me:
+            raise ExecutorError("the executor is already spinning in another thread")
+        ex._thread = me
+
+    def __exit__(self, *exc: object) -> None:
+        self._executor._thread = self._outer

@@ -1,0 +1,182 @@
+"""The node handle: the one interface a component talks to (the dissertation's gateway).
+
+A component is a plain class whose constructor takes a :class:`NodeHandle`. It never
+subclasses or imports ``rclpy.node.Node``, so the same class runs on every backend:
+
+* :mod:`efficient_comm.standalone` wraps a real rclpy node (one component, one process);
+* :mod:`efficient_comm.container` composes many components in one process and passes
+  messages between them by reference;
+* :mod:`efficient_comm.testing` needs no DDS at all and runs on a manual clock.
+
+Only the protocols below are the contract; each backend returns its own implementations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol, TypeAlias, runtime_checkable
+
+from rclpy.qos import QoSProfile
+from rclpy.task import Future
+
+__all__ = [
+    "Client",
+    "Clock",
+    "Component",
+    "Future",
+    "Logger",
+    "MessageCallback",
+    "NodeHandle",
+    "ParameterCallback",
+    "ParameterValue",
+    "Publisher",
+    "QoSLike",
+    "Service",
+    "Subscription",
+    "Timer",
+]
+
+#: A depth (KEEP_LAST, reliable, volatile, as in rclpy) or a full profile.
+QoSLike: TypeAlias = QoSProfile | int
+#: Values a ROS 2 parameter can hold.
+ParameterValue: TypeAlias = (
+    bool | int | float | str | bytes | list[bool] | list[int] | list[float] | list[str]
+)
+MessageCallback: TypeAlias = Callable[[Any], None]
+#: Called with the parameters about to change; raise ``ValueError`` (or
+#: :class:`~efficient_comm.errors.ParameterError`) to reject the whole change.
+ParameterCallback: TypeAlias = Callable[[Mapping[str, ParameterValue]], None]
+
+
+class Publisher(Protocol):
+    """Sends messages on one topic."""
+
+    @property
+    def topic_name(self) -> str:
+        """The fully resolved topic name (after namespace and remapping)."""
+        ...
+
+    def publish(self, msg: Any, /) -> None:
+        """Publish ``msg``.
+
+        On the composed and test backends in-process subscribers receive this very object:
+        do not modify it after publishing, and receivers must not modify it either.
+        """
+        ...
+
+
+class Subscription(Protocol):
+    @property
+    def topic_name(self) -> str: ...
+
+
+class Timer(Protocol):
+    @property
+    def timer_period_ns(self) -> int: ...
+
+    def cancel(self) -> None: ...
+
+    def reset(self) -> None: ...
+
+    def is_canceled(self) -> bool: ...
+
+
+class Service(Protocol):
+    @property
+    def service_name(self) -> str: ...
+
+
+class Client(Protocol):
+    @property
+    def srv_name(self) -> str: ...
+
+    def call_async(self, request: Any, /) -> Future:
+        """Send ``request``; the future completes in the executor's thread.
+
+        Components run inside a single-threaded executor, so they must never block on the
+        future: add a done-callback instead.
+        """
+        ...
+
+    def service_is_ready(self) -> bool: ...
+
+
+class Logger(Protocol):
+    def debug(self, message: str, /) -> Any: ...
+
+    def info(self, message: str, /) -> Any: ...
+
+    def warning(self, message: str, /) -> Any: ...
+
+    def error(self, message: str, /) -> Any: ...
+
+
+class Clock(Protocol):
+    """Time as integer nanoseconds: ROS time for real backends, manual time in tests."""
+
+    def now_ns(self) -> int: ...
+
+
+@runtime_checkable
+class NodeHandle(Protocol):
+    """What a component may ask of the middleware. Injected into the constructor."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def namespace(self) -> str: ...
+
+    @property
+    def fully_qualified_name(self) -> str: ...
+
+    @property
+    def logger(self) -> Logger: ...
+
+    @property
+    def clock(self) -> Clock: ...
+
+    def create_publisher(self, msg_type: type, topic: str, *, qos: QoSLike = 10) -> Publisher: ...
+
+    def create_subscription(
+        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
+    ) -> Subscription: ...
+
+    def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer: ...
+
+    def create_service(
+        self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
+    ) -> Service:
+        """``callback(request, response)`` fills and returns ``response``, as in rclpy."""
+        ...
+
+    def create_client(self, srv_type: type, name: str) -> Client: ...
+
+    def declare_parameter(
+        self,
+        name: str,
+        default: ParameterValue,
+        *,
+        description: str = "",
+        read_only: bool = False,
+    ) -> ParameterValue:
+        """Declare ``name`` with the type of ``default``; return the effective value.
+
+        The effective value is the override given at deployment (params file, container
+        entry, test fixture) when there is one, else ``default``.
+        """
+        ...
+
+    def get_parameter(self, name: str) -> ParameterValue: ...
+
+    def set_parameter(self, name: str, value: ParameterValue) -> None:
+        """Set a declared parameter; raises ParameterError if rejected or of another type."""
+        ...
+
+    def add_on_parameter_change(self, callback: ParameterCallback) -> None: ...
+
+
+class Component(Protocol):
+    """Anything constructed from a handle. ``close()`` is optional and called on unload."""
+
+    def __init__(self, node: NodeHandle) -> None: ...

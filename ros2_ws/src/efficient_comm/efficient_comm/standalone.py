@@ -1,0 +1,266 @@
+"""The standalone backend: one component as its own ROS 2 node and process.
+
+This is what ``ros2 run`` starts. A package exposes a component with a console script::
+
+    # setup.py: entry_points={"console_scripts": ["camera = my_pkg.camera:main"]}
+    main = standalone_main(Camera, name="camera")
+
+or runs any component without writing one::
+
+    ros2 run efficient_comm standalone my_pkg.camera:Camera --ros-args -r image:=/cam/image
+
+``--ros-args`` work as for any rclpy node: ``-r`` remaps (``__node:=``/``__ns:=`` too),
+``-p`` parameters and ``--params-file``. The handle hands rclpy's own publishers back, so
+a standalone component pays nothing for the indirection; callbacks are timed into the same
+statistics the consecutive executor keeps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from types import TracebackType
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.utilities import remove_ros_args
+
+from ._params import RclpyParameters
+from ._qos import to_profile
+from .config import ComponentSpec, resolve_factory
+from .errors import ComponentError
+from .handle import (
+    Client,
+    Clock,
+    Logger,
+    MessageCallback,
+    ParameterCallback,
+    ParameterValue,
+    Publisher,
+    QoSLike,
+    Service,
+    Subscription,
+    Timer,
+)
+from .stats import CallbackKind, StatsRegistry, StatsSnapshot
+
+
+class _NodeClock:
+    __slots__ = ("_clock",)
+
+    def __init__(self, node: Node) -> None:
+        self._clock = node.get_clock()
+
+    def now_ns(self) -> int:
+        return int(self._clock.now().nanoseconds)
+
+
+class StandaloneHandle:
+    """A node handle over a real rclpy node."""
+
+    def __init__(self, node: Node, *, registry: StatsRegistry | None = None) -> None:
+        self.rclpy_node = node
+        self.registry = registry or StatsRegistry()
+        self._params = RclpyParameters(node)
+        self._clock = _NodeClock(node)
+
+    @property
+    def name(self) -> str:
+        return self.rclpy_node.get_name()
+
+    @property
+    def namespace(self) -> str:
+        return self.rclpy_node.get_namespace()
+
+    @property
+    def fully_qualified_name(self) -> str:
+        return self.rclpy_node.get_fully_qualified_name()
+
+    @property
+    def logger(self) -> Logger:
+        return self.rclpy_node.get_logger()
+
+    @property
+    def clock(self) -> Clock:
+        return self._clock
+
+    def _timed(
+        self, kind: CallbackKind, name: str, callback: Callable[..., Any]
+    ) -> Callable[..., Any]:
+        """Record time and frequency, and log (not propagate) exceptions, like composed."""
+        stats = self.registry.add(self.fully_qualified_name, kind, name)
+        logger = self.logger
+
+        def timed(*args: Any) -> Any:
+            start = time.perf_counter_ns()
+            try:
+                return callback(*args)
+            except Exception:
+                stats.exceptions += 1
+                logger.error(f"{kind} {name} raised:\n{traceback.format_exc().rstrip()}")
+                return args[-1] if kind == "service" else None
+            finally:
+                stats.record(start, time.perf_counter_ns() - start)
+
+        return timed
+
+    def create_publisher(self, msg_type: type, topic: str, *, qos: QoSLike = 10) -> Publisher:
+        return self.rclpy_node.create_publisher(msg_type, topic, to_profile(qos))
+
+    def create_subscription(
+        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
+    ) -> Subscription:
+        name = self.rclpy_node.resolve_topic_name(topic)
+        return self.rclpy_node.create_subscription(
+            msg_type, topic, self._timed("subscription", name, callback), to_profile(qos)
+        )
+
+    def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
+        if not period_s > 0:
+            raise ValueError(f"timer period must be positive, got {period_s!r}")
+        name = getattr(callback, "__qualname__", "")
+        return self.rclpy_node.create_timer(period_s, self._timed("timer", name, callback))
+
+    def create_service(
+        self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
+    ) -> Service:
+        full = self.rclpy_node.resolve_service_name(name)
+        return self.rclpy_node.create_service(
+            srv_type, name, self._timed("service", full, callback)
+        )
+
+    def create_client(self, srv_type: type, name: str) -> Client:
+        return self.rclpy_node.create_client(srv_type, name)
+
+    def declare_parameter(
+        self,
+        name: str,
+        default: ParameterValue,
+        *,
+        description: str = "",
+        read_only: bool = False,
+    ) -> ParameterValue:
+        return self._params.declare(name, default, description=description, read_only=read_only)
+
+    def get_parameter(self, name: str) -> ParameterValue:
+        return self._params.get(name)
+
+    def set_parameter(self, name: str, value: ParameterValue) -> None:
+        self._params.set(name, value)
+
+    def add_on_parameter_change(self, callback: ParameterCallback) -> None:
+        self._params.add_callback(callback)
+
+
+class Standalone:
+    """One component on its own rclpy context, node and executor (a context manager).
+
+    ``args`` are command-line arguments (``--ros-args`` ones are honoured).
+    """
+
+    def __init__(
+        self,
+        factory: Callable[[Any], Any],
+        *,
+        name: str,
+        namespace: str | None = None,
+        args: Sequence[str] | None = None,
+        domain_id: int | None = None,
+    ) -> None:
+        self.context = Context()
+        rclpy.init(args=list(args) if args is not None else None, context=self.context,
+                   domain_id=domain_id)
+        try:
+            self.node = Node(name, namespace=namespace, context=self.context)
+            self.handle = StandaloneHandle(self.node)
+            try:
+                self.component = factory(self.handle)
+            except Exception as exc:
+                raise ComponentError(
+                    f"constructing {getattr(factory, '__qualname__', factory)} as "
+                    f"{self.node.get_fully_qualified_name()} raised {exc!r}"
+                ) from exc
+            self.executor = SingleThreadedExecutor(context=self.context)
+            self.executor.add_node(self.node)
+        except BaseException:
+            self.context.try_shutdown()
+            raise
+
+    def spin(self) -> None:
+        """Run until Ctrl-C, SIGTERM or :meth:`close` from another thread."""
+        try:
+            self.executor.spin()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+
+    def spin_once(self, timeout_s: float | None = None) -> None:
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def stats(self) -> list[StatsSnapshot]:
+        return self.handle.registry.snapshot()
+
+    def close(self) -> None:
+        close = getattr(self.component, "close", None) if hasattr(self, "component") else None
+        try:
+            if callable(close):
+                close()
+        finally:
+            self.executor.shutdown()
+            self.node.destroy_node()
+            self.context.try_shutdown()
+
+    def __enter__(self) -> Standalone:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def run(factory: Callable[[Any], Any], *, name: str, args: Sequence[str] | None = None) -> int:
+    """Run ``factory`` as a standalone node until interrupted; returns an exit code."""
+    try:
+        with Standalone(factory, name=name, args=sys.argv if args is None else args) as node:
+            node.spin()
+    except ComponentError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def standalone_main(factory: Callable[[Any], Any], *, name: str) -> Callable[[], int]:
+    """A console-script ``main`` that runs ``factory`` as node ``name``."""
+
+    def main() -> int:
+        return run(factory, name=name)
+
+    return main
+
+
+def cli(argv: Sequence[str] | None = None) -> int:
+    """``standalone CLASS_PATH [--name NAME] [--ros-args ...]``: any component, own node."""
+    argv = list(sys.argv if argv is None else argv)
+    parser = argparse.ArgumentParser(prog="standalone", description=cli.__doc__)
+    parser.add_argument("class_path", help="module:Class or an efficient_comm.components entry")
+    parser.add_argument("--name", help="node name (default: the class name in snake_case)")
+    options = parser.parse_args(remove_ros_args(argv)[1:])
+    spec = ComponentSpec(class_path=options.class_path, name=options.name or "", source="cli")
+    try:
+        factory = resolve_factory(spec)
+    except ComponentError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    default = "".join(
+        "_" + c.lower() if c.isupper() else c for c in getattr(factory, "__name__", "node")
+    ).lstrip("_")
+    return run(factory, name=options.name or default, args=argv)
