@@ -9,11 +9,13 @@ fi
 case $- in *u*) _ec_nounset=1 ;; *) _ec_nounset= ;; esac
 set +u
 source "$_ec_root/.venv/bin/activate"
+# The wheels' prefix (.venv) holds the ament index of rclpy and the messages; colcon's
+# setup.bash does not chain it, so add it here once.
 case ":${AMENT_PREFIX_PATH:-}:" in
   *":$VIRTUAL_ENV:"*) ;;
   *) export AMENT_PREFIX_PATH=$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH} ;;
 esac
 source "$_ec_root/ros2_ws/install/setup.bash"
-[[ -n $_ec_nounset ]] && set -u
+if [[ -n $_ec_nounset ]]; then set -u; fi
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 unset _ec_root _ec_nounset

@@ -29,6 +29,8 @@ fi
 "$venv/bin/python" scripts/fix_wheel_cmake_paths.py
 
 echo "setup: building ros2_ws"
+# CMake finds rosidl typesupports through both paths. colcon then warns that .venv has no
+# local_setup.* files: expected, the wheels' prefix is not a colcon workspace.
 export PATH=$venv/bin:$PATH VIRTUAL_ENV=$venv
 export AMENT_PREFIX_PATH=$venv CMAKE_PREFIX_PATH=$venv
 cd ros2_ws
