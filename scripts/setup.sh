@@ -17,7 +17,7 @@ if [[ $(cat "$venv/.requirements-stamp" 2>/dev/null) != "$stamp" ]]; then
   echo "setup: installing tools/requirements.txt (log: .venv/pip-install.log)"
   if ! "$venv/bin/python" -m pip install -c tools/constraints-jazzy.txt -r tools/requirements.txt \
       >"$venv/pip-install.log" 2>&1; then
-    tail -n 40 "$venv/pip-install.log" >&2
+    grep -v "is ignored" "$venv/pip-install.log" | tail -n 40 >&2
     echo "setup: pip install failed" >&2
     exit 1
   fi
