@@ -148,6 +148,7 @@ class ConsecutiveExecutor:
         self._last_dds_poll = 0
         self.registry = StatsRegistry()
         self.mutations: list[MutationReport] = []
+        self._last_report: tuple[int, MutationReport] | None = None
 
     # -- wiring --------------------------------------------------------------------------
 
@@ -188,7 +189,7 @@ class ConsecutiveExecutor:
             self._nesting += 1
             try:
                 for sub in subs:
-                    self.deliver(sub, msg, fp)
+                    fp = self.deliver(sub, msg, fp)
             finally:
                 self._nesting -= 1
             return
@@ -208,10 +209,13 @@ class ConsecutiveExecutor:
 
     def deliver(
         self, sub: LocalSubscription, msg: Any, fp: bytes | None, origin: str = ""
-    ) -> None:
+    ) -> bytes | None:
+        """Run ``sub``'s callback on ``msg``; returns the fingerprint after it (guard mode)."""
         if fp is not None and origin and fingerprint(msg) != fp:
             # Changed while queued: the publisher kept modifying what it had published.
-            self._report(MutationReport(sub.topic.name, f"publisher {origin} after publishing"))
+            self._report(
+                MutationReport(sub.topic.name, f"publisher {origin} after publishing"), msg
+            )
             fp = fingerprint(msg)
         stats = sub.stats
         outer = self._nested_ns
@@ -227,10 +231,18 @@ class ConsecutiveExecutor:
         end = time.perf_counter_ns()
         stats.record(start, end - start - self._nested_ns)
         self._nested_ns = outer + end - start
-        if fp is not None and fingerprint(msg) != fp:
-            self._report(MutationReport(sub.topic.name, f"subscriber {stats.node} ({stats.name})"))
+        if fp is not None and (after := fingerprint(msg)) != fp:
+            self._report(
+                MutationReport(sub.topic.name, f"subscriber {stats.node} ({stats.name})"), msg
+            )
+            return after  # blame the next change on whoever makes it
+        return fp
 
-    def _report(self, report: MutationReport) -> None:
+    def _report(self, report: MutationReport, msg: Any) -> None:
+        key = (id(msg), report)
+        if key == self._last_report:
+            return  # the same change, seen again by the next queued receiver
+        self._last_report = key
         self.mutations.append(report)
         if self._logger is not None:
             self._logger.error(str(report))

@@ -39,6 +39,7 @@ from ._clock import ManualClock
 from .bus import LocalPublisher
 from .composed import ComposedHandle, RecordingLogger
 from .container import Container
+from .dds import _MARK, PROFILES_ENV
 from .executor import GuardMode, Strategy
 from .handle import QoSLike
 from .stats import CallbackStats
@@ -183,4 +184,6 @@ def ros_env(domain_id: int, base: Mapping[str, str] | None = None) -> dict[str, 
     env = dict(os.environ if base is None else base)
     env["ROS_DOMAIN_ID"] = str(domain_id)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    if _MARK in env.get(PROFILES_ENV, ""):
+        del env[PROFILES_ENV]  # the child decides for itself whether it composes
     return env

@@ -1,0 +1,81 @@
+"""In-process delivery follows DDS QoS rules: compatibility, durability, types."""
+
+from __future__ import annotations
+
+import pytest
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Int32, String
+
+from efficient_comm import NameResolutionError, TopicTypeError
+from efficient_comm.testing import TestHandle
+
+BEST_EFFORT = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+LATCHED = QoSProfile(depth=2, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def test_reliable_subscriber_does_not_hear_best_effort_publisher() -> None:
+    node = TestHandle()
+    reliable: list[String] = []
+    best_effort: list[String] = []
+    node.create_subscription(String, "t", reliable.append, qos=10)
+    node.create_subscription(String, "t", best_effort.append, qos=BEST_EFFORT)
+    node.create_publisher(String, "t", qos=BEST_EFFORT).publish(String())
+    assert len(reliable) == 0 and len(best_effort) == 1
+
+
+def test_transient_local_replays_last_depth_messages_to_late_joiners_only() -> None:
+    node = TestHandle()
+    pub = node.create_publisher(String, "map", qos=LATCHED)
+    for i in range(3):
+        pub.publish(String(data=str(i)))
+    late: list[str] = []
+    volatile_late: list[str] = []
+    node.create_subscription(String, "map", lambda m: late.append(m.data), qos=LATCHED)
+    node.create_subscription(String, "map", lambda m: volatile_late.append(m.data))
+    node.spin_some()
+    assert late == ["1", "2"] and volatile_late == []
+
+
+def test_volatile_publisher_cannot_serve_transient_local_subscriber() -> None:
+    node = TestHandle()
+    got: list[String] = []
+    node.create_subscription(String, "t", got.append, qos=LATCHED)
+    node.create_publisher(String, "t").publish(String())
+    assert got == []
+
+
+def test_one_topic_one_type() -> None:
+    node = TestHandle()
+    node.create_publisher(String, "t")
+    with pytest.raises(TopicTypeError, match="std_msgs/String"):
+        node.create_subscription(Int32, "t", lambda m: None)
+
+
+def test_publishing_the_wrong_type_raises() -> None:
+    node = TestHandle()
+    with pytest.raises(TypeError):
+        node.create_publisher(String, "t").publish(Int32())
+
+
+@pytest.mark.parametrize("bad", ["with space", "1starts_with_digit", "double//slash", ""])
+def test_invalid_topic_names_are_rejected(bad: str) -> None:
+    with pytest.raises(NameResolutionError):
+        TestHandle().create_publisher(String, bad)
+
+
+def test_private_and_relative_names_resolve_like_rcl() -> None:
+    node = TestHandle("cam", namespace="/robot", remappings={"~/raw": "/sensors/raw"})
+    assert node.create_publisher(String, "image").topic_name == "/robot/image"
+    assert node.create_publisher(String, "~/info").topic_name == "/robot/cam/info"
+    assert node.create_publisher(String, "~/raw").topic_name == "/sensors/raw"
+
+
+def test_unloading_removes_endpoints() -> None:
+    node = TestHandle("a")
+    other = TestHandle("b", container=node.container)
+    got: list[String] = []
+    other.create_subscription(String, "t", got.append)
+    pub = node.create_publisher(String, "t")
+    other.close()
+    pub.publish(String())
+    assert got == []

@@ -1,0 +1,146 @@
+"""One suite, three backends: a component behaves the same standalone, composed and under test."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import pytest
+from efficient_comm_interfaces.srv import UnloadComponent
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from efficient_comm import ParameterError
+from efficient_comm.handle import NodeHandle, ParameterValue
+
+from .conformance import BACKENDS, harness
+
+LATCHED = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+
+
+class Shouter:
+    """Upper-cases what it hears; fails on 'boom' (to prove the executor survives)."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.node = node
+        self.prefix = str(node.declare_parameter("prefix", ">"))
+        self.gain = float(node.declare_parameter("gain", 1.0))
+        self.rejections = 0
+        node.add_on_parameter_change(self._on_change)
+        self.out = node.create_publisher(String, "out")
+        self.status = node.create_publisher(String, "status", qos=LATCHED)
+        self.status.publish(String(data=f"ready {node.fully_qualified_name}"))
+        node.create_subscription(String, "in", self._on_in)
+
+    def _on_change(self, changes: Mapping[str, ParameterValue]) -> None:
+        gain = changes.get("gain")
+        if gain is not None and float(gain) < 0:  # type: ignore[arg-type]
+            self.rejections += 1
+            raise ValueError("gain must not be negative")
+        if "prefix" in changes:
+            self.prefix = str(changes["prefix"])
+
+    def _on_in(self, msg: String) -> None:
+        if msg.data == "boom":
+            raise RuntimeError("boom")
+        self.out.publish(String(data=self.prefix + msg.data.upper()))
+
+
+class Counter:
+    """Publishes 0, 1, 2, ... on a timer."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        rate = float(node.declare_parameter("rate_hz", 50.0))
+        self.pub = node.create_publisher(String, "count")
+        self.n = 0
+        node.create_timer(1.0 / rate, self._tick)
+
+    def _tick(self) -> None:
+        self.pub.publish(String(data=str(self.n)))
+        self.n += 1
+
+
+class Adder:
+    """A service: answers the request's id doubled (any srv type would do)."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        node.create_service(UnloadComponent, "double", self._double)
+
+    def _double(self, request: Any, response: Any) -> Any:
+        if request.unique_id == 13:
+            raise RuntimeError("unlucky")
+        response.success = True
+        response.error_message = str(request.unique_id * 2)
+        return response
+
+
+@pytest.fixture(params=BACKENDS)
+def backend(request: pytest.FixtureRequest) -> str:
+    return str(request.param)
+
+
+def test_messages_flow_through_remapped_names(backend: str) -> None:
+    with harness(backend, Shouter, name="shout", namespace="/robot",
+                 remappings={"in": "/robot/heard"}) as h:
+        out = h.collect("/robot/out", String)
+        h.send("/robot/heard", String(data="hello"))
+        assert h.wait_for(lambda: len(out) == 1)
+        assert out[0].data == ">HELLO"
+        assert h.handle.fully_qualified_name == "/robot/shout"
+
+
+def test_a_raising_callback_does_not_stop_the_others(backend: str) -> None:
+    with harness(backend, Shouter) as h:
+        out = h.collect("/out", String)
+        for text in ("a", "boom", "b"):
+            h.send("/in", String(data=text))
+        assert h.wait_for(lambda: len(out) == 2)
+        assert [m.data for m in out] == [">A", ">B"]
+
+
+def test_timers_fire_in_order(backend: str) -> None:
+    with harness(backend, Counter, parameters={"rate_hz": 100.0}) as h:
+        got = h.collect("/count", String)
+        assert h.wait_for(lambda: len(got) >= 3)
+        values = [int(m.data) for m in got]
+        assert values == list(range(values[0], values[0] + len(values)))
+
+
+def test_parameters_default_override_change_and_reject(backend: str) -> None:
+    with harness(backend, Shouter, parameters={"prefix": "#"}) as h:
+        node, shouter = h.handle, h.component
+        assert node.get_parameter("prefix") == "#"  # deployment override
+        assert node.get_parameter("gain") == 1.0  # default
+        node.set_parameter("prefix", "!")
+        assert shouter.prefix == "!"  # on-change callback ran
+        with pytest.raises(ParameterError):
+            node.set_parameter("gain", -1.0)  # vetoed by the component
+        assert node.get_parameter("gain") == 1.0 and shouter.rejections == 1
+        with pytest.raises(ParameterError):
+            node.set_parameter("gain", "loud")  # wrong type
+        with pytest.raises(ParameterError):
+            node.get_parameter("missing")
+        with pytest.raises(ParameterError):
+            node.declare_parameter("prefix", "again")
+
+
+def test_transient_local_reaches_late_joiners(backend: str) -> None:
+    with harness(backend, Shouter, name="late") as h:
+        h.run_for(0.05)
+        status = h.collect("/status", String, qos=LATCHED)
+        assert h.wait_for(lambda: len(status) == 1)
+        assert status[0].data == "ready /late"
+
+
+def test_services_answer_and_survive_errors(backend: str) -> None:
+    with harness(backend, Adder) as h:
+        client = h.client(UnloadComponent, "/double")
+        assert h.wait_for(client.service_is_ready)
+        bad = client.call_async(UnloadComponent.Request(unique_id=13))
+        good = client.call_async(UnloadComponent.Request(unique_id=21))
+        assert h.wait_for(good.done)
+        assert good.result().error_message == "42"
+        assert h.wait_for(bad.done)
+        assert bad.exception() is not None or not bad.result().success

@@ -1,0 +1,48 @@
+"""The mutation guard names the callback that changed a shared message."""
+
+from __future__ import annotations
+
+import pytest
+from std_msgs.msg import String
+
+from efficient_comm import MessageMutatedError
+from efficient_comm.testing import TestHandle, test_container
+
+
+def _vandal(msg: String) -> None:
+    msg.data = "changed"
+
+
+def test_guard_names_the_mutating_subscriber() -> None:
+    container = test_container(guard_mutation=True)
+    node = TestHandle("vandal", container=container)
+    node.create_subscription(String, "t", _vandal)
+    node.create_publisher(String, "t").publish(String(data="orig"))
+    (report,) = container.executor.mutations
+    assert report.topic == "/t" and "/vandal" in report.culprit
+
+
+def test_guard_in_raise_mode_fails_the_test() -> None:
+    node = TestHandle("vandal")  # test handles raise by default
+    node.create_subscription(String, "t", _vandal)
+    with pytest.raises(MessageMutatedError, match="/vandal"):
+        node.create_publisher(String, "t").publish(String(data="orig"))
+
+
+def test_guard_catches_a_publisher_that_modifies_after_publishing() -> None:
+    container = test_container(strategy="breadth_first", guard_mutation=True)
+    node = TestHandle("sloppy", container=container)
+    node.create_subscription(String, "t", lambda m: None)
+    msg = String(data="v1")
+    node.create_publisher(String, "t").publish(msg)
+    msg.data = "v2"  # while still queued for the subscriber
+    node.spin_some()
+    (report,) = container.executor.mutations
+    assert "publisher /sloppy" in report.culprit
+
+
+def test_readers_that_do_not_mutate_pass() -> None:
+    node = TestHandle()
+    node.create_subscription(String, "t", lambda m: m.data.upper())
+    node.create_publisher(String, "t").publish(String(data="fine"))
+    assert node.container.executor.mutations == []
