@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import (
@@ -23,7 +23,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from .errors import ConfigError, ParameterError
-from .handle import ParameterCallback, ParameterValue
+from .handle import P, ParameterCallback, ParameterValue
 
 # -- the ROS 2 params-file layout -------------------------------------------------------
 
@@ -109,9 +109,7 @@ class LocalParameters:
         self._read_only: set[str] = set()
         self._callbacks: list[ParameterCallback] = []
 
-    def declare(
-        self, name: str, default: ParameterValue, *, description: str, read_only: bool
-    ) -> ParameterValue:
+    def declare(self, name: str, default: P, *, description: str, read_only: bool) -> P:
         del description  # kept by the rclpy store, where ros2 param describe shows it
         if name in self._values:
             raise ParameterError(f"parameter {name!r} is already declared")
@@ -124,11 +122,11 @@ class LocalParameters:
         self._values[name] = value
         if read_only:
             self._read_only.add(name)
-        return value
+        return cast(P, value)
 
     def get(self, name: str) -> ParameterValue:
         try:
-            return self._values[name]
+            return cast(ParameterValue, self._values[name])
         except KeyError:
             raise ParameterError(f"parameter {name!r} is not declared") from None
 
@@ -162,9 +160,7 @@ class RclpyParameters:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
-    def declare(
-        self, name: str, default: ParameterValue, *, description: str, read_only: bool
-    ) -> ParameterValue:
+    def declare(self, name: str, default: P, *, description: str, read_only: bool) -> P:
         descriptor = ParameterDescriptor(description=description, read_only=read_only)
         try:
             param = self._node.declare_parameter(name, default, descriptor)
@@ -174,11 +170,11 @@ class RclpyParameters:
             InvalidParameterValueException,
         ) as exc:
             raise ParameterError(f"parameter {name!r}: {exc}") from exc
-        return param.value  # type: ignore[no-any-return]
+        return cast(P, param.value)
 
     def get(self, name: str) -> ParameterValue:
         try:
-            return self._node.get_parameter(name).value  # type: ignore[no-any-return]
+            return cast(ParameterValue, self._node.get_parameter(name).value)
         except ParameterNotDeclaredException:
             raise ParameterError(f"parameter {name!r} is not declared") from None
 

@@ -28,7 +28,7 @@ def queue_limit(profile: QoSProfile) -> int | None:
 
 
 def is_transient_local(profile: QoSProfile) -> bool:
-    return profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    return bool(profile.durability == DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def compatible(pub: QoSProfile, sub: QoSProfile) -> bool:

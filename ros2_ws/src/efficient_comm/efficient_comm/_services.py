@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import yaml
+
 from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
 
 from ._names import parse_remaps

@@ -38,8 +38,8 @@ class LocalSubscription:
         "active",
         "callback",
         "logger",
-        "queue",
         "qos",
+        "queue",
         "stats",
         "topic",
     )

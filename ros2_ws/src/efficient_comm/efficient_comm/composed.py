@@ -31,6 +31,7 @@ from .handle import (
     Clock,
     Logger,
     MessageCallback,
+    P,
     ParameterCallback,
     ParameterValue,
     QoSLike,
@@ -88,7 +89,7 @@ class LocalService:
         """Run the callback with stats; returns the response or raises."""
         start = time.perf_counter_ns()
         try:
-            return self.callback(request, self.srv_type.Response())
+            return self.callback(request, getattr(self.srv_type, "Response")())  # noqa: B009
         except Exception:
             self.stats.exceptions += 1
             raise
@@ -289,11 +290,11 @@ class ComposedHandle:
     def declare_parameter(
         self,
         name: str,
-        default: ParameterValue,
+        default: P,
         *,
         description: str = "",
         read_only: bool = False,
-    ) -> ParameterValue:
+    ) -> P:
         return self._params.declare(name, default, description=description, read_only=read_only)
 
     def get_parameter(self, name: str) -> ParameterValue:

@@ -15,6 +15,7 @@ full ROS 2 nodes that other processes see and reach.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import traceback
@@ -147,20 +148,21 @@ class Container:
         return self._create(resolve_factory(spec), spec)
 
     def _create(self, factory: Callable[[Any], Any], spec: ComponentSpec) -> LoadedComponent:
-        name, namespace = check_node_name(spec.name, spec.namespace)
-        fqn = fully_qualified(name, namespace)
-        for loaded in self._components.values():
-            if loaded.full_node_name == fqn:
-                raise ComponentError(
-                    f"{spec.source}: node name {fqn} is already taken by {loaded.class_path}"
-                )
-        handle = ComposedHandle(
-            self,
-            name=name,
-            namespace=namespace,
-            remappings=spec.remappings,
-            parameters=spec.parameters,
-        )
+        try:
+            name, namespace = check_node_name(spec.name, spec.namespace)
+            fqn = fully_qualified(name, namespace)
+            for loaded in self._components.values():
+                if loaded.full_node_name == fqn:
+                    raise ComponentError(f"node name {fqn} is already taken by {loaded.class_path}")
+            handle = ComposedHandle(
+                self,
+                name=name,
+                namespace=namespace,
+                remappings=spec.remappings,
+                parameters=spec.parameters,
+            )
+        except EfficientCommError as exc:
+            raise ComponentError(f"{spec.source}: {exc}") from exc
         try:
             instance = factory(handle)
         except Exception as exc:
@@ -216,10 +218,8 @@ class Container:
 
     def spin(self) -> None:
         """Run until :meth:`shutdown`, Ctrl-C or SIGTERM."""
-        try:
+        with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
             self.executor.spin()
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
 
     def spin_once(self, timeout_s: float | None = None) -> None:
         self.executor.spin_once(timeout_s)

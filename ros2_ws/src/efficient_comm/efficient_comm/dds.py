@@ -45,10 +45,7 @@ def _child(parent: ET.Element, tag: str) -> ET.Element:
 def _with_ignore_local(source: Path | None) -> str:
     """The XML of ``source`` (or an empty profile set) with the property set to true."""
     ET.register_namespace("", _NS)
-    if source is not None:
-        root = ET.parse(source).getroot()
-    else:
-        root = ET.Element(f"{{{_NS}}}profiles")
+    root = ET.parse(source).getroot() if source else ET.Element(f"{{{_NS}}}profiles")
     profiles = root if root.tag.endswith("profiles") else _child(root, "profiles")
     participant = next(
         (

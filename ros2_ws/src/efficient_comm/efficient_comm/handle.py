@@ -14,7 +14,7 @@ Only the protocols below are the contract; each backend returns its own implemen
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol, TypeAlias, runtime_checkable
+from typing import Any, Protocol, TypeAlias, TypeVar, runtime_checkable
 
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
@@ -42,6 +42,8 @@ QoSLike: TypeAlias = QoSProfile | int
 ParameterValue: TypeAlias = (
     bool | int | float | str | bytes | list[bool] | list[int] | list[float] | list[str]
 )
+#: A parameter's declared type: ``declare_parameter`` returns the type of its default.
+P = TypeVar("P", bound=ParameterValue)
 MessageCallback: TypeAlias = Callable[[Any], None]
 #: Called with the parameters about to change; raise ``ValueError`` (or
 #: :class:`~efficient_comm.errors.ParameterError`) to reject the whole change.
@@ -155,11 +157,11 @@ class NodeHandle(Protocol):
     def declare_parameter(
         self,
         name: str,
-        default: ParameterValue,
+        default: P,
         *,
         description: str = "",
         read_only: bool = False,
-    ) -> ParameterValue:
+    ) -> P:
         """Declare ``name`` with the type of ``default``; return the effective value.
 
         The effective value is the override given at deployment (params file, container

@@ -18,12 +18,13 @@ statistics the consecutive executor keeps.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
 from types import TracebackType
-from typing import Any
+from typing import Any, cast
 
 import rclpy
 from rclpy.context import Context
@@ -40,6 +41,7 @@ from .handle import (
     Clock,
     Logger,
     MessageCallback,
+    P,
     ParameterCallback,
     ParameterValue,
     Publisher,
@@ -84,7 +86,7 @@ class StandaloneHandle:
 
     @property
     def logger(self) -> Logger:
-        return self.rclpy_node.get_logger()
+        return cast(Logger, self.rclpy_node.get_logger())
 
     @property
     def clock(self) -> Clock:
@@ -141,11 +143,11 @@ class StandaloneHandle:
     def declare_parameter(
         self,
         name: str,
-        default: ParameterValue,
+        default: P,
         *,
         description: str = "",
         read_only: bool = False,
-    ) -> ParameterValue:
+    ) -> P:
         return self._params.declare(name, default, description=description, read_only=read_only)
 
     def get_parameter(self, name: str) -> ParameterValue:
@@ -194,10 +196,8 @@ class Standalone:
 
     def spin(self) -> None:
         """Run until Ctrl-C, SIGTERM or :meth:`close` from another thread."""
-        try:
+        with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
             self.executor.spin()
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
 
     def spin_once(self, timeout_s: float | None = None) -> None:
         self.executor.spin_once(timeout_sec=timeout_s)

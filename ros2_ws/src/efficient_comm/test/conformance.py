@@ -27,7 +27,7 @@ BACKENDS = ["standalone", "composed", "test"]
 
 
 class Harness(Protocol):
-    handle: NodeHandle
+    handle: Any  # the backend's NodeHandle
     component: Any
 
     def send(self, topic: str, msg: Any) -> None: ...

@@ -6,12 +6,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import pytest
-from efficient_comm_interfaces.srv import UnloadComponent
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from efficient_comm import ParameterError
 from efficient_comm.handle import NodeHandle, ParameterValue
+from efficient_comm_interfaces.srv import UnloadComponent
 
 from .conformance import BACKENDS, harness
 
@@ -25,8 +25,8 @@ class Shouter:
 
     def __init__(self, node: NodeHandle) -> None:
         self.node = node
-        self.prefix = str(node.declare_parameter("prefix", ">"))
-        self.gain = float(node.declare_parameter("gain", 1.0))
+        self.prefix = node.declare_parameter("prefix", ">")
+        self.gain = node.declare_parameter("gain", 1.0)
         self.rejections = 0
         node.add_on_parameter_change(self._on_change)
         self.out = node.create_publisher(String, "out")
@@ -52,7 +52,7 @@ class Counter:
     """Publishes 0, 1, 2, ... on a timer."""
 
     def __init__(self, node: NodeHandle) -> None:
-        rate = float(node.declare_parameter("rate_hz", 50.0))
+        rate = node.declare_parameter("rate_hz", 50.0)
         self.pub = node.create_publisher(String, "count")
         self.n = 0
         node.create_timer(1.0 / rate, self._tick)

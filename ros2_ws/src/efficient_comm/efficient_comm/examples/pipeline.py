@@ -24,9 +24,9 @@ class Camera:
 
     def __init__(self, node: NodeHandle) -> None:
         self._node = node
-        rate = float(node.declare_parameter("rate_hz", 30.0, description="frame rate"))
-        self._width = int(node.declare_parameter("width", 160, read_only=True))
-        self._height = int(node.declare_parameter("height", 120, read_only=True))
+        rate = node.declare_parameter("rate_hz", 30.0, description="frame rate")
+        self._width = node.declare_parameter("width", 160, read_only=True)
+        self._height = node.declare_parameter("height", 120, read_only=True)
         self._pub = node.create_publisher(Image, "image", qos=5)
         self._frame = 0
         node.create_timer(1.0 / rate, self._tick)
@@ -71,7 +71,7 @@ class Tracker:
     """Exponential smoothing of the spot; ``alpha`` can be tuned while running."""
 
     def __init__(self, node: NodeHandle) -> None:
-        self._alpha = float(node.declare_parameter("alpha", 0.5, description="0 < alpha <= 1"))
+        self._alpha = node.declare_parameter("alpha", 0.5, description="0 < alpha <= 1")
         node.add_on_parameter_change(self._on_change)
         self._pub = node.create_publisher(PointStamped, "track")
         self._state: tuple[float, float] | None = None

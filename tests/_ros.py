@@ -1,0 +1,92 @@
+"""Helpers for suites that run ROS 2 processes: a peer node, child processes, waiting."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+from efficient_comm.testing import ros_env
+
+INSTALL = Path(__file__).resolve().parents[1] / "ros2_ws" / "install"
+
+
+def executable(package: str, name: str) -> Path:
+    """Where ``ros2 run package name`` finds its program."""
+    path = INSTALL / package / "lib" / package / name
+    assert path.exists(), f"{path} missing: build the workspace (scripts/setup.sh)"
+    return path
+
+
+class Peer:
+    """A plain rclpy node in a context of its own: another DDS participant."""
+
+    def __init__(self, domain_id: int, name: str = "peer") -> None:
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = Node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def wait_for(
+        self,
+        predicate: Callable[[], bool],
+        timeout_s: float = 15.0,
+        *,
+        also: Callable[[float], None] | None = None,
+    ) -> bool:
+        """Spin this peer (and ``also``, e.g. a container's spin_once) until ``predicate``."""
+        end = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > end:
+                return False
+            self.executor.spin_once(timeout_sec=0.01)
+            if also is not None:
+                also(0.005)
+        return True
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+@contextmanager
+def peer(domain_id: int, name: str = "peer") -> Iterator[Peer]:
+    p = Peer(domain_id, name)
+    try:
+        yield p
+    finally:
+        p.close()
+
+
+@contextmanager
+def child(args: Sequence[str | Path], *, domain_id: int, log: Path) -> Iterator[subprocess.Popen[bytes]]:
+    """A child process in its own session, killed with its group on exit."""
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(
+            [str(a) for a in args],
+            env=ros_env(domain_id),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+        try:
+            yield proc
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGINT)
+                try:
+                    proc.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    proc.wait()

@@ -1,0 +1,87 @@
+"""Real processes, started the way ``ros2 run`` starts them, seen by another process."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
+from geometry_msgs.msg import PointStamped
+from sensor_msgs.msg import Image
+
+from efficient_comm.testing import isolated_domain_id, unique_topic
+
+from ._ros import Peer, child, executable, peer
+
+
+def _call(p: Peer, srv_type: type, name: str, request: object) -> object:
+    client = p.node.create_client(srv_type, name)
+    assert p.wait_for(client.service_is_ready), f"{name} never came up"
+    future = client.call_async(request)
+    assert p.wait_for(future.done)
+    return future.result()
+
+
+def test_standalone_component_with_remaps_and_params_file(tmp_path: Path) -> None:
+    domain = isolated_domain_id()
+    topic = unique_topic("image")
+    params = tmp_path / "params.yaml"
+    params.write_text("/**:\n  ros__parameters: {rate_hz: 50.0, width: 32, height: 24}\n")
+    args = [
+        executable("efficient_comm", "standalone"),
+        "efficient_comm.examples.pipeline:Camera",
+        "--ros-args", "-r", f"image:={topic}", "-r", "__node:=front_cam",
+        "--params-file", params,
+    ]
+    with peer(domain) as p, child(args, domain_id=domain, log=tmp_path / "cam.log"):
+        frames: list[Image] = []
+        p.node.create_subscription(Image, topic, frames.append, 10)
+        assert p.wait_for(lambda: len(frames) >= 3), (tmp_path / "cam.log").read_text()
+        assert (frames[0].width, frames[0].height) == (32, 24)
+        assert ("front_cam", "/") in p.node.get_node_names_and_namespaces()
+
+
+def test_container_process_serves_load_unload_list_and_publishes_to_others(
+    tmp_path: Path,
+) -> None:
+    domain = isolated_domain_id()
+    config = Path(__file__).resolve().parents[1] / (
+        "ros2_ws/src/efficient_comm/efficient_comm/examples/demo.yaml"
+    )
+    args = [executable("efficient_comm", "container"), "--config", config, "--name", "ctr"]
+    log = tmp_path / "container.log"
+    with peer(domain) as p, child(args, domain_id=domain, log=log):
+        listed = _call(p, ListComponents, "/ctr/list_components", ListComponents.Request())
+        assert list(listed.full_node_names) == [  # type: ignore[attr-defined]
+            "/demo/camera", "/demo/detector", "/demo/tracker", "/demo/monitor",
+        ], log.read_text()
+
+        # Composed topics are visible to other processes, like `ros2 topic echo`.
+        tracks: list[PointStamped] = []
+        p.node.create_subscription(PointStamped, "/demo/track", tracks.append, 10)
+        assert p.wait_for(lambda: len(tracks) >= 3), log.read_text()
+
+        ok = _call(p, LoadComponent, "/ctr/load_component", LoadComponent.Request(
+            class_path="efficient_comm.examples.pipeline:Monitor", node_name="monitor2",
+            node_namespace="/demo", remap_rules=["track:=/demo/spot"],
+        ))
+        assert ok.success and ok.full_node_name == "/demo/monitor2"  # type: ignore[attr-defined]
+
+        bad = _call(p, LoadComponent, "/ctr/load_component", LoadComponent.Request(
+            class_path="no.such:Thing", node_name="ghost",
+        ))
+        assert not bad.success and "no.such" in bad.error_message  # type: ignore[attr-defined]
+
+        dup = _call(p, LoadComponent, "/ctr/load_component", LoadComponent.Request(
+            class_path="efficient_comm.examples.pipeline:Monitor", node_name="monitor2",
+            node_namespace="/demo", parameters_yaml="{not: [valid",
+        ))
+        assert not dup.success  # type: ignore[attr-defined]
+
+        gone = _call(p, UnloadComponent, "/ctr/unload_component",
+                     UnloadComponent.Request(unique_id=ok.unique_id))  # type: ignore[attr-defined]
+        assert gone.success  # type: ignore[attr-defined]
+        again = _call(p, UnloadComponent, "/ctr/unload_component",
+                      UnloadComponent.Request(unique_id=ok.unique_id))  # type: ignore[attr-defined]
+        assert not again.success  # type: ignore[attr-defined]
+        listed = _call(p, ListComponents, "/ctr/list_components", ListComponents.Request())
+        assert len(listed.full_node_names) == 4  # type: ignore[attr-defined]
