@@ -70,7 +70,9 @@ def peer(domain_id: int, name: str = "peer") -> Iterator[Peer]:
 
 
 @contextmanager
-def child(args: Sequence[str | Path], *, domain_id: int, log: Path) -> Iterator[subprocess.Popen[bytes]]:
+def child(
+    args: Sequence[str | Path], *, domain_id: int, log: Path
+) -> Iterator[subprocess.Popen[bytes]]:
     """A child process in its own session, killed with its group on exit."""
     with open(log, "wb") as out:
         proc = subprocess.Popen(

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
 from geometry_msgs.msg import PointStamped
 from sensor_msgs.msg import Image
 
 from efficient_comm.testing import isolated_domain_id, unique_topic
+from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
 
 from ._ros import Peer, child, executable, peer
 
@@ -26,7 +26,7 @@ def test_standalone_component_with_remaps_and_params_file(tmp_path: Path) -> Non
     topic = unique_topic("image")
     params = tmp_path / "params.yaml"
     params.write_text("/**:\n  ros__parameters: {rate_hz: 50.0, width: 32, height: 24}\n")
-    args = [
+    args: list[str | Path] = [
         executable("efficient_comm", "standalone"),
         "efficient_comm.examples.pipeline:Camera",
         "--ros-args", "-r", f"image:={topic}", "-r", "__node:=front_cam",
@@ -47,7 +47,9 @@ def test_container_process_serves_load_unload_list_and_publishes_to_others(
     config = Path(__file__).resolve().parents[1] / (
         "ros2_ws/src/efficient_comm/efficient_comm/examples/demo.yaml"
     )
-    args = [executable("efficient_comm", "container"), "--config", config, "--name", "ctr"]
+    args: list[str | Path] = [
+        executable("efficient_comm", "container"), "--config", config, "--name", "ctr"
+    ]
     log = tmp_path / "container.log"
     with peer(domain) as p, child(args, domain_id=domain, log=log):
         listed = _call(p, ListComponents, "/ctr/list_components", ListComponents.Request())

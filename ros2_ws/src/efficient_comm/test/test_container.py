@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 from std_msgs.msg import String
@@ -26,7 +27,7 @@ class Exploding:
 
 
 class Closeable:
-    closed: list[str] = []
+    closed: ClassVar[list[str]] = []
 
     def __init__(self, node: NodeHandle) -> None:
         self.name = node.name
@@ -88,7 +89,9 @@ components:
   - {{class: {HERE}:Greeter, name: "bad name"}}
   - {{class: {HERE}:Greeter, name: typo, remapings: {{}}}}
   - {{class: {HERE}:Greeter, name: badtopic, remappings: {{greeting: "not valid//"}}}}
-  - {{class: {HERE}:Greeter, name: wrongtype, parameters: {{/**: {{ros__parameters: {{rate_hz: fast}}}}}}}}
+  - class: {HERE}:Greeter
+    name: wrongtype
+    parameters: {{/**: {{ros__parameters: {{rate_hz: fast}}}}}}
   - just a string
 """,
     )
