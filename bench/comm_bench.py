@@ -38,7 +38,14 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = str(Path(__file__).resolve())
 DEFAULT_OUT = ROOT / "bench" / "out" / "comm_bench.json"
 DEFAULT_PLOT = ROOT / "docs" / "bench" / "comm_latency.png"
-MMAP_ENV = {"MALLOC_MMAP_THRESHOLD_": "67108864"}
+#: Allocator variants of the >= 1 MiB latency runs (glibc reads these at start-up). Setting
+#: the mmap threshold alone also fixes the trim threshold at its 128 KiB default (glibc's
+#: dynamic adjustment is off then), so freeing a large block trims the heap every time;
+#: "mmap64M+trim" raises both.
+ALLOC_VARIANTS: dict[str, dict[str, str]] = {
+    "mmap64M": {"MALLOC_MMAP_THRESHOLD_": "67108864"},
+    "mmap64M+trim": {"MALLOC_MMAP_THRESHOLD_": "67108864", "MALLOC_TRIM_THRESHOLD_": "268435456"},
+}
 
 Record = dict[str, Any]
 
@@ -155,20 +162,28 @@ class Job:
     @property
     def name(self) -> str:
         extra = f" [{self.variant}]" if self.variant != "default" else ""
-        return f"{self.scenario}/{self.backend}{extra}"
+        payloads = f" {','.join(self.payloads)}" if self.payloads else ""
+        return f"{self.scenario}/{self.backend}{payloads}{extra}"
 
 
-def make_jobs(scenarios: Sequence[str], mmap: str) -> list[Job]:
+def make_jobs(scenarios: Sequence[str], mmap: bool, quick: bool) -> list[Job]:
     jobs: list[Job] = []
-    mmap_env = tuple(MMAP_ENV.items())
     for backend in BACKENDS:
         if "latency" in scenarios:
-            if mmap in ("off", "both"):
+            # One process per payload: the allocator's state (glibc's dynamic mmap threshold
+            # moves up after large frees) would otherwise depend on the sizes run before.
+            # (Not in the quick smoke run, which only checks that everything runs.)
+            if quick:
                 jobs.append(Job("latency", backend))
-            if mmap in ("on", "both"):
-                # Only the sizes the threshold can affect when both variants run.
-                payloads = LARGE_PAYLOADS if mmap == "both" else ()
-                jobs.append(Job("latency", backend, payloads, "mmap64M", mmap_env))
+            else:
+                jobs += [Job("latency", backend, (payload,)) for payload in LAT_PAYLOADS]
+            # MultiThreadedExecutor's figures are GIL stalls, not allocation: no variants.
+            if mmap and backend != "multi":
+                for payload in LARGE_PAYLOADS:
+                    for variant, env in ALLOC_VARIANTS.items():
+                        jobs.append(
+                            Job("latency", backend, (payload,), variant, tuple(env.items()))
+                        )
         for scenario in ("throughput", "dispatch", "chain"):
             if scenario in scenarios:
                 jobs.append(Job(scenario, backend))
@@ -423,22 +438,40 @@ def report(r: Results, tgts: Sequence[Target], repeat: int) -> str:
     ]
     if mm:
         parts.append(
-            "\n1b. large messages with MALLOC_MMAP_THRESHOLD_=67108864 "
-            "(median / p99 µs; default -> threshold 64 MiB)"
+            "\n1b. large messages and glibc malloc (median / p99 µs): default; "
+            "MALLOC_MMAP_THRESHOLD_=67108864; the same + MALLOC_TRIM_THRESHOLD_=268435456"
         )
         rows = []
         for b, p in mm:
-            d0 = r.get("latency", b, p, "median_us")
-            d1 = r.get("latency", b, p, "median_us", "mmap64M")
-            rows.append(
+            row = [f"{SHORT[b]} {p}"]
+            for variant in ("default", *ALLOC_VARIANTS):
+                row.append(
+                    f"{fmt(r.get('latency', b, p, 'median_us', variant))} / "
+                    f"{fmt(r.get('latency', b, p, 'p99_us', variant))}"
+                )
+            for variant in ALLOC_VARIANTS:
+                row.append(
+                    fmt_ratio(
+                        ratio(
+                            r.get("latency", b, p, "median_us"),
+                            r.get("latency", b, p, "median_us", variant),
+                        )
+                    )
+                )
+            rows.append(row)
+        parts.append(
+            table(
                 [
-                    f"{SHORT[b]} {p}",
-                    f"{fmt(d0)} / {fmt(r.get('latency', b, p, 'p99_us'))}",
-                    f"{fmt(d1)} / {fmt(r.get('latency', b, p, 'p99_us', 'mmap64M'))}",
-                    fmt_ratio(ratio(d0, d1)),
-                ]
+                    "backend payload",
+                    "default",
+                    "mmap 64M",
+                    "mmap 64M+trim",
+                    "speed-up mmap",
+                    "speed-up +trim",
+                ],
+                rows,
             )
-        parts.append(table(["backend payload", "default", "mmap 64 MiB", "speed-up"], rows))
+        )
 
     parts.append("\n2./3. throughput (bursts of 100, one thread unless Multi) and dispatch cost")
     rows = []
@@ -547,7 +580,7 @@ def plot(r: Results, path: Path, repeat: int) -> None:
     from bench import _comm_cases as cases
 
     sizes = [p for p in LAT_PAYLOADS if p.startswith("image_")]
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 5.5), gridspec_kw={"width_ratios": [3, 2]})
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 6.5), gridspec_kw={"width_ratios": [3, 2]})
     for b in BACKENDS:
         xs, med, p99 = [], [], []
         for p in sizes:
@@ -561,20 +594,17 @@ def plot(r: Results, path: Path, repeat: int) -> None:
             continue
         ax.plot(xs, med, "o-", color=COLORS[b], label=LABELS[b], lw=2)
         ax.plot(xs, p99, ":", color=COLORS[b], lw=1)
-        mx = [
-            cases.payload_bytes(p)
-            for p in LARGE_PAYLOADS
-            if r.get("latency", b, p, "median_us", "mmap64M") is not None
-        ]
-        my = [
-            r.get("latency", b, p, "median_us", "mmap64M")
-            for p in LARGE_PAYLOADS
-            if r.get("latency", b, p, "median_us", "mmap64M") is not None
-        ]
-        if mx:
-            ax.plot(mx, my, "x", color=COLORS[b], ms=9, mew=2)
+        for variant, marker in (("mmap64M", "x"), ("mmap64M+trim", "+")):
+            pts = [
+                (cases.payload_bytes(p), v)
+                for p in LARGE_PAYLOADS
+                if (v := r.get("latency", b, p, "median_us", variant)) is not None
+            ]
+            if pts:
+                ax.plot(*zip(*pts, strict=True), marker, color=COLORS[b], ms=10, mew=2)
     ax.plot([], [], "k:", label="p99 (dotted)")
     ax.plot([], [], "kx", ls="none", label="median, MALLOC_MMAP_THRESHOLD_=64 MiB")
+    ax.plot([], [], "k+", ls="none", label="median, same + MALLOC_TRIM_THRESHOLD_=256 MiB")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xticks([cases.payload_bytes(p) for p in sizes], ["64 B", "64 KiB", "1 MiB", "8 MiB"])
@@ -582,7 +612,7 @@ def plot(r: Results, path: Path, repeat: int) -> None:
     ax.set_ylabel("publish → callback latency (µs, log)")
     ax.set_title("Latency, one message in flight (median, solid)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
 
     names = [b for b in BACKENDS if r.get("throughput", b, "string", "msgs_per_s") is not None]
     vals = [r.get("throughput", b, "string", "msgs_per_s") or 0.0 for b in names]
@@ -606,6 +636,7 @@ def plot(r: Results, path: Path, repeat: int) -> None:
         fontsize=11,
     )
     fig.tight_layout()
+    fig.subplots_adjust(bottom=0.26)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -651,10 +682,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--quick", action="store_true", help="few iterations, 1 run: a smoke test")
     ap.add_argument(
         "--mmap-threshold",
-        choices=("off", "on", "both"),
+        action=argparse.BooleanOptionalAction,
         default=None,
-        help="run latency with MALLOC_MMAP_THRESHOLD_=64 MiB: off, on (all sizes) "
-        "or both (default; the variant only for >= 1 MiB; quick: off)",
+        help="also run the >= 1 MiB latencies with MALLOC_MMAP_THRESHOLD_=67108864 (alone and "
+        "with MALLOC_TRIM_THRESHOLD_=268435456); default: on, off with --quick",
     )
     ap.add_argument(
         "--only",
@@ -670,6 +701,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     ap.add_argument("--no-plot", action="store_true")
     ap.add_argument("--timeout", type=float, default=300.0, help="per child process, seconds")
+    ap.add_argument(
+        "--replot",
+        type=Path,
+        default=None,
+        metavar="JSON",
+        help="print the table and redraw the plot from an earlier JSON output",
+    )
     # Child process interface (used by the parent).
     ap.add_argument("--scenario", help=argparse.SUPPRESS)
     ap.add_argument("--backend", help=argparse.SUPPRESS)
@@ -683,7 +721,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     if args.repeat is None:
         args.repeat = 1 if args.quick else 3
     if args.mmap_threshold is None:
-        args.mmap_threshold = "off" if args.quick else "both"
+        args.mmap_threshold = not args.quick
     return args
 
 
@@ -705,8 +743,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
     sys.path.insert(0, str(ROOT))
+    if args.replot is not None:
+        old = json.loads(args.replot.read_text())
+        results = Results({key_of(rec): rec for rec in old["results"]})
+        repeat = int(old["meta"]["repeat"])
+        print(report(results, targets(results), repeat))
+        if not args.no_plot:
+            plot(results, args.plot or DEFAULT_PLOT, repeat)
+        return 0
     scenarios = args.only.split(",")
-    jobs = make_jobs(scenarios, args.mmap_threshold)
+    jobs = make_jobs(scenarios, args.mmap_threshold, args.quick)
     start = time.monotonic()
     all_records: list[Record] = []
     errors: list[str] = []
