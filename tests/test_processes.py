@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
+import pytest
 from geometry_msgs.msg import PointStamped
 from sensor_msgs.msg import Image
 
@@ -40,15 +42,31 @@ def test_standalone_component_with_remaps_and_params_file(tmp_path: Path) -> Non
         assert ("front_cam", "/") in p.node.get_node_names_and_namespaces()
 
 
+DEMO_YAML = Path(__file__).resolve().parents[1] / (
+    "ros2_ws/src/efficient_comm/efficient_comm/examples/demo.yaml"
+)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_container_process_exits_cleanly_on_signals(tmp_path: Path, sig: int) -> None:
+    domain = isolated_domain_id()
+    args: list[str | Path] = [
+        executable("efficient_comm", "container"), "--config", DEMO_YAML, "--name", "ctr"
+    ]
+    log = tmp_path / "container.log"
+    with peer(domain) as p, child(args, domain_id=domain, log=log) as proc:
+        _call(p, ListComponents, "/ctr/list_components", ListComponents.Request())  # ready
+        proc.send_signal(sig)
+        assert proc.wait(timeout=15) == 0, log.read_text()
+        assert "Traceback" not in log.read_text()
+
+
 def test_container_process_serves_load_unload_list_and_publishes_to_others(
     tmp_path: Path,
 ) -> None:
     domain = isolated_domain_id()
-    config = Path(__file__).resolve().parents[1] / (
-        "ros2_ws/src/efficient_comm/efficient_comm/examples/demo.yaml"
-    )
     args: list[str | Path] = [
-        executable("efficient_comm", "container"), "--config", config, "--name", "ctr"
+        executable("efficient_comm", "container"), "--config", DEMO_YAML, "--name", "ctr"
     ]
     log = tmp_path / "container.log"
     with peer(domain) as p, child(args, domain_id=domain, log=log):

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Sequence
 
 from rclpy.utilities import remove_ros_args
 
+from ._signals import stop_on_sigterm
 from .container import Container
 from .dds import prepare_process
 from .standalone import cli as standalone
@@ -27,8 +29,11 @@ def container(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--no-dds", action="store_true")
     args = parser.parse_args(remove_ros_args(argv)[1:])
     prepare_process()
-    with Container(args.name, namespace=args.namespace, dds=not args.no_dds,
-                   strategy=args.strategy) as c:
+    stop_on_sigterm()
+    # Ctrl-C or SIGTERM at any point (even while loading) unloads what was loaded.
+    with contextlib.suppress(KeyboardInterrupt), Container(
+        args.name, namespace=args.namespace, dds=not args.no_dds, strategy=args.strategy
+    ) as c:
         for path in args.config:
             report = c.load_file(path)
             for loaded in report.loaded:

@@ -34,6 +34,7 @@ from rclpy.utilities import remove_ros_args
 
 from ._params import RclpyParameters
 from ._qos import to_profile
+from ._signals import stop_on_sigterm
 from .config import ComponentSpec, resolve_factory
 from .errors import ComponentError
 from .handle import (
@@ -229,12 +230,15 @@ class Standalone:
 
 def run(factory: Callable[[Any], Any], *, name: str, args: Sequence[str] | None = None) -> int:
     """Run ``factory`` as a standalone node until interrupted; returns an exit code."""
+    stop_on_sigterm()
     try:
         with Standalone(factory, name=name, args=sys.argv if args is None else args) as node:
             node.spin()
     except ComponentError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        pass  # interrupted while starting: the with-block has cleaned up
     return 0
 
 

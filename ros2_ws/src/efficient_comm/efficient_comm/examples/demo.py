@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from efficient_comm import Container, StatsSnapshot
+from efficient_comm._signals import stop_on_sigterm
 from efficient_comm.examples.pipeline import Monitor
 
 
@@ -41,6 +42,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--no-dds", action="store_true", help="no DDS: nothing leaves the process")
     parser.add_argument("--stats-period", type=float, default=2.0)
     args = parser.parse_args(argv)
+    stop_on_sigterm()
 
     with Container("demo", dds=not args.no_dds, strategy=args.strategy) as container:
         report = container.load_file(args.config)
