@@ -111,3 +111,25 @@ def test_remote_late_joiner_gets_transient_local_history() -> None:
         remote.node.create_subscription(String, topic, got.append, latched)
         assert remote.wait_for(lambda: len(got) == 1, also=container.spin_once)
         assert got[0].data == "the map"
+
+
+def test_publish_from_another_thread_reaches_callbacks_in_the_executor_thread() -> None:
+    import threading
+
+    topic = unique_topic()
+    with Container("threads", domain_id=isolated_domain_id(), serve=False) as container:
+        talker = container.add(lambda n: Talker(n, topic), name="talker")
+        threads: list[int] = []
+        container.add(lambda n: n.create_subscription(
+            String, topic, lambda _m: threads.append(threading.get_ident()), qos=RELIABLE
+        ), name="listener")
+        worker = threading.Thread(target=lambda: container.spin_until(
+            lambda: len(threads) == 3, timeout_s=15
+        ))
+        worker.start()
+        while container.executor._thread is None:  # the worker owns the executor
+            pass
+        for i in range(3):
+            talker.say(str(i))
+        worker.join()
+        assert threads == [worker.ident] * 3

@@ -105,3 +105,28 @@ def test_container_process_serves_load_unload_list_and_publishes_to_others(
         assert not again.success  # type: ignore[attr-defined]
         listed = _call(p, ListComponents, "/ctr/list_components", ListComponents.Request())
         assert len(listed.full_node_names) == 4  # type: ignore[attr-defined]
+
+
+def test_messages_from_another_process_reach_composed_components(tmp_path: Path) -> None:
+    from efficient_comm import Container
+    from efficient_comm.examples.pipeline import SpotDetector
+
+    domain = isolated_domain_id()
+    topic = unique_topic("image")
+    camera: list[str | Path] = [
+        executable("efficient_comm", "standalone"), "efficient_comm.examples.pipeline:Camera",
+        "--ros-args", "-r", f"image:={topic}", "-p", "rate_hz:=50.0",
+    ]
+    with (
+        Container("ctr", domain_id=domain, serve=False) as container,
+        child(camera, domain_id=domain, log=tmp_path / "camera.log"),
+    ):
+        container.add(SpotDetector, name="detector", remappings={"image": topic})
+        spots: list[PointStamped] = []
+        container.add(
+            lambda n: n.create_subscription(PointStamped, "/spot", spots.append), name="sink"
+        )
+        assert container.spin_until(lambda: len(spots) >= 5, timeout_s=20), (
+            tmp_path / "camera.log"
+        ).read_text()
+        assert all(0 <= s.point.x < 160 and 0 <= s.point.y < 120 for s in spots)

@@ -63,7 +63,12 @@ def _guard_from_env() -> GuardMode:
 
 
 class Container:
-    """Hosts components; a context manager that unloads them all on exit."""
+    """Hosts components; a context manager that unloads them all on exit.
+
+    Like the components it hosts, a container belongs to one thread: add and unload
+    components before spinning or from a callback (the load/unload services do), and
+    publish from other threads only (such publishes are queued to the executor thread).
+    """
 
     def __init__(
         self,

@@ -264,12 +264,18 @@ class ConsecutiveExecutor:
     # -- the loop --------------------------------------------------------------------------
 
     def _run_ready(self) -> bool:
+        """Run what was queued when called; what those callbacks queue waits for the next
+        round, so a breadth-first cycle cannot starve timers and DDS."""
         ready = self._ready
         if not ready:
             return False
-        while ready:
+        for _ in range(len(ready)):
             ready.popleft().run_one(self)
         return True
+
+    def _drain(self) -> None:
+        while self._run_ready():
+            pass
 
     def _run_due_timers(self, now_ns: int) -> bool:
         timers = self._timers
@@ -332,23 +338,26 @@ class ConsecutiveExecutor:
     def spin(self) -> None:
         """Run until :meth:`shutdown` (from a callback or another thread) or Ctrl-C."""
         self._stop = False
-        while not self._stop:
-            self.spin_once(0.1)
+        with self._owning():  # own the thread between rounds too (see dispatch)
+            while not self._stop:
+                self.spin_once(0.1)
 
     def spin_until(self, predicate: Callable[[], bool], *, timeout_s: float) -> bool:
         """Spin until ``predicate()`` holds; False if ``timeout_s`` passed first."""
         end = time.monotonic() + timeout_s
-        while not predicate():
-            left = end - time.monotonic()
-            if left <= 0:
-                return False
-            self.spin_once(min(left, 0.05))
+        with self._owning():
+            while not predicate():
+                left = end - time.monotonic()
+                if left <= 0:
+                    return False
+                self.spin_once(min(left, 0.05))
         return True
 
     def spin_for(self, duration_s: float) -> None:
         end = time.monotonic() + duration_s
-        while (left := end - time.monotonic()) > 0 and not self._stop:
-            self.spin_once(left)
+        with self._owning():
+            while (left := end - time.monotonic()) > 0 and not self._stop:
+                self.spin_once(left)
 
     def advance(self, duration_s: float) -> None:
         """Move a manual clock forward, running every timer that falls due on the way."""
@@ -357,12 +366,13 @@ class ConsecutiveExecutor:
             raise ExecutorError("advance() needs an executor on a ManualClock")
         target = clock.now_ns() + round(duration_s * 1e9)
         with self._owning():
-            self._run_ready()
+            self._drain()
             while (deadline := self._next_deadline()) is not None and deadline <= target:
                 clock.set_ns(max(deadline, clock.now_ns()))
                 self._run_due_timers(deadline)
+                self._drain()
             clock.set_ns(target)
-            self._run_ready()
+            self._drain()
 
     def shutdown(self) -> None:
         self._stop = True
