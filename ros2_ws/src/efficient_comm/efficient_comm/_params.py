@@ -194,3 +194,28 @@ class RclpyParameters:
 
     def add_callback(self, callback: ParameterCallback) -> None:
         self._callbacks.append(callback)
+
+
+class ParameterMethods:
+    """The handle's parameter methods, for handles that keep their store in ``_params``."""
+
+    _params: LocalParameters | RclpyParameters
+
+    def declare_parameter(
+        self,
+        name: str,
+        default: P,
+        *,
+        description: str = "",
+        read_only: bool = False,
+    ) -> P:
+        return self._params.declare(name, default, description=description, read_only=read_only)
+
+    def get_parameter(self, name: str) -> ParameterValue:
+        return self._params.get(name)
+
+    def set_parameter(self, name: str, value: ParameterValue) -> None:
+        self._params.set(name, value)
+
+    def add_on_parameter_change(self, callback: ParameterCallback) -> None:
+        self._params.add_callback(callback)

@@ -23,7 +23,7 @@ from rclpy.parameter import Parameter
 from rclpy.task import Future
 
 from ._names import Resolver, check_node_name, fully_qualified
-from ._params import LocalParameters, RclpyParameters
+from ._params import LocalParameters, ParameterMethods, RclpyParameters
 from ._qos import is_transient_local, to_profile
 from .bus import LocalPublisher, LocalSubscription
 from .errors import ComponentError
@@ -31,9 +31,6 @@ from .handle import (
     Clock,
     Logger,
     MessageCallback,
-    P,
-    ParameterCallback,
-    ParameterValue,
     QoSLike,
 )
 
@@ -140,7 +137,7 @@ class ComposedClient:
             self._handle.rclpy_node.destroy_client(self._dds)
 
 
-class ComposedHandle:
+class ComposedHandle(ParameterMethods):
     """The node handle of one composed component. Created by the container."""
 
     def __init__(
@@ -285,26 +282,6 @@ class ComposedHandle:
         self._clients.append(client)
         return client
 
-    # -- parameters ----------------------------------------------------------------------
-
-    def declare_parameter(
-        self,
-        name: str,
-        default: P,
-        *,
-        description: str = "",
-        read_only: bool = False,
-    ) -> P:
-        return self._params.declare(name, default, description=description, read_only=read_only)
-
-    def get_parameter(self, name: str) -> ParameterValue:
-        return self._params.get(name)
-
-    def set_parameter(self, name: str, value: ParameterValue) -> None:
-        self._params.set(name, value)
-
-    def add_on_parameter_change(self, callback: ParameterCallback) -> None:
-        self._params.add_callback(callback)
 
     # -- teardown ------------------------------------------------------------------------
 

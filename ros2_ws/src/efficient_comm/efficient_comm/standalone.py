@@ -32,7 +32,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
-from ._params import RclpyParameters
+from ._params import ParameterMethods, RclpyParameters
 from ._qos import to_profile
 from ._signals import stop_on_sigterm
 from .config import ComponentSpec, resolve_factory
@@ -42,9 +42,6 @@ from .handle import (
     Clock,
     Logger,
     MessageCallback,
-    P,
-    ParameterCallback,
-    ParameterValue,
     Publisher,
     QoSLike,
     Service,
@@ -64,7 +61,7 @@ class _NodeClock:
         return int(self._clock.now().nanoseconds)
 
 
-class StandaloneHandle:
+class StandaloneHandle(ParameterMethods):
     """A node handle over a real rclpy node."""
 
     def __init__(self, node: Node, *, registry: StatsRegistry | None = None) -> None:
@@ -141,24 +138,6 @@ class StandaloneHandle:
     def create_client(self, srv_type: type, name: str) -> Client:
         return self.rclpy_node.create_client(srv_type, name)
 
-    def declare_parameter(
-        self,
-        name: str,
-        default: P,
-        *,
-        description: str = "",
-        read_only: bool = False,
-    ) -> P:
-        return self._params.declare(name, default, description=description, read_only=read_only)
-
-    def get_parameter(self, name: str) -> ParameterValue:
-        return self._params.get(name)
-
-    def set_parameter(self, name: str, value: ParameterValue) -> None:
-        self._params.set(name, value)
-
-    def add_on_parameter_change(self, callback: ParameterCallback) -> None:
-        self._params.add_callback(callback)
 
 
 class Standalone:
