@@ -15,7 +15,7 @@ runs ``--repeat`` times (interleaved) and the median of the per-run medians is r
 Results: bench/out/comm_bench.json, plot: docs/bench/comm_latency.png, method and figures:
 docs/BENCHMARKS.md.
 
-    source scripts/env.sh && python bench/comm_bench.py            # full (~10 min)
+    source scripts/env.sh && python bench/comm_bench.py            # full (~8 min)
     python bench/comm_bench.py --quick --out /tmp/q.json           # smoke run (<1 min)
 """
 
@@ -645,7 +645,24 @@ def plot(r: Results, path: Path, repeat: int) -> None:
 # -- main -----------------------------------------------------------------------------------
 
 
-def meta(args: argparse.Namespace, elapsed_s: float) -> dict[str, Any]:
+def _cmd(*c: str) -> str:
+    try:
+        return subprocess.run(
+            c, capture_output=True, text=True, cwd=ROOT, check=False
+        ).stdout.strip()
+    except OSError:
+        return ""
+
+
+def source_state() -> dict[str, str]:
+    """The commit and uncommitted library edits at the start of the run."""
+    return {
+        "git_commit": _cmd("git", "rev-parse", "--short", "HEAD"),
+        "uncommitted_in_ros2_ws_src": _cmd("git", "status", "--porcelain", "--", "ros2_ws/src"),
+    }
+
+
+def meta(args: argparse.Namespace, elapsed_s: float, state: dict[str, str]) -> dict[str, Any]:
     def cmd(*c: str) -> str:
         try:
             return subprocess.run(
@@ -659,7 +676,7 @@ def meta(args: argparse.Namespace, elapsed_s: float) -> dict[str, Any]:
     )
     return {
         "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "git_commit": cmd("git", "rev-parse", "--short", "HEAD"),
+        **state,
         "python": platform.python_version(),
         "rclpy": rclpy_version,
         "platform": platform.platform(),
@@ -753,6 +770,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     scenarios = args.only.split(",")
     jobs = make_jobs(scenarios, args.mmap_threshold, args.quick)
+    state = source_state()
     start = time.monotonic()
     all_records: list[Record] = []
     errors: list[str] = []
@@ -782,7 +800,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     out_path.parent.mkdir(parents=True, exist_ok=True)
     doc = {
-        "meta": meta(args, elapsed),
+        "meta": meta(args, elapsed, state),
         "results": sorted(agg.values(), key=lambda a: tuple(str(x) for x in key_of(a))),
         "targets": [t.__dict__ for t in tgts],
         "errors": errors,
