@@ -126,9 +126,10 @@ def test_publish_from_another_thread_reaches_callbacks_in_the_executor_thread() 
         worker = threading.Thread(target=lambda: container.spin_until(
             lambda: len(threads) == 3, timeout_s=15
         ))
+        spinning = threading.Event()
+        container.executor.post(spinning.set)  # runs once the worker owns the executor
         worker.start()
-        while container.executor._thread is None:  # the worker owns the executor
-            pass
+        assert spinning.wait(15)
         for i in range(3):
             talker.say(str(i))
         worker.join()

@@ -51,11 +51,12 @@ DEMO_YAML = Path(__file__).resolve().parents[1] / (
 def test_container_process_exits_cleanly_on_signals(tmp_path: Path, sig: int) -> None:
     domain = isolated_domain_id()
     args: list[str | Path] = [
-        executable("efficient_comm", "container"), "--config", DEMO_YAML, "--name", "ctr"
+        executable("efficient_comm", "container"), "--config", DEMO_YAML,
+        "--ros-args", "-r", "__node:=renamed", "-r", "__ns:=/r",  # as ros2 launch passes them
     ]
     log = tmp_path / "container.log"
     with peer(domain) as p, child(args, domain_id=domain, log=log) as proc:
-        _call(p, ListComponents, "/ctr/list_components", ListComponents.Request())  # ready
+        _call(p, ListComponents, "/r/renamed/list_components", ListComponents.Request())
         proc.send_signal(sig)
         assert proc.wait(timeout=15) == 0, log.read_text()
         assert "Traceback" not in log.read_text()
@@ -93,9 +94,14 @@ def test_container_process_serves_load_unload_list_and_publishes_to_others(
 
         dup = _call(p, LoadComponent, "/ctr/load_component", LoadComponent.Request(
             class_path="efficient_comm.examples.pipeline:Monitor", node_name="monitor2",
-            node_namespace="/demo", parameters_yaml="{not: [valid",
+            node_namespace="demo", parameters_yaml="/**: {ros__parameters: {}}",
         ))
-        assert not dup.success  # type: ignore[attr-defined]
+        assert not dup.success and "already taken" in dup.error_message  # type: ignore[attr-defined]
+        broken = _call(p, LoadComponent, "/ctr/load_component", LoadComponent.Request(
+            class_path="efficient_comm.examples.pipeline:Monitor", node_name="monitor3",
+            parameters_yaml="{not: [valid",
+        ))
+        assert not broken.success  # type: ignore[attr-defined]
 
         gone = _call(p, UnloadComponent, "/ctr/unload_component",
                      UnloadComponent.Request(unique_id=ok.unique_id))  # type: ignore[attr-defined]

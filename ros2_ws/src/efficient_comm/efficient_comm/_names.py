@@ -46,7 +46,8 @@ def expand(topic: str, node_name: str, namespace: str) -> str:
 
 
 def parse_remaps(rules: Mapping[str, str] | Iterable[str]) -> dict[str, str]:
-    """Accept ``{"from": "to"}`` or ``["from:=to", ...]`` and return a dict."""
+    """Accept ``{"from": "to"}`` or ``["from:=to", ...]``; as in rcl, the first rule for a
+    name wins."""
     if isinstance(rules, Mapping):
         return {str(k): str(v) for k, v in rules.items()}
     out: dict[str, str] = {}
@@ -54,8 +55,28 @@ def parse_remaps(rules: Mapping[str, str] | Iterable[str]) -> dict[str, str]:
         src, sep, dst = str(rule).partition(":=")
         if not sep or not src or not dst:
             raise NameResolutionError(f"remap rule {rule!r} is not of the form 'from:=to'")
-        out[src] = dst
+        out.setdefault(src, dst)
     return out
+
+
+def apply_node_remaps(
+    name: str, namespace: str, remaps: Mapping[str, str]
+) -> tuple[str, str, dict[str, str]]:
+    """Apply ``__node:=`` and ``__ns:=`` (optionally ``node:``-prefixed) like rcl does;
+    returns the node name, namespace and the remaining (topic/service) rules."""
+    rest: dict[str, str] = {}
+    new_name, new_ns = name, namespace
+    for src, dst in remaps.items():
+        target, _, key = src.rpartition(":")
+        if target and target != name:
+            rest[src] = dst  # a rule for another node; Resolver ignores it too
+        elif key == "__node":
+            new_name = dst
+        elif key == "__ns":
+            new_ns = dst
+        else:
+            rest[src] = dst
+    return new_name, new_ns, rest
 
 
 class Resolver:
@@ -64,10 +85,13 @@ class Resolver:
     def __init__(self, node_name: str, namespace: str, remaps: Mapping[str, str]) -> None:
         self._node = node_name
         self._ns = namespace
-        self._remaps = {
-            expand(src, node_name, namespace): expand(dst, node_name, namespace)
-            for src, dst in remaps.items()
-        }
+        self._remaps: dict[str, str] = {}
+        for src, dst in remaps.items():
+            target, _, topic = src.rpartition(":")
+            if target and target != node_name:
+                continue  # "other_node:from:=to" is not for this node
+            full = expand(topic, node_name, namespace)
+            self._remaps.setdefault(full, expand(dst, node_name, namespace))
 
     def resolve(self, topic: str) -> str:
         full = expand(topic, self._node, self._ns)

@@ -58,7 +58,7 @@ def overrides_for(document: Any, node_fqn: str, *, source: str) -> dict[str, Any
           ros__parameters:
             rate_hz: 20.0
 
-    Later matching keys override earlier ones, as in rcl.
+    Later matching keys override earlier ones.
     """
     if document is None:
         return {}
@@ -82,26 +82,29 @@ def overrides_for(document: Any, node_fqn: str, *, source: str) -> dict[str, Any
 # -- the two stores -----------------------------------------------------------------------
 
 
-def _same_type(declared: Any, value: Any) -> bool:
-    if isinstance(declared, bool) or isinstance(value, bool):
-        return isinstance(declared, bool) and isinstance(value, bool)
-    if isinstance(declared, list | tuple):
-        return isinstance(value, list | tuple) and (
-            not declared or not value or _same_type(declared[0], value[0])
-        )
-    return type(declared) is type(value)
+def parameter_type(name: str, value: Any) -> Parameter.Type:
+    """rclpy's type of ``value``; ParameterError for what ROS parameters cannot hold."""
+    try:
+        return cast(Parameter.Type, Parameter.Type.from_parameter_value(value))
+    except TypeError as exc:
+        raise ParameterError(f"parameter {name!r}: {exc}") from None
 
 
 def _run_callbacks(callbacks: list[ParameterCallback], changes: Mapping[str, Any]) -> None:
     for callback in callbacks:
         try:
             callback(changes)
-        except ValueError as exc:  # ParameterError is a ValueError too
-            raise ParameterError(f"parameter change {dict(changes)} rejected: {exc}") from exc
+        except Exception as exc:  # a veto (ValueError), or a bug: either way, no change
+            raise ParameterError(f"parameter change {dict(changes)} rejected: {exc!r}") from exc
 
 
 class LocalParameters:
-    """Parameters of a node that has no rcl node behind it (test and DDS-free backends)."""
+    """Parameters of a node that has no rcl node behind it (test and DDS-free backends).
+
+    Mirrors rclpy: the type is the default's ``Parameter.Type`` (so ``[1, 2.5]`` is
+    refused and ``[]`` is a byte array), declaring counts as setting (on-change callbacks
+    see it and may veto it), and every failure is a ParameterError.
+    """
 
     def __init__(self, overrides: Mapping[str, Any]) -> None:
         self._overrides = dict(overrides)
@@ -113,12 +116,14 @@ class LocalParameters:
         del description  # kept by the rclpy store, where ros2 param describe shows it
         if name in self._values:
             raise ParameterError(f"parameter {name!r} is already declared")
+        declared = parameter_type(name, default)
         value = self._overrides.get(name, default)
-        if not _same_type(default, value):
+        if parameter_type(name, value) != declared:
             raise ParameterError(
                 f"parameter {name!r}: override {value!r} is not of the declared type "
-                f"{type(default).__name__}"
+                f"{declared.name}"
             )
+        _run_callbacks(self._callbacks, {name: value})
         self._values[name] = value
         if read_only:
             self._read_only.add(name)
@@ -134,10 +139,9 @@ class LocalParameters:
         current = self.get(name)
         if name in self._read_only:
             raise ParameterError(f"parameter {name!r} is read-only")
-        if not _same_type(current, value):
-            raise ParameterError(
-                f"parameter {name!r} is {type(current).__name__}, cannot set {value!r}"
-            )
+        declared = parameter_type(name, current)
+        if parameter_type(name, value) != declared:
+            raise ParameterError(f"parameter {name!r} is {declared.name}, cannot set {value!r}")
         _run_callbacks(self._callbacks, {name: value})
         self._values[name] = value
 

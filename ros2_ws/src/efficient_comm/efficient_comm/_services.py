@@ -8,7 +8,7 @@ import yaml
 
 from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
 
-from ._names import parse_remaps
+from ._names import check_node_name, fully_qualified, parse_remaps
 from ._params import overrides_for
 from .config import ComponentSpec
 from .errors import EfficientCommError
@@ -25,8 +25,8 @@ def serve_container(container: Container, node: Node) -> None:
     def load(request: Any, response: Any) -> Any:
         source = f"load_component request for {request.node_name!r}"
         try:
-            namespace = request.node_namespace or "/"
-            fqn = namespace.rstrip("/") + "/" + request.node_name
+            name, namespace = check_node_name(request.node_name, request.node_namespace)
+            fqn = fully_qualified(name, namespace)
             document = yaml.safe_load(request.parameters_yaml) if request.parameters_yaml else None
             loaded = container.load(
                 ComponentSpec(
@@ -57,7 +57,8 @@ def serve_container(container: Container, node: Node) -> None:
         try:
             container.unload(request.unique_id)
             response.success = True
-        except EfficientCommError as exc:
+        except Exception as exc:  # includes a component's close() that raised
+            container.logger.error(f"unload_component {request.unique_id}: {exc!r}")
             response.success = False
             response.error_message = str(exc)
         return response

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from rclpy.qos import QoSProfile
 
 from ._qos import compatible, is_transient_local, queue_limit
-from .errors import TopicTypeError
+from .errors import ComponentError, TopicTypeError
 
 if TYPE_CHECKING:
     from .executor import ConsecutiveExecutor
@@ -37,7 +37,9 @@ class LocalSubscription:
     __slots__ = (
         "active",
         "callback",
+        "dds",
         "logger",
+        "observer",
         "qos",
         "queue",
         "stats",
@@ -59,6 +61,9 @@ class LocalSubscription:
         self.logger = logger
         self.queue: deque[tuple[Any, bytes | None, str]] = deque(maxlen=queue_limit(qos))
         self.active = True
+        self.dds: Any = None  # the reader for remote publishers, if the container has DDS
+        # Test taps: they record what is published but are nobody's demand.
+        self.observer = False
 
     @property
     def topic_name(self) -> str:
@@ -83,6 +88,7 @@ class LocalPublisher:
         "_history",
         "_msg_type",
         "_subs",
+        "closed",
         "dds",
         "dds_always",
         "dds_matched",
@@ -107,12 +113,19 @@ class LocalPublisher:
         self.dds: Any = None
         self.dds_always = False
         self.dds_matched = 0
+        self.closed = False
 
     @property
     def topic_name(self) -> str:
         return self.topic.name
 
+    def get_subscription_count(self) -> int:
+        """Subscribers this publisher reaches: in this process, plus matched DDS readers."""
+        return sum(not s.observer for s in self._subs) + self.dds_matched
+
     def publish(self, msg: Any, /) -> None:
+        if self.closed:
+            raise ComponentError(f"publisher on {self.topic.name} was destroyed")
         if type(msg) is not self._msg_type:
             raise TypeError(
                 f"{self.topic.name} carries {self._msg_type.__name__}, "
@@ -198,6 +211,9 @@ class Bus:
         return sub
 
     def remove_publisher(self, pub: LocalPublisher) -> None:
+        pub.closed = True
+        pub._subs = ()
+        pub.dds = None
         topic = pub.topic
         if pub in topic.publishers:
             topic.publishers.remove(pub)

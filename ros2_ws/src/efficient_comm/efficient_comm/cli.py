@@ -32,7 +32,8 @@ def container(argv: Sequence[str] | None = None) -> int:
     stop_on_sigterm()
     # Ctrl-C or SIGTERM at any point (even while loading) unloads what was loaded.
     with contextlib.suppress(KeyboardInterrupt), Container(
-        args.name, namespace=args.namespace, dds=not args.no_dds, strategy=args.strategy
+        args.name, namespace=args.namespace, dds=not args.no_dds, strategy=args.strategy,
+        args=argv,
     ) as c:
         for path in args.config:
             report = c.load_file(path)

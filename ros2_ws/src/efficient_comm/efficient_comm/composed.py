@@ -12,7 +12,6 @@ endpoints (:mod:`efficient_comm.dds`), so nothing is delivered twice.
 from __future__ import annotations
 
 import logging
-import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
@@ -20,23 +19,26 @@ from typing import TYPE_CHECKING, Any
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.task import Future
 
+from ._future import Future
 from ._names import Resolver, check_node_name, fully_qualified
-from ._params import LocalParameters, ParameterMethods, RclpyParameters
+from ._params import LocalParameters, ParameterMethods, RclpyParameters, parameter_type
 from ._qos import is_transient_local, to_profile
 from .bus import LocalPublisher, LocalSubscription
 from .errors import ComponentError
+from .executor import ExecutorTimer
 from .handle import (
     Clock,
     Logger,
     MessageCallback,
+    Publisher,
     QoSLike,
+    Subscription,
+    Timer,
 )
 
 if TYPE_CHECKING:
     from .container import Container
-    from .executor import ExecutorTimer
 
 
 class RecordingLogger:
@@ -83,15 +85,14 @@ class LocalService:
         )
 
     def serve(self, request: Any) -> Any:
-        """Run the callback with stats; returns the response or raises."""
-        start = time.perf_counter_ns()
-        try:
-            return self.callback(request, getattr(self.srv_type, "Response")())  # noqa: B009
-        except Exception:
-            self.stats.exceptions += 1
-            raise
-        finally:
-            self.stats.record(start, time.perf_counter_ns() - start)
+        """The callback's response; if it raised (logged and counted), an empty response,
+        which is also what a caller in another process gets."""
+        empty = getattr(self.srv_type, "Response")()  # noqa: B009
+        ok, response = self.handle._container.executor.call(
+            self.stats, self.handle.logger, f"service {self.service_name}",
+            self.callback, request, empty,
+        )
+        return response if ok else empty
 
 
 class ComposedClient:
@@ -103,6 +104,14 @@ class ComposedClient:
         self._name = name
         node = handle.rclpy_node
         self._dds = node.create_client(srv_type, name) if node is not None else None
+        executor = handle._container.executor
+        stats = executor.registry.add(handle.fully_qualified_name, "client", name)
+        logger = handle.logger
+
+        def invoke(callback: Callable[[Future], None], future: Future) -> None:
+            executor.call(stats, logger, f"done-callback of {name}", callback, future)
+
+        self._invoke = invoke
 
     @property
     def srv_name(self) -> str:
@@ -114,22 +123,15 @@ class ComposedClient:
         return self._dds is not None and self._dds.service_is_ready()
 
     def call_async(self, request: Any, /) -> Future:
+        future = Future(self._invoke)
         local = self._handle._container._services.get(self._name)
-        if local is None and self._dds is not None:
-            return self._dds.call_async(request)
-        future = Future()
-        if local is None:
-            return future  # like rclpy: nobody answers until a server appears
-        logger = self._handle.logger
-
-        def serve() -> None:
-            try:
-                future.set_result(local.serve(request))
-            except Exception as exc:
-                logger.error(f"service {self._name} raised: {exc!r}")
-                future.set_exception(exc)
-
-        self._handle._container.executor.post(serve)
+        if local is not None:
+            self._handle._container.executor.post(lambda: future.set_result(local.serve(request)))
+        elif self._dds is not None:
+            self._dds.call_async(request).add_done_callback(
+                lambda done: future.set_result(done.result())
+            )
+        # else, like rclpy: nobody answers until a server appears
         return future
 
     def destroy(self) -> None:
@@ -161,6 +163,8 @@ class ComposedHandle(ParameterMethods):
         self.rclpy_node: Node | None = None
         self._logger: Logger
         self._params: LocalParameters | RclpyParameters
+        for key, value in parameters.items():
+            parameter_type(key, value)  # refuse bad overrides before anything is created
         if container.context is not None:
             node = Node(
                 self._name,
@@ -238,7 +242,7 @@ class ComposedHandle(ParameterMethods):
         if node is not None:
             # Only peers in other processes reach this reader (local endpoints are ignored).
             remote = (sub,)
-            node.create_subscription(
+            sub.dds = node.create_subscription(
                 msg_type, name, lambda msg: executor.dispatch(remote, msg, "dds"), profile
             )
         self._subscriptions.append(sub)
@@ -265,16 +269,7 @@ class ComposedHandle(ParameterMethods):
         self._services.append(full)
         node = self.rclpy_node
         if node is not None:
-            logger = self._logger
-
-            def serve_remote(request: Any, response: Any) -> Any:
-                try:
-                    return service.serve(request)
-                except Exception as exc:  # rclpy would let it escape from the executor
-                    logger.error(f"service {full} raised: {exc!r}")
-                    return response
-
-            node.create_service(srv_type, full, serve_remote)
+            node.create_service(srv_type, full, lambda request, _: service.serve(request))
         return service
 
     def create_client(self, srv_type: type, name: str) -> ComposedClient:
@@ -285,15 +280,48 @@ class ComposedHandle(ParameterMethods):
 
     # -- teardown ------------------------------------------------------------------------
 
+    def destroy_publisher(self, publisher: Publisher) -> None:
+        assert isinstance(publisher, LocalPublisher)
+        if publisher in self._publishers:
+            self._publishers.remove(publisher)
+            self._destroy_publisher(publisher)
+
+    def _destroy_publisher(self, publisher: LocalPublisher) -> None:
+        dds = publisher.dds
+        self._container.bus.remove_publisher(publisher)
+        if dds is not None and self.rclpy_node is not None:
+            self.rclpy_node.destroy_publisher(dds)
+
+    def destroy_subscription(self, subscription: Subscription) -> None:
+        assert isinstance(subscription, LocalSubscription)
+        if subscription in self._subscriptions:
+            self._subscriptions.remove(subscription)
+            self._destroy_subscription(subscription)
+
+    def _destroy_subscription(self, subscription: LocalSubscription) -> None:
+        self._container.bus.remove_subscription(subscription)
+        if subscription.dds is not None and self.rclpy_node is not None:
+            self.rclpy_node.destroy_subscription(subscription.dds)
+            subscription.dds = None
+
+    def destroy_timer(self, timer: Timer) -> None:
+        assert isinstance(timer, ExecutorTimer)
+        timer.close()
+        if timer in self._timers:
+            self._timers.remove(timer)
+
     def close(self) -> None:
-        """Remove every endpoint, timer and service this handle created, and its node."""
-        bus = self._container.bus
+        """Remove every endpoint, timer and service this handle created, and its node.
+
+        What the component still holds is dead afterwards: publishing raises, timers stay
+        cancelled.
+        """
         for pub in self._publishers:
-            bus.remove_publisher(pub)
+            self._destroy_publisher(pub)
         for sub in self._subscriptions:
-            bus.remove_subscription(sub)
+            self._destroy_subscription(sub)
         for timer in self._timers:
-            timer.cancel()
+            timer.close()
         for client in self._clients:
             client.destroy()
         for service in self._services:

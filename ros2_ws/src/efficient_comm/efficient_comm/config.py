@@ -11,8 +11,8 @@ A container file is YAML::
         name: camera                    #   group "efficient_comm.components"
         namespace: /robot               # optional
         remappings: {image: /robot/camera/image}   # or ["image:=/robot/camera/image"]
-        parameters:                     # optional, params-file layout
-          camera:
+        parameters:                     # optional, params-file layout; keys are full
+          /robot/camera:                #   node names (or wildcards: /**, /robot/*)
             ros__parameters: {rate_hz: 30.0}
         parameter_files: [camera.yaml]  # optional, relative to this file
 

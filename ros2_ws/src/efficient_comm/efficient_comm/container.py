@@ -19,7 +19,7 @@ import contextlib
 import itertools
 import os
 import traceback
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
@@ -29,7 +29,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
-from ._names import check_node_name, fully_qualified, parse_remaps
+from ._names import apply_node_remaps, check_node_name, fully_qualified, parse_remaps
 from .bus import Bus
 from .composed import ComposedHandle, LocalService, RecordingLogger
 from .config import ComponentSpec, parse_file, resolve_factory
@@ -81,6 +81,7 @@ class Container:
         clock: Clock | None = None,
         guard_mutation: GuardMode | None = None,
         serve: bool = True,
+        args: Sequence[str] | None = None,
     ) -> None:
         self.name, self.namespace = check_node_name(name, namespace)
         self.context: Context | None = None
@@ -92,7 +93,10 @@ class Container:
         if dds:
             prepare_process()
             self.context = Context()
-            rclpy.init(context=self.context, domain_id=domain_id)
+            # Global --ros-args (e.g. __node:=, __ns:= from ros2 launch) apply to the
+            # container's own node only; components get theirs from their entries.
+            rclpy.init(args=list(args) if args is not None else None, context=self.context,
+                       domain_id=domain_id)
             if not local_endpoints_ignored(self.context):
                 self.context.try_shutdown()
                 raise DdsSetupError(
@@ -101,10 +105,9 @@ class Container:
                     "efficient_comm.dds.prepare_process() before the first rclpy.init() "
                     "of the process (and use Fast DDS), or create the container with dds=False."
                 )
-            self._node = rclpy.create_node(
-                self.name, namespace=self.namespace, context=self.context,
-                use_global_arguments=False,
-            )
+            self._node = rclpy.create_node(self.name, namespace=self.namespace,
+                                           context=self.context)
+            self.name, self.namespace = self._node.get_name(), self._node.get_namespace()
             logger = self._node.get_logger()
         self.logger = logger
         self.executor = ConsecutiveExecutor(
@@ -154,7 +157,10 @@ class Container:
 
     def _create(self, factory: Callable[[Any], Any], spec: ComponentSpec) -> LoadedComponent:
         try:
-            name, namespace = check_node_name(spec.name, spec.namespace)
+            name, namespace, remaps = apply_node_remaps(
+                spec.name, spec.namespace, spec.remappings
+            )
+            name, namespace = check_node_name(name, namespace)
             fqn = fully_qualified(name, namespace)
             for loaded in self._components.values():
                 if loaded.full_node_name == fqn:
@@ -163,11 +169,13 @@ class Container:
                 self,
                 name=name,
                 namespace=namespace,
-                remappings=spec.remappings,
+                remappings=remaps,
                 parameters=spec.parameters,
             )
         except EfficientCommError as exc:
             raise ComponentError(f"{spec.source}: {exc}") from exc
+        except Exception as exc:  # rclpy refusing something we did not foresee
+            raise ComponentError(f"{spec.source}: creating node {spec.name!r}: {exc!r}") from exc
         try:
             instance = factory(handle)
         except Exception as exc:

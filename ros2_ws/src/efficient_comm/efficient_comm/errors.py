@@ -8,7 +8,8 @@ Catch :class:`EfficientCommError` to handle anything this package raises::
     ├── ParameterError           undeclared, wrongly typed, read-only or rejected parameter
     ├── ComponentError           a component could not be created or loaded
     │   └── ConfigError          a container file or load request is malformed
-    ├── ExecutorError            the executor was misused (spun twice, spun after shutdown, ...)
+    ├── ExecutorError            the executor was misused (spun from two threads, advance()
+    │                            without a manual clock, a timer of an unloaded component)
     ├── DdsSetupError            the process cannot keep in-process and DDS delivery apart
     └── MessageMutatedError      a subscriber changed a message it received by reference
 """

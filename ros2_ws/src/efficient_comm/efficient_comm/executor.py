@@ -10,7 +10,8 @@ executor does the same for ROS 2 in Python, with a selectable order:
   components) falls back to queuing so the stack cannot overflow.
 * ``"breadth_first"``: ``publish()`` queues the message; the executor delivers queued
   messages in publication order once the current callback returns. QoS depth bounds each
-  subscriber's queue.
+  subscriber's queue: when it overflows, the oldest message is dropped (and counted), so
+  a subscriber may then see a newer message before another subscriber sees an older one.
 
 Timers run on the executor's clock (real ROS time, or a :class:`ManualClock` advanced by
 :meth:`ConsecutiveExecutor.advance`). DDS entities (subscriptions from other processes,
@@ -63,7 +64,7 @@ class _Task:
         self.fn = fn
 
     def run_one(self, executor: ConsecutiveExecutor) -> None:
-        self.fn()
+        executor.call(None, None, "queued call", self.fn)
 
 
 class ExecutorTimer:
@@ -74,6 +75,7 @@ class ExecutorTimer:
         "_generation",
         "callback",
         "canceled",
+        "closed",
         "logger",
         "next_ns",
         "period_ns",
@@ -94,6 +96,7 @@ class ExecutorTimer:
         self.stats = stats
         self.logger = logger
         self.canceled = False
+        self.closed = False
         self._generation = 0
         self.next_ns = 0
 
@@ -108,15 +111,28 @@ class ExecutorTimer:
     def is_canceled(self) -> bool:
         return self.canceled
 
+    def close(self) -> None:
+        """Cancel for good (the component was unloaded)."""
+        self.cancel()
+        self.closed = True
+
     def reset(self) -> None:
         """Restart the period from now (and un-cancel), as rclpy's ``Timer.reset``."""
+        if self.closed:
+            raise ExecutorError("this timer belongs to an unloaded component")
         self.canceled = False
         self._generation += 1
         self._executor._schedule(self, self._executor.clock.now_ns() + self.period_ns)
 
 
 class ConsecutiveExecutor:
-    """Runs the callbacks of composed components one after another in a single thread."""
+    """Runs the callbacks of composed components one after another in a single thread.
+
+    The executor belongs to one thread: the one that created it, or the one that spins it
+    (the last one that did, between spins). Publishing from that thread delivers
+    depth-first; publishing from any other thread queues the message and wakes the
+    executor, so callbacks never run on a foreign thread.
+    """
 
     def __init__(
         self,
@@ -141,7 +157,8 @@ class ConsecutiveExecutor:
         # Time spent in callbacks nested inside the running one (depth-first), so that
         # each callback's statistics show its own cost, not its downstream pipeline's.
         self._nested_ns = 0
-        self._thread: int | None = None
+        self._thread = threading.get_ident()
+        self._spinning = False
         self._stop = False
         self._wake_event = threading.Event()
         self._dds: RclpyExecutor | None = None
@@ -149,6 +166,10 @@ class ConsecutiveExecutor:
         self.registry = StatsRegistry()
         self.mutations: list[MutationReport] = []
         self._last_report: tuple[int, MutationReport] | None = None
+        self._pending_raise: MutationReport | None = None
+        # Guard mode: fingerprint of a message after a receiver's reported change, so that
+        # later queued receivers do not blame the publisher for it.
+        self._known_fp: dict[int, bytes] = {}
 
     # -- wiring --------------------------------------------------------------------------
 
@@ -175,28 +196,66 @@ class ConsecutiveExecutor:
         self._ready.append(_Task(fn))
         self._wake()
 
+    def call(
+        self,
+        stats: CallbackStats | None,
+        logger: Logger | None,
+        what: str,
+        fn: Callable[..., Any],
+        *args: Any,
+    ) -> tuple[bool, Any]:
+        """Run a component callback: timed, and logged and counted if it raises.
+
+        Returns ``(True, result)``, or ``(False, None)`` if it raised.
+        """
+        outer = self._nested_ns
+        self._nested_ns = 0
+        start = time.perf_counter_ns()
+        ok, result = True, None
+        try:
+            result = fn(*args)
+        except Exception:
+            ok = False
+            if stats is not None:
+                stats.exceptions += 1
+            log = logger or self._logger
+            if log is not None:
+                log.error(f"{what} raised:\n{traceback.format_exc().rstrip()}")
+        end = time.perf_counter_ns()
+        if stats is not None:
+            stamp = self.clock.now_ns() if self._manual else start
+            stats.record(stamp, end - start - self._nested_ns)
+        self._nested_ns = outer + end - start
+        return ok, result
+
     # -- delivery (the hot path) -----------------------------------------------------------
 
     def dispatch(self, subs: tuple[LocalSubscription, ...], msg: Any, origin: str) -> None:
         """Hand ``msg`` to ``subs`` now (depth-first) or queue it (breadth-first)."""
         fp = fingerprint(msg) if self._guard else None
-        owner = self._thread
-        if (
-            self._depth_first
-            and (owner is None or owner == threading.get_ident())
-            and self._nesting < MAX_NESTING
-        ):
+        here = self._thread == threading.get_ident()
+        if self._depth_first and here and self._nesting < MAX_NESTING:
             self._nesting += 1
             try:
                 for sub in subs:
+                    if sub.queue:  # older messages first (late-joiner history, overflow)
+                        self._flush(sub)
                     fp = self.deliver(sub, msg, fp)
             finally:
                 self._nesting -= 1
+            if self._pending_raise is not None and not self._nesting and not self._spinning:
+                self._raise_pending()
             return
         for sub in subs:
             self.enqueue(sub, msg, fp, origin=origin)
-        if owner is not None and owner != threading.get_ident():
+        if not here:
             self._wake()
+
+    def _flush(self, sub: LocalSubscription) -> None:
+        queue = sub.queue
+        while queue and sub.active:
+            queued, fp, origin = queue.popleft()
+            self.deliver(sub, queued, fp, origin)
 
     def enqueue(
         self, sub: LocalSubscription, msg: Any, fp: bytes | None, *, origin: str = ""
@@ -211,12 +270,14 @@ class ConsecutiveExecutor:
         self, sub: LocalSubscription, msg: Any, fp: bytes | None, origin: str = ""
     ) -> bytes | None:
         """Run ``sub``'s callback on ``msg``; returns the fingerprint after it (guard mode)."""
-        if fp is not None and origin and fingerprint(msg) != fp:
-            # Changed while queued: the publisher kept modifying what it had published.
-            self._report(
-                MutationReport(sub.topic.name, f"publisher {origin} after publishing"), msg
-            )
-            fp = fingerprint(msg)
+        if fp is not None and origin:
+            fp = self._known_fp.get(id(msg), fp)
+            if (now := fingerprint(msg)) != fp:
+                # Changed while queued: the publisher kept modifying what it had published.
+                self._report(
+                    MutationReport(sub.topic.name, f"publisher {origin} after publishing"), msg
+                )
+                fp = self._known_fp[id(msg)] = now
         stats = sub.stats
         outer = self._nested_ns
         self._nested_ns = 0
@@ -229,12 +290,13 @@ class ConsecutiveExecutor:
                 f"callback on {sub.topic.name} raised:\n{traceback.format_exc().rstrip()}"
             )
         end = time.perf_counter_ns()
-        stats.record(start, end - start - self._nested_ns)
+        stats.record(self.clock.now_ns() if self._manual else start, end - start - self._nested_ns)
         self._nested_ns = outer + end - start
         if fp is not None and (after := fingerprint(msg)) != fp:
             self._report(
                 MutationReport(sub.topic.name, f"subscriber {stats.node} ({stats.name})"), msg
             )
+            self._known_fp[id(msg)] = after
             return after  # blame the next change on whoever makes it
         return fp
 
@@ -246,19 +308,19 @@ class ConsecutiveExecutor:
         self.mutations.append(report)
         if self._logger is not None:
             self._logger.error(str(report))
-        if self._guard == "raise":
+        if self._guard == "raise" and self._pending_raise is None:
+            # Raised once the current round is over (see _raise_pending), never inside a
+            # publish: there it would be blamed on, and caught by, the upstream callback.
+            self._pending_raise = report
+
+    def _raise_pending(self) -> None:
+        report, self._pending_raise = self._pending_raise, None
+        if report is not None:
             raise MessageMutatedError(str(report))
 
     def _run_timer(self, timer: ExecutorTimer) -> None:
-        stats = timer.stats
         self._nested_ns = 0
-        start = time.perf_counter_ns()
-        try:
-            timer.callback()
-        except Exception:
-            stats.exceptions += 1
-            timer.logger.error(f"timer callback raised:\n{traceback.format_exc().rstrip()}")
-        stats.record(start, time.perf_counter_ns() - start - self._nested_ns)
+        self.call(timer.stats, timer.logger, "timer callback", timer.callback)
         self._nested_ns = 0
 
     # -- the loop --------------------------------------------------------------------------
@@ -271,6 +333,8 @@ class ConsecutiveExecutor:
             return False
         for _ in range(len(ready)):
             ready.popleft().run_one(self)
+        if not ready:
+            self._known_fp.clear()
         return True
 
     def _drain(self) -> None:
@@ -317,23 +381,27 @@ class ConsecutiveExecutor:
     def spin_once(self, timeout_s: float | None = None) -> None:
         """Run what is ready and due; if nothing was, wait up to ``timeout_s`` for work."""
         with self._owning():
-            did = self._run_ready()
-            if not self._manual:
-                did = self._run_due_timers(self.clock.now_ns()) or did
-            if did:
-                if (
-                    self._dds is not None
-                    and time.monotonic_ns() - self._last_dds_poll > DDS_POLL_INTERVAL_NS
-                ):
-                    self._wait(0.0)
-                    self._run_ready()
-                return
-            wait = 3600.0 if timeout_s is None else timeout_s
-            deadline = None if self._manual else self._next_deadline()
-            if deadline is not None:
-                wait = min(wait, max(0.0, (deadline - self.clock.now_ns()) / 1e9))
-            self._wait(wait)
-            self._run_ready()
+            self._spin_once(timeout_s)
+        self._raise_pending()
+
+    def _spin_once(self, timeout_s: float | None) -> None:
+        did = self._run_ready()
+        if not self._manual:
+            did = self._run_due_timers(self.clock.now_ns()) or did
+        if did:
+            if (
+                self._dds is not None
+                and time.monotonic_ns() - self._last_dds_poll > DDS_POLL_INTERVAL_NS
+            ):
+                self._wait(0.0)
+                self._run_ready()
+            return
+        wait = 3600.0 if timeout_s is None else timeout_s
+        deadline = None if self._manual else self._next_deadline()
+        if deadline is not None:
+            wait = min(wait, max(0.0, (deadline - self.clock.now_ns()) / 1e9))
+        self._wait(wait)
+        self._run_ready()
 
     def spin(self) -> None:
         """Run until :meth:`shutdown` (from a callback or another thread) or Ctrl-C."""
@@ -373,6 +441,7 @@ class ConsecutiveExecutor:
                 self._drain()
             clock.set_ns(target)
             self._drain()
+        self._raise_pending()
 
     def shutdown(self) -> None:
         self._stop = True
@@ -387,21 +456,22 @@ class ConsecutiveExecutor:
 
 
 class _Owner:
-    """Marks the current thread as the executor's while it runs callbacks."""
+    """Marks the current thread as the executor's while it spins (and keeps it after)."""
 
     __slots__ = ("_executor", "_outer")
 
     def __init__(self, executor: ConsecutiveExecutor) -> None:
         self._executor = executor
-        self._outer: int | None = None
+        self._outer = False
 
     def __enter__(self) -> None:
         ex = self._executor
         me = threading.get_ident()
-        self._outer = ex._thread
-        if self._outer is not None and self._outer != me:
+        if ex._spinning and ex._thread != me:
             raise ExecutorError("the executor is already spinning in another thread")
+        self._outer = ex._spinning
         ex._thread = me
+        ex._spinning = True
 
     def __exit__(self, *exc: object) -> None:
-        self._executor._thread = self._outer
+        self._executor._spinning = self._outer

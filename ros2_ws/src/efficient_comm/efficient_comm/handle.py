@@ -17,7 +17,8 @@ from collections.abc import Callable, Mapping
 from typing import Any, Protocol, TypeAlias, TypeVar, runtime_checkable
 
 from rclpy.qos import QoSProfile
-from rclpy.task import Future
+
+from ._future import Future
 
 __all__ = [
     "Client",
@@ -40,7 +41,7 @@ __all__ = [
 QoSLike: TypeAlias = QoSProfile | int
 #: Values a ROS 2 parameter can hold.
 ParameterValue: TypeAlias = (
-    bool | int | float | str | bytes | list[bool] | list[int] | list[float] | list[str]
+    bool | int | float | str | list[bool] | list[int] | list[float] | list[str]
 )
 #: A parameter's declared type: ``declare_parameter`` returns the type of its default.
 P = TypeVar("P", bound=ParameterValue)
@@ -56,6 +57,10 @@ class Publisher(Protocol):
     @property
     def topic_name(self) -> str:
         """The fully resolved topic name (after namespace and remapping)."""
+        ...
+
+    def get_subscription_count(self) -> int:
+        """How many subscribers are reached: ask before computing an expensive output."""
         ...
 
     def publish(self, msg: Any, /) -> None:
@@ -153,6 +158,12 @@ class NodeHandle(Protocol):
         ...
 
     def create_client(self, srv_type: type, name: str) -> Client: ...
+
+    def destroy_publisher(self, publisher: Publisher) -> None: ...
+
+    def destroy_subscription(self, subscription: Subscription) -> None: ...
+
+    def destroy_timer(self, timer: Timer) -> None: ...
 
     def declare_parameter(
         self,

@@ -32,6 +32,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
+from ._future import Future
 from ._params import ParameterMethods, RclpyParameters
 from ._qos import to_profile
 from ._signals import stop_on_sigterm
@@ -48,7 +49,7 @@ from .handle import (
     Subscription,
     Timer,
 )
-from .stats import CallbackKind, StatsRegistry, StatsSnapshot
+from .stats import CallbackKind, CallbackStats, StatsRegistry, StatsSnapshot
 
 
 class _NodeClock:
@@ -94,8 +95,11 @@ class StandaloneHandle(ParameterMethods):
         self, kind: CallbackKind, name: str, callback: Callable[..., Any]
     ) -> Callable[..., Any]:
         """Record time and frequency, and log (not propagate) exceptions, like composed."""
-        stats = self.registry.add(self.fully_qualified_name, kind, name)
+        return self._guarded(self.registry.add(self.fully_qualified_name, kind, name), callback)
+
+    def _guarded(self, stats: CallbackStats, callback: Callable[..., Any]) -> Callable[..., Any]:
         logger = self.logger
+        kind, name = stats.kind, stats.name
 
         def timed(*args: Any) -> Any:
             start = time.perf_counter_ns()
@@ -104,7 +108,8 @@ class StandaloneHandle(ParameterMethods):
             except Exception:
                 stats.exceptions += 1
                 logger.error(f"{kind} {name} raised:\n{traceback.format_exc().rstrip()}")
-                return args[-1] if kind == "service" else None
+                # A failed service answers with an empty response, as on every backend.
+                return type(args[-1])() if kind == "service" else None
             finally:
                 stats.record(start, time.perf_counter_ns() - start)
 
@@ -136,8 +141,43 @@ class StandaloneHandle(ParameterMethods):
         )
 
     def create_client(self, srv_type: type, name: str) -> Client:
-        return self.rclpy_node.create_client(srv_type, name)
+        return StandaloneClient(self, srv_type, name)
 
+    def destroy_publisher(self, publisher: Publisher) -> None:
+        self.rclpy_node.destroy_publisher(publisher)  # type: ignore[arg-type]
+
+    def destroy_subscription(self, subscription: Subscription) -> None:
+        self.rclpy_node.destroy_subscription(subscription)  # type: ignore[arg-type]
+
+    def destroy_timer(self, timer: Timer) -> None:
+        self.rclpy_node.destroy_timer(timer)  # type: ignore[arg-type]
+
+
+
+class StandaloneClient:
+    """An rclpy client whose futures run done-callbacks like every other callback."""
+
+    def __init__(self, handle: StandaloneHandle, srv_type: type, name: str) -> None:
+        self._client = handle.rclpy_node.create_client(srv_type, name)
+        self._handle = handle
+        self._name = self._client.srv_name
+        self._stats = handle.registry.add(handle.fully_qualified_name, "client", self._name)
+
+    @property
+    def srv_name(self) -> str:
+        return self._name
+
+    def service_is_ready(self) -> bool:
+        return self._client.service_is_ready()
+
+    def call_async(self, request: Any, /) -> Future:
+        future = Future(
+            lambda callback, done: self._handle._guarded(self._stats, callback)(done)
+        )
+        self._client.call_async(request).add_done_callback(
+            lambda done: future.set_result(done.result())
+        )
+        return future
 
 
 class Standalone:

@@ -123,7 +123,7 @@ class TestHandle(ComposedHandle):
             return
         store: list[Any] = []
         self._recorded[name] = store
-        self.container.bus.add_subscription(
+        tap = self.container.bus.add_subscription(
             name,
             msg_type,
             store.append,
@@ -131,10 +131,21 @@ class TestHandle(ComposedHandle):
             stats=CallbackStats("<test>", "subscription", name),
             logger=self.logger,
         )
+        tap.observer = True
 
     def published(self, topic: str) -> list[Any]:
-        """Every message published on ``topic`` (resolved like the node's own names)."""
-        return list(self._recorded.get(self.resolve(topic), ()))
+        """Every message published on ``topic`` (resolved like the node's own names).
+
+        Only topics this handle created a publisher on are recorded; asking for another
+        raises LookupError rather than answering an empty list that would pass a test.
+        """
+        name = self.resolve(topic)
+        if name not in self._recorded:
+            raise LookupError(
+                f"{self.fully_qualified_name} has no publisher on {name}; it publishes on "
+                f"{sorted(self._recorded) or 'nothing'}"
+            )
+        return list(self._recorded[name])
 
     def clear_published(self) -> None:
         for store in self._recorded.values():

@@ -40,11 +40,17 @@ class Harness(Protocol):
 
     def client(self, srv_type: type, name: str) -> Any: ...
 
+    def serve(self, factory: Callable[[NodeHandle], Any]) -> Any:
+        """Run ``factory`` as another component that the one under test can reach."""
+        ...
+
 
 class _DdsPeer:
     """A plain rclpy node in its own context: to the component, another process."""
 
     def __init__(self, domain_id: int) -> None:
+        self.domain_id = domain_id
+        self.others: list[Standalone] = []
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = Node("peer", context=self.context)
@@ -54,6 +60,8 @@ class _DdsPeer:
         self._subs: list[Any] = []
 
     def close(self) -> None:
+        for other in self.others:
+            other.close()
         self.executor.shutdown()
         self.node.destroy_node()
         self.context.try_shutdown()
@@ -69,6 +77,14 @@ class _DdsHarness:
     def _spin(self, timeout_s: float) -> None:
         self._spin_component(timeout_s)
         self._peer.executor.spin_once(timeout_sec=timeout_s)
+        for other in self._peer.others:
+            other.spin_once(0)
+
+    def serve(self, factory: Callable[[NodeHandle], Any]) -> Any:
+        # Another process's component, as far as DDS can tell.
+        other = Standalone(factory, name="other", domain_id=self._peer.domain_id)
+        self._peer.others.append(other)
+        return other.component
 
     def wait_for(self, predicate: Callable[[], bool], timeout_s: float = 10.0) -> bool:
         end = time.monotonic() + timeout_s
@@ -113,6 +129,9 @@ class _TestHarness:
 
     def client(self, srv_type: type, name: str) -> Any:
         return self._injector.create_client(srv_type, name)
+
+    def serve(self, factory: Callable[[NodeHandle], Any]) -> Any:
+        return factory(TestHandle("other", container=self.handle.container))
 
     def collect(self, topic: str, msg_type: type, qos: QoSProfile | int = 10) -> list[Any]:
         store: list[Any] = []

@@ -79,3 +79,31 @@ def test_unloading_removes_endpoints() -> None:
     other.close()
     pub.publish(String())
     assert got == []
+
+
+def test_remap_rules_follow_rcl() -> None:
+    from efficient_comm.testing import test_container
+
+    container = test_container()
+    rules = ["out:=/first", "out:=/second", "other:out:=/not_mine", "cam:info:=/mine"]
+    from efficient_comm._names import parse_remaps
+
+    node = TestHandle("cam", container=container, remappings=parse_remaps(rules))
+    assert node.create_publisher(String, "out").topic_name == "/first"  # first rule wins
+    assert node.create_publisher(String, "info").topic_name == "/mine"
+
+
+def test_node_name_and_namespace_remaps_apply_in_containers() -> None:
+    from efficient_comm.testing import test_container
+
+    container = test_container()
+    container.add(
+        lambda n: None, name="cam", remappings=["__node:=front", "__ns:=/robot"]
+    )
+    assert [c.full_node_name for c in container.components()] == ["/robot/front"]
+
+
+def test_published_refuses_topics_it_does_not_record() -> None:
+    node = TestHandle()
+    with pytest.raises(LookupError):
+        node.published("never_published")

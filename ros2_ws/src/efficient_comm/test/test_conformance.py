@@ -143,4 +143,73 @@ def test_services_answer_and_survive_errors(backend: str) -> None:
         assert h.wait_for(good.done)
         assert good.result().error_message == "42"
         assert h.wait_for(bad.done)
-        assert bad.exception() is not None or not bad.result().success
+        # Same on every backend: the failure is logged and counted by the server, and the
+        # caller gets an empty response (the only thing DDS could carry anyway).
+        assert bad.exception() is None and not bad.result().success
+
+
+class Fussy:
+    """Parameter edge cases: declare-time callbacks, lists, bugs in callbacks."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.seen: list[dict[str, Any]] = []
+        self.override_error: Exception | None = None
+        node.declare_parameter("first", 1)
+        node.add_on_parameter_change(self._on_change)
+        node.declare_parameter("ints", [1, 2])
+        try:
+            node.declare_parameter("rate", 1.0)  # the deployment gives a string
+        except ParameterError as exc:
+            self.override_error = exc
+        self.pub = node.create_publisher(String, "fussy_out")
+
+    def _on_change(self, changes: Mapping[str, ParameterValue]) -> None:
+        self.seen.append(dict(changes))
+        if "first" in changes and changes["first"] == 13:
+            raise KeyError("a bug in the callback")
+
+
+def test_parameter_edge_cases_agree(backend: str) -> None:
+    with harness(backend, Fussy, parameters={"rate": "fast"}) as h:
+        node, fussy = h.handle, h.component
+        # Declaring counts as setting, as in rclpy: the callback saw the later declaration.
+        assert fussy.seen == [{"ints": [1, 2]}]
+        assert fussy.override_error is not None
+        with pytest.raises(ParameterError):
+            node.set_parameter("ints", [1, 2.5])  # mixed lists are no ROS parameter
+        with pytest.raises(ParameterError):
+            node.set_parameter("first", 13)  # the callback raised something else
+        assert node.get_parameter("first") == 1 and node.get_parameter("ints") == [1, 2]
+
+
+def test_subscription_count_tells_whether_anyone_listens(backend: str) -> None:
+    with harness(backend, Fussy) as h:
+        assert h.component.pub.get_subscription_count() == 0
+        h.collect("/fussy_out", String)
+        assert h.wait_for(lambda: h.component.pub.get_subscription_count() == 1)
+
+
+class Caller:
+    """Calls /double and raises in its done-callback."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.client = node.create_client(UnloadComponent, "/double")
+        self.answers: list[str] = []
+
+    def ask(self, n: int) -> None:
+        def done(future: Any) -> None:
+            self.answers.append(future.result().error_message)
+            raise RuntimeError("bug in a done-callback")
+
+        self.client.call_async(UnloadComponent.Request(unique_id=n)).add_done_callback(done)
+
+
+def test_failing_done_callbacks_are_contained(backend: str) -> None:
+    with harness(backend, Caller) as h:
+        h.serve(Adder)
+        caller = h.component
+        assert h.wait_for(caller.client.service_is_ready)
+        caller.ask(1)
+        caller.ask(2)
+        assert h.wait_for(lambda: len(caller.answers) == 2)
+        assert sorted(caller.answers) == ["2", "4"]

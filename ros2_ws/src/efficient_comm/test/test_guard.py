@@ -46,3 +46,32 @@ def test_readers_that_do_not_mutate_pass() -> None:
     node.create_subscription(String, "t", lambda m: m.data.upper())
     node.create_publisher(String, "t").publish(String(data="fine"))
     assert node.container.executor.mutations == []
+
+
+def test_raise_mode_blames_the_mutator_not_its_upstream_and_delivers_to_the_rest() -> None:
+    container = test_container()  # raise mode
+    relay = TestHandle("relay", container=container)
+    out = relay.create_publisher(String, "mid")
+    relay.create_subscription(String, "in", lambda m: out.publish(String(data=m.data)))
+    vandal = TestHandle("vandal", container=container)
+    vandal.create_subscription(String, "mid", _vandal)
+    bystander: list[str] = []
+    TestHandle("bystander", container=container).create_subscription(
+        String, "mid", lambda m: bystander.append(m.data)
+    )
+    with pytest.raises(MessageMutatedError, match="/vandal"):
+        relay.inject("in", String(data="x"))
+    assert len(bystander) == 1  # the others still got the message
+    assert all(s.exceptions == 0 for s in container.stats())  # nobody else was charged
+
+
+def test_breadth_first_reports_only_the_subscriber_that_changed_it() -> None:
+    container = test_container(strategy="breadth_first", guard_mutation=True)
+    node = TestHandle("vandal", container=container)
+    node.create_subscription(String, "t", _vandal)
+    node.create_subscription(String, "t", lambda m: None)
+    node.create_publisher(String, "t").publish(String(data="orig"))
+    node.spin_some()
+    assert [r.culprit.split()[0:2] for r in container.executor.mutations] == [
+        ["subscriber", "/vandal"]
+    ]
