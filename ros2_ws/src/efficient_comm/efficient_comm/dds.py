@@ -20,6 +20,7 @@ contexts or other processes are unaffected.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 import uuid
@@ -76,10 +77,15 @@ def prepare_process() -> None:
     if current and _MARK in Path(current).name:
         return
     xml = _with_ignore_local(Path(current) if current else None)
-    fd, path = tempfile.mkstemp(prefix=f"{_MARK}-", suffix=".xml")
-    with os.fdopen(fd, "w") as out:
-        out.write(xml)
-    os.environ[PROFILES_ENV] = path
+    # One file per distinct content, shared by every process that needs it (no leak).
+    digest = hashlib.sha256(xml.encode()).hexdigest()[:16]
+    path = Path(tempfile.gettempdir()) / f"{_MARK}-{os.getuid()}-{digest}.xml"
+    if not path.exists():
+        fd, tmp = tempfile.mkstemp(prefix=f"{_MARK}-", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "w") as out:
+            out.write(xml)
+        os.replace(tmp, path)  # atomic: a concurrent process never reads half a file
+    os.environ[PROFILES_ENV] = str(path)
 
 
 def local_endpoints_ignored(context: Context) -> bool:

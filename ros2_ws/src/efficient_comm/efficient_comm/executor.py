@@ -47,8 +47,11 @@ GuardMode = bool | Literal["raise"]
 
 #: Depth-first calls nest at most this deep before further deliveries are queued.
 MAX_NESTING = 32
-#: While callbacks keep the executor busy, DDS is still polled at least this often.
+#: While callbacks keep the executor busy, DDS is still polled at least this often...
 DDS_POLL_INTERVAL_NS = 1_000_000
+#: ...but a poll (an rclpy wait-set round over every node's entities, 0.2-0.6 ms) may take
+#: at most this share of busy time, so the interval grows with the measured poll cost.
+DDS_POLL_SHARE = 0.05
 
 
 class _Runnable(Protocol):
@@ -163,6 +166,7 @@ class ConsecutiveExecutor:
         self._wake_event = threading.Event()
         self._dds: RclpyExecutor | None = None
         self._last_dds_poll = 0
+        self._dds_poll_interval = DDS_POLL_INTERVAL_NS
         self.registry = StatsRegistry()
         self.mutations: list[MutationReport] = []
         self._last_report: tuple[int, MutationReport] | None = None
@@ -319,8 +323,17 @@ class ConsecutiveExecutor:
             raise MessageMutatedError(str(report))
 
     def _run_timer(self, timer: ExecutorTimer) -> None:
+        # call() inlined: timers are the executor's other hot path.
+        stats = timer.stats
         self._nested_ns = 0
-        self.call(timer.stats, timer.logger, "timer callback", timer.callback)
+        start = time.perf_counter_ns()
+        try:
+            timer.callback()
+        except Exception:
+            stats.exceptions += 1
+            timer.logger.error(f"timer callback raised:\n{traceback.format_exc().rstrip()}")
+        end = time.perf_counter_ns()
+        stats.record(self.clock.now_ns() if self._manual else start, end - start - self._nested_ns)
         self._nested_ns = 0
 
     # -- the loop --------------------------------------------------------------------------
@@ -345,16 +358,19 @@ class ConsecutiveExecutor:
         timers = self._timers
         ran = False
         while timers and timers[0][0] <= now_ns:
-            due, _, generation, timer = heapq.heappop(timers)
+            due, _, generation, timer = timers[0]
             if generation != timer._generation or timer.canceled:
+                heapq.heappop(timers)
                 continue
             # Next deadline from the previous one (no drift); skip missed periods.
             nxt = due + timer.period_ns
             if nxt <= now_ns:
                 nxt = now_ns + timer.period_ns - (now_ns - due) % timer.period_ns
-            self._schedule(timer, nxt)
+            timer.next_ns = nxt
+            heapq.heapreplace(timers, (nxt, next(self._seq), generation, timer))
             self._run_timer(timer)
-            self._run_ready()
+            if self._ready:
+                self._run_ready()
             ran = True
         return ran
 
@@ -372,8 +388,12 @@ class ConsecutiveExecutor:
 
     def _wait(self, timeout_s: float) -> None:
         if self._dds is not None:
-            self._last_dds_poll = time.monotonic_ns()
+            start = time.monotonic_ns()
             self._dds.spin_once(timeout_sec=timeout_s)
+            self._last_dds_poll = end = time.monotonic_ns()
+            if not timeout_s:  # a pure poll: learn what it costs
+                cost = end - start
+                self._dds_poll_interval = max(DDS_POLL_INTERVAL_NS, int(cost / DDS_POLL_SHARE))
         else:
             self._wake_event.wait(timeout_s)
             self._wake_event.clear()
@@ -382,7 +402,8 @@ class ConsecutiveExecutor:
         """Run what is ready and due; if nothing was, wait up to ``timeout_s`` for work."""
         with self._owning():
             self._spin_once(timeout_s)
-        self._raise_pending()
+        if self._pending_raise is not None:
+            self._raise_pending()
 
     def _spin_once(self, timeout_s: float | None) -> None:
         did = self._run_ready()
@@ -391,7 +412,7 @@ class ConsecutiveExecutor:
         if did:
             if (
                 self._dds is not None
-                and time.monotonic_ns() - self._last_dds_poll > DDS_POLL_INTERVAL_NS
+                and time.monotonic_ns() - self._last_dds_poll > self._dds_poll_interval
             ):
                 self._wait(0.0)
                 self._run_ready()
@@ -408,7 +429,9 @@ class ConsecutiveExecutor:
         self._stop = False
         with self._owning():  # own the thread between rounds too (see dispatch)
             while not self._stop:
-                self.spin_once(0.1)
+                self._spin_once(0.1)
+                if self._pending_raise is not None:
+                    self._raise_pending()
 
     def spin_until(self, predicate: Callable[[], bool], *, timeout_s: float) -> bool:
         """Spin until ``predicate()`` holds; False if ``timeout_s`` passed first."""
@@ -418,14 +441,18 @@ class ConsecutiveExecutor:
                 left = end - time.monotonic()
                 if left <= 0:
                     return False
-                self.spin_once(min(left, 0.05))
+                self._spin_once(min(left, 0.05))
+                if self._pending_raise is not None:
+                    self._raise_pending()
         return True
 
     def spin_for(self, duration_s: float) -> None:
         end = time.monotonic() + duration_s
         with self._owning():
             while (left := end - time.monotonic()) > 0 and not self._stop:
-                self.spin_once(left)
+                self._spin_once(left)
+                if self._pending_raise is not None:
+                    self._raise_pending()
 
     def advance(self, duration_s: float) -> None:
         """Move a manual clock forward, running every timer that falls due on the way."""
