@@ -732,6 +732,8 @@ def external(
     one line per message with ``time.monotonic_ns()`` taken at the start of its callback.
     The next message is published only after that line arrived (one message in flight).
     """
+    from efficient_comm.testing import ros_env
+
     domain = set_domain_from_pid()
     out = []
     for payload in payloads:
@@ -753,7 +755,9 @@ def external(
             ],
             stdout=subprocess.PIPE,
             stdin=subprocess.DEVNULL,
-            env=dict(os.environ, ROS_DOMAIN_ID=str(domain)),
+            # A plain ROS 2 subscriber, as `ros2 topic echo` would be: without the DDS profile
+            # a composing process sets for itself (ros_env strips it).
+            env=ros_env(domain),
         )
         assert proc.stdout is not None
         try:
