@@ -287,28 +287,43 @@ class _Lat:
         return len(self.samples) < self.total and not over
 
 
-def latency(
-    backend: str, payloads: Sequence[str], iterations: dict[str, int], budget_s: float
+def _per_payload(
+    scenario: str,
+    backend: str,
+    payloads: Sequence[str],
+    iterations: dict[str, int],
+    budget_s: float,
+    rclpy_samples: Callable[[str, str, int, float], list[int]],
+    composed_samples: Callable[[str, str, int], list[int]],
 ) -> list[Record]:
+    """One latency record per payload, from the rclpy or the composed sampler."""
     out = []
     for payload in payloads:
         n = iterations[payload]
         warm = warmup_of(n)
         if backend in RCLPY_BACKENDS:
-            samples = _latency_rclpy(backend, payload, n + warm, budget_s)
+            samples = rclpy_samples(backend, payload, n + warm, budget_s)
         else:
-            samples = _latency_composed(backend, payload, n + warm)
+            samples = composed_samples(backend, payload, n + warm)
         out.append(
             latency_record(
                 samples,
                 warm,
-                scenario="latency",
+                scenario=scenario,
                 backend=backend,
                 payload=payload,
                 payload_bytes=payload_bytes(payload),
             )
         )
     return out
+
+
+def latency(
+    backend: str, payloads: Sequence[str], iterations: dict[str, int], budget_s: float
+) -> list[Record]:
+    return _per_payload(
+        "latency", backend, payloads, iterations, budget_s, _latency_rclpy, _latency_composed
+    )
 
 
 def _latency_rclpy(backend: str, payload: str, total: int, budget_s: float) -> list[int]:
@@ -582,25 +597,9 @@ CHAIN = ("a", "b", "c", "d", "e")
 def chain(
     backend: str, payloads: Sequence[str], iterations: dict[str, int], budget_s: float
 ) -> list[Record]:
-    out = []
-    for payload in payloads:
-        n = iterations[payload]
-        warm = warmup_of(n)
-        if backend in RCLPY_BACKENDS:
-            samples = _chain_rclpy(backend, payload, n + warm, budget_s)
-        else:
-            samples = _chain_composed(backend, payload, n + warm)
-        out.append(
-            latency_record(
-                samples,
-                warm,
-                scenario="chain",
-                backend=backend,
-                payload=payload,
-                payload_bytes=payload_bytes(payload),
-            )
-        )
-    return out
+    return _per_payload(
+        "chain", backend, payloads, iterations, budget_s, _chain_rclpy, _chain_composed
+    )
 
 
 def _chain_rclpy(backend: str, payload: str, total: int, budget_s: float) -> list[int]:
