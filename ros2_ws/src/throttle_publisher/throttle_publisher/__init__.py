@@ -4,10 +4,10 @@ A throttled subscriber tells the publishers of its topic what it needs (maximum 
 every n-th sample, pause) on an anti-parallel request topic; the publisher sends each
 subscriber only that, and can skip computing samples nobody wants.
 
-What is here so far: the options and their wire form (``options``), the per-subscriber
-decision with the demand query (``gate``), and the request messages in
-efficient_comm_interfaces (``ThrottleRequest``, ``ThrottleOption``). The publisher and
-subscriber endpoints on the node handle come next.
+Layers: ``options`` (what may be asked, and its wire form), ``gate`` (the per-subscriber
+decision and the demand query), ``protocol`` (topics, QoS, timing: the specification),
+``publisher`` and ``subscriber`` (the endpoints, written against efficient_comm's node
+handle, so they work standalone, composed and under test alike).
 """
 
 from .errors import InvalidOptionsError as InvalidOptionsError
@@ -17,3 +17,5 @@ from .options import ThrottleOptions as ThrottleOptions
 from .options import from_wire as from_wire
 from .options import options_from_msg as options_from_msg
 from .options import request_msg as request_msg
+from .publisher import ThrottledPublisher as ThrottledPublisher
+from .subscriber import ThrottledSubscription as ThrottledSubscription

@@ -1,0 +1,208 @@
+"""Throttled publishing on every backend: each subscriber gets exactly what it asked for."""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
+
+import pytest
+from std_msgs.msg import String
+
+from efficient_comm import Container, Standalone
+from efficient_comm.handle import NodeHandle
+from efficient_comm.testing import TestHandle, isolated_domain_id, test_container, unique_topic
+from throttle_publisher import (
+    InvalidOptionsError,
+    ThrottledPublisher,
+    ThrottledSubscription,
+    ThrottleOptions,
+)
+
+RATE_HZ = 30.0
+
+
+class Source:
+    """A 30 Hz 'expensive' output: computed only when someone wants the sample."""
+
+    def __init__(self, node: NodeHandle, topic: str) -> None:
+        self.out = ThrottledPublisher(node, String, topic, qos=100)
+        self.index = 0
+        self.computed = 0
+        node.create_timer(1.0 / RATE_HZ, self._tick)
+
+    def _tick(self) -> None:
+        if self.out.wants():
+            self.computed += 1
+            self.out.publish(String(data=str(self.index)))
+        else:
+            self.out.skip()
+        self.index += 1
+
+
+class Sinks:
+    """A plain subscriber and three throttled ones, each recording sample indices."""
+
+    def __init__(self, node: NodeHandle, topic: str, *, plain: bool = True) -> None:
+        self.got: dict[str, list[int]] = {k: [] for k in ("plain", "rate", "nth", "paused")}
+
+        def record(key: str) -> Callable[[String], None]:
+            return lambda msg: self.got[key].append(int(msg.data))
+
+        if plain:
+            node.create_subscription(String, topic, record("plain"), qos=100)
+        self.throttled = {
+            key: ThrottledSubscription(node, String, topic, record(key), options=options,
+                                       qos=100)
+            for key, options in [
+                ("rate", ThrottleOptions(max_rate_hz=5.0)),
+                ("nth", ThrottleOptions(every_nth=10)),
+                ("paused", ThrottleOptions(paused=True)),
+            ]
+        }
+
+    def reset(self) -> None:
+        for samples in self.got.values():
+            samples.clear()
+
+
+class World:
+    """A source and the sinks on one backend, with a way to let time pass."""
+
+    source: Source
+    sinks: Sinks
+    spin: Callable[[float], None]
+
+    def run_until(self, predicate: Callable[[], bool], timeout_s: float = 20.0) -> bool:
+        end = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > end:
+                return False
+            self.spin(0.005)
+        return True
+
+
+@contextmanager
+def world(backend: str, *, plain: bool = True) -> Iterator[World]:
+    topic = unique_topic("camera")
+    w = World()
+    with ExitStack() as stack:
+        if backend == "test":
+            container = stack.enter_context(test_container())
+            w.source = Source(TestHandle("source", container=container), topic)
+            w.sinks = Sinks(TestHandle("sinks", container=container), topic, plain=plain)
+            w.spin = lambda _t: container.advance(1.0 / RATE_HZ)
+        elif backend == "composed":
+            c = stack.enter_context(Container("throttle", domain_id=isolated_domain_id(),
+                                              serve=False))
+            w.source = c.add(lambda n: Source(n, topic), name="source")
+            w.sinks = c.add(lambda n: Sinks(n, topic, plain=plain), name="sinks")
+            w.spin = c.spin_once
+        else:  # standalone: two nodes in two DDS participants
+            domain = isolated_domain_id()
+            a = stack.enter_context(
+                Standalone(lambda n: Source(n, topic), name="source", domain_id=domain, args=[])
+            )
+            b = stack.enter_context(
+                Standalone(lambda n: Sinks(n, topic, plain=plain), name="sinks",
+                           domain_id=domain, args=[])
+            )
+            w.source, w.sinks = a.component, b.component
+
+            def spin(timeout_s: float) -> None:
+                a.spin_once(timeout_s)
+                b.spin_once(0)
+
+            w.spin = spin
+        yield w
+
+
+def _wired(w: World, *, plain: bool = True) -> bool:
+    out = w.source.out
+    requests = out.requests()
+    return (
+        len(requests) == 3
+        and out._pub.get_subscription_count() == int(plain)
+        and all(r.publisher.get_subscription_count() == 1 for r in out._replies.values())
+    )
+
+
+@pytest.mark.parametrize("backend", ["test", "composed", "standalone"])
+def test_each_subscriber_gets_what_it_asked_for(backend: str) -> None:
+    with world(backend) as w:
+        assert w.run_until(lambda: _wired(w)), w.source.out.requests()
+        w.sinks.reset()
+        assert w.run_until(lambda: len(w.sinks.got["plain"]) >= 90)
+        got = w.sinks.got
+        plain, rate, nth = got["plain"], got["rate"], got["nth"]
+        # Plain subscribers keep receiving every sample.
+        assert plain == list(range(plain[0], plain[0] + len(plain)))
+        # every_nth: exactly every 10th sample the source produced.
+        assert nth and all(b - a == 10 for a, b in itertools.pairwise(nth))
+        assert abs(len(nth) - len(plain) / 10) <= 1
+        # max_rate_hz=5 of a 30 Hz source: every 6th on average, never faster.
+        gaps = [b - a for a, b in itertools.pairwise(rate)]
+        assert gaps and min(gaps) >= 5 and 5.5 <= sum(gaps) / len(gaps) <= 6.5, gaps
+        assert got["paused"] == []
+
+
+@pytest.mark.parametrize("backend", ["test", "composed"])
+def test_what_nobody_wants_is_not_computed(backend: str) -> None:
+    with world(backend, plain=False) as w:
+        assert w.run_until(lambda: _wired(w, plain=False))
+        for sub in w.sinks.throttled.values():
+            sub.update(ThrottleOptions(paused=True))
+        computed, index = w.source.computed, w.source.index
+        assert w.run_until(lambda: w.source.index >= index + 30)
+        assert w.source.computed == computed  # 30 ticks, nobody listening: nothing computed
+        assert w.source.out.next_due_ns() is None
+        w.sinks.throttled["rate"].update(ThrottleOptions(max_rate_hz=1.0))
+        computed, index = w.source.computed, w.source.index
+        assert w.run_until(lambda: w.source.index >= index + 90)
+        # One 1 Hz subscriber: about one sample computed in every 30 (3 s of ticks).
+        assert 2 <= w.source.computed - computed <= 4
+
+
+def test_run_time_changes_apply_without_restart() -> None:
+    with world("test") as w:
+        assert w.run_until(lambda: _wired(w))
+        paused = w.sinks.throttled["paused"]
+        paused.update(ThrottleOptions(every_nth=3))
+        w.sinks.reset()
+        assert w.run_until(lambda: len(w.sinks.got["paused"]) >= 5)
+        got = w.sinks.got["paused"]
+        assert all(b - a == 3 for a, b in itertools.pairwise(got))
+
+
+def test_invalid_options_fail_at_creation_and_wire_errors_are_logged() -> None:
+    container = test_container()
+    node = TestHandle("sinks", container=container)
+    with pytest.raises(InvalidOptionsError):
+        ThrottledSubscription(node, String, "t", lambda m: None, options="fast")  # type: ignore[arg-type]
+    source_node = TestHandle("source", container=container)
+    ThrottledPublisher(source_node, String, "t")
+    from efficient_comm_interfaces.msg import ThrottleOption, ThrottleRequest
+
+    bad = ThrottleRequest(subscriber_id="s1", topic="/t",
+                          options=[ThrottleOption(name="every_nth", value=0.0)])
+    node.inject("/t/_throttle", bad)
+    assert any("ignored" in text for level, text in source_node.records if level == "warning")
+
+
+
+
+def test_a_departed_subscriber_stops_costing_at_once_and_is_forgotten() -> None:
+    from throttle_publisher.protocol import FORGET_AFTER_S
+
+    with world("test") as w:
+        assert w.run_until(lambda: _wired(w))
+        gone = w.sinks.throttled["rate"]
+        gone.close()
+        reply = w.source.out._replies[gone.subscriber_id]
+        assert reply.publisher.get_subscription_count() == 0  # nothing is sent for it
+        index = w.source.index
+        assert w.run_until(lambda: w.source.index >= index + RATE_HZ * (FORGET_AFTER_S + 1),
+                           timeout_s=60)
+        assert gone.subscriber_id not in w.source.out.requests()
+        assert len(w.source.out.requests()) == 2
