@@ -27,7 +27,7 @@ class Source:
     """A 30 Hz 'expensive' output: computed only when someone wants the sample."""
 
     def __init__(self, node: NodeHandle, topic: str) -> None:
-        self.out = ThrottledPublisher(node, String, topic, qos=100)
+        self.out = ThrottledPublisher(node, String, topic, qos=100, count_bytes=True)
         self.index = 0
         self.computed = 0
         node.create_timer(1.0 / RATE_HZ, self._tick)
@@ -145,6 +145,11 @@ def test_each_subscriber_gets_what_it_asked_for(backend: str) -> None:
         gaps = [b - a for a, b in itertools.pairwise(rate)]
         assert gaps and min(gaps) >= 5 and 5.5 <= sum(gaps) / len(gaps) <= 6.5, gaps
         assert got["paused"] == []
+        # The publisher's own counters agree with what each subscriber received.
+        sent = {s.options: s for s in w.source.out.stats().values()}
+        assert sent[ThrottleOptions(paused=True)].sent == 0
+        nth_stats = sent[ThrottleOptions(every_nth=10)]
+        assert nth_stats.sent >= len(nth) and nth_stats.sent_bytes > 0
 
 
 @pytest.mark.parametrize("backend", ["test", "composed"])

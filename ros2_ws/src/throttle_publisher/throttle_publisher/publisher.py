@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from rclpy.serialization import serialize_message
+
 from efficient_comm.handle import NodeHandle, Publisher, QoSLike
 
 from .errors import InvalidOptionsError
@@ -24,6 +26,17 @@ class _Reply:
     gate: Gate
     publisher: Publisher
     unread_since_ns: int | None = None
+    sent: int = 0
+    sent_bytes: int = 0
+
+
+@dataclass(frozen=True)
+class SubscriberStats:
+    """What a publisher sent one throttled subscriber (bytes: serialized payload size)."""
+
+    options: ThrottleOptions
+    sent: int
+    sent_bytes: int
 
 
 class ThrottledPublisher:
@@ -40,8 +53,15 @@ class ThrottledPublisher:
     """
 
     def __init__(
-        self, node: NodeHandle, msg_type: type, topic: str, *, qos: QoSLike = 10
+        self,
+        node: NodeHandle,
+        msg_type: type,
+        topic: str,
+        *,
+        qos: QoSLike = 10,
+        count_bytes: bool = False,
     ) -> None:
+        """``count_bytes`` serializes each sent sample once to count its size (measuring)."""
         from efficient_comm_interfaces.msg import ThrottleRequest
 
         self._node = node
@@ -50,6 +70,7 @@ class ThrottledPublisher:
         self._pub = node.create_publisher(msg_type, topic, qos=qos)
         self.topic_name = self._pub.topic_name
         self._replies: dict[str, _Reply] = {}
+        self._count_bytes = count_bytes
         self._requests = node.create_subscription(
             ThrottleRequest,
             request_topic(self.topic_name),
@@ -87,6 +108,13 @@ class ThrottledPublisher:
     def requests(self) -> dict[str, ThrottleOptions]:
         """The current request of every throttled subscriber, by subscriber id."""
         return {sid: r.gate.options for sid, r in self._replies.items()}
+
+    def stats(self) -> dict[str, SubscriberStats]:
+        """Samples (and bytes, with ``count_bytes``) sent to each throttled subscriber."""
+        return {
+            sid: SubscriberStats(r.gate.options, r.sent, r.sent_bytes)
+            for sid, r in self._replies.items()
+        }
 
     # -- demand -------------------------------------------------------------------------
 
@@ -126,12 +154,18 @@ class ThrottledPublisher:
     def _offer(self, msg: Any) -> None:
         now = self._node.clock.now_ns()
         forget = []
+        size = -1
         for sid, reply in self._replies.items():
             take = reply.gate.offer(now)
             if reply.publisher.get_subscription_count():
                 reply.unread_since_ns = None
                 if take and msg is not None:
                     reply.publisher.publish(msg)
+                    reply.sent += 1
+                    if self._count_bytes:
+                        if size < 0:
+                            size = len(serialize_message(msg))
+                        reply.sent_bytes += size
             elif reply.unread_since_ns is None:
                 reply.unread_since_ns = now
             elif now - reply.unread_since_ns > FORGET_AFTER_S * 1e9:
