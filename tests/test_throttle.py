@@ -6,6 +6,7 @@ import itertools
 import time
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
+from pathlib import Path
 
 import pytest
 from std_msgs.msg import String
@@ -211,3 +212,108 @@ def test_a_departed_subscriber_stops_costing_at_once_and_is_forgotten() -> None:
                            timeout_s=60)
         assert gone.subscriber_id not in w.source.out.requests()
         assert len(w.source.out.requests()) == 2
+
+
+@pytest.mark.parametrize("backend", ["test", "standalone"])
+def test_a_publisher_that_starts_later_learns_every_request(backend: str) -> None:
+    topic = unique_topic("camera")
+    with ExitStack() as stack:
+        if backend == "test":
+            container = stack.enter_context(test_container())
+            Sinks(TestHandle("sinks", container=container), topic)
+            source = Source(TestHandle("source", container=container), topic)
+
+            def spin(timeout_s: float) -> None:
+                del timeout_s  # manual time: one source period per step
+                container.advance(1.0 / RATE_HZ)
+
+        else:
+            domain = isolated_domain_id()
+            b = stack.enter_context(Standalone(lambda n: Sinks(n, topic), name="sinks",
+                                               domain_id=domain, args=[]))
+            b.spin_once(0.1)  # the requests are out before the publisher exists
+            a = stack.enter_context(Standalone(lambda n: Source(n, topic), name="source",
+                                               domain_id=domain, args=[]))
+            source = a.component
+
+            def spin(timeout_s: float) -> None:
+                a.spin_once(timeout_s)
+                b.spin_once(0)
+
+        w = World()
+        w.source, w.spin = source, spin
+        assert w.run_until(lambda: len(source.out.requests()) == 3), source.out.requests()
+        assert sorted(str(o) for o in source.out.requests().values()) == sorted(
+            str(o) for o in (ThrottleOptions(max_rate_hz=5.0), ThrottleOptions(every_nth=10),
+                             ThrottleOptions(paused=True))
+        )
+
+
+KILLED_SUBSCRIBER = """
+import sys
+from std_msgs.msg import String
+from efficient_comm import Standalone
+from throttle_publisher import ThrottledSubscription, ThrottleOptions
+got = []
+def viewer(node):
+    return ThrottledSubscription(node, String, sys.argv[1], got.append,
+                                 options=ThrottleOptions(max_rate_hz=5.0), qos=100)
+with Standalone(viewer, name="viewer", args=[]) as v:
+    while not got:
+        v.spin_once(0.05)
+    print("RECEIVING", flush=True)
+    while True:
+        v.spin_once(0.1)
+"""
+
+
+@pytest.mark.timeout(90)
+def test_a_killed_subscriber_stops_costing_within_the_lease(tmp_path: Path) -> None:
+    import select
+    import signal
+    import subprocess
+    import sys
+
+    from efficient_comm.testing import ros_env
+    from throttle_publisher.protocol import FORGET_AFTER_S
+
+    topic = unique_topic("camera")
+    domain = isolated_domain_id()
+    with Standalone(lambda n: Source(n, topic), name="source", domain_id=domain,
+                    args=[]) as a:
+        proc = subprocess.Popen([sys.executable, "-c", KILLED_SUBSCRIBER, topic],
+                                env=ros_env(domain), stdout=subprocess.PIPE, text=True,
+                                start_new_session=True)
+        try:
+            assert proc.stdout is not None
+            w = World()
+            w.source, w.spin = a.component, lambda t: a.spin_once(t)
+            replies = a.component.out._replies
+            assert w.run_until(
+                lambda: any(r.publisher.get_subscription_count() for r in replies.values()),
+                timeout_s=30,
+            )
+            lines: list[str] = []
+            stdout = proc.stdout
+
+            def said_receiving() -> bool:
+                ready, _, _ = select.select([stdout], [], [], 0)
+                if ready:
+                    lines.append(stdout.readline().strip())
+                return "RECEIVING" in lines
+
+            assert w.run_until(said_receiving, timeout_s=30), lines
+            proc.send_signal(signal.SIGKILL)
+            proc.wait()
+            # Fast DDS drops a killed participant after its lease (20 s by default); from
+            # then on nothing is written for it.
+            assert w.run_until(
+                lambda: not any(r.publisher.get_subscription_count() for r in replies.values()),
+                timeout_s=FORGET_AFTER_S,
+            )
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            if proc.stdout is not None:
+                proc.stdout.close()
