@@ -1,4 +1,6 @@
-"""Simulated humanoid robot: the thesis's humanoid scenario as a workload for efficient_comm.
+"""MuJoCo stands in for the Dynamixel servos of a kid-size humanoid (software in the loop).
 
-Will hold the simulation nodes and their sensor and actuator topics; later work fills it in.
+So far: ``dynamixel`` (a Protocol 2.0 bus of emulated XM430 servos on a pseudo-terminal,
+answering dynamixel-sdk unchanged). The MuJoCo robot and world, the simulator node, the
+servo driver and the soccer demo pipeline come next.
 """

@@ -1,0 +1,76 @@
+"""Serve a :class:`~humanoid_sim.dynamixel.bus.Bus` on a pseudo-terminal.
+
+The driver opens :attr:`PtyBus.port` (e.g. ``/dev/pts/5``) where it would open
+/dev/ttyUSB0; dynamixel-sdk's PortHandler runs unchanged. The emulator reads the master
+side in a thread of its own and answers like the servos on the bus; malformed bytes are
+skipped until the next header, and nothing a driver sends can stop the thread.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import threading
+import tty
+from types import TracebackType
+
+from .bus import Bus
+from .protocol import Parser
+
+
+class PtyBus:
+    """A context manager: the bus answers on a pty until closed."""
+
+    def __init__(self, bus: Bus) -> None:
+        self.bus = bus
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._master)
+        tty.setraw(self._slave)
+        self.port = os.ttyname(self._slave)
+        self.errors: list[BaseException] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, name="dynamixel-bus", daemon=True)
+        self._thread.start()
+
+    @property
+    def lock(self) -> threading.Lock:
+        """Hold it to change servos or step the plant while the bus may be answering."""
+        return self._lock
+
+    def _serve(self) -> None:
+        parser = Parser()
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self._master], [], [], 0.05)
+            if not ready:
+                continue
+            try:
+                data = os.read(self._master, 4096)
+            except OSError:
+                return
+            for packet in parser.feed(data):
+                try:
+                    with self._lock:
+                        reply = self.bus.handle(packet)
+                except Exception as exc:  # never let one packet stop the bus
+                    self.errors.append(exc)
+                    continue
+                if reply:
+                    os.write(self._master, reply)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2)
+        os.close(self._master)
+        os.close(self._slave)
+
+    def __enter__(self) -> PtyBus:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -1,0 +1,148 @@
+"""The emulated bus answers dynamixel-sdk, unchanged, as XM430 servos would."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterator
+
+import pytest
+from dynamixel_sdk import (
+    COMM_SUCCESS,
+    GroupBulkRead,
+    GroupSyncRead,
+    GroupSyncWrite,
+    PacketHandler,
+    PortHandler,
+)
+
+from humanoid_sim.dynamixel import control_table as ct
+from humanoid_sim.dynamixel.bus import Bus
+from humanoid_sim.dynamixel.plant import IdealPlant
+from humanoid_sim.dynamixel.protocol import (
+    Error,
+    Instruction,
+    Packet,
+    Parser,
+    crc16,
+    encode,
+    stuff,
+    unstuff,
+)
+from humanoid_sim.dynamixel.pty import PtyBus
+
+IDS = [1, 2, 3]
+GOAL, PRESENT, TORQUE = 116, 132, 64
+
+
+@pytest.fixture
+def rig() -> Iterator[tuple[PtyBus, IdealPlant, PortHandler, PacketHandler]]:
+    plant = IdealPlant()
+    with PtyBus(Bus(IDS, plant)) as pty:
+        port = PortHandler(pty.port)
+        assert port.openPort() and port.setBaudRate(1_000_000)
+        try:
+            yield pty, plant, port, PacketHandler(2.0)
+        finally:
+            port.closePort()
+        assert pty.errors == []
+
+
+def test_crc_matches_the_documented_example() -> None:
+    # e-Manual Protocol 2.0 ping example for ID 1: FF FF FD 00 01 03 00 01 19 4E
+    assert encode(1, Instruction.PING) == bytes.fromhex("FFFFFD0001030001194E")
+    assert crc16(bytes.fromhex("FFFFFD0001030001")) == 0x4E19
+
+
+def test_stuffing_round_trips_and_the_parser_resyncs() -> None:
+    body = b"\x03\xff\xff\xfd\x10"
+    assert stuff(body) == b"\x03\xff\xff\xfd\xfd\x10" and unstuff(stuff(body)) == body
+    packet = encode(7, Instruction.WRITE, b"\x74\x00\xff\xff\xfd\x00")
+    parser = Parser()
+    got = parser.feed(b"\x00\x17garbage" + packet[:5]) + parser.feed(packet[5:])
+    assert len(got) == 1 and got[0].dxl_id == 7 and got[0].params == b"\x74\x00\xff\xff\xfd\x00"
+
+
+def test_ping_read_write_through_the_sdk(rig) -> None:
+    pty, plant, port, ph = rig
+    model, result, error = ph.ping(port, 2)
+    assert (model, result, error) == (ct.MODEL_NUMBER, COMM_SUCCESS, 0)
+    assert ph.write1ByteTxRx(port, 2, TORQUE, 1)[0] == COMM_SUCCESS
+    target = 2048 + 512  # +45 degrees
+    assert ph.write4ByteTxRx(port, 2, GOAL, target)[0] == COMM_SUCCESS
+    with pty.lock:
+        plant.step(1.0)
+    position, result, error = ph.read4ByteTxRx(port, 2, PRESENT)
+    assert result == COMM_SUCCESS and error == 0 and position == target
+    assert plant.state(2).position_rad == pytest.approx(math.pi / 4, abs=1e-3)
+
+
+def test_sync_write_goals_and_sync_read_positions(rig) -> None:
+    pty, plant, port, ph = rig
+    writer = GroupSyncWrite(port, ph, TORQUE, 1)
+    for i in IDS:
+        writer.addParam(i, [1])
+    assert writer.txPacket() == COMM_SUCCESS
+    goals = GroupSyncWrite(port, ph, GOAL, 4)
+    for i in IDS:
+        goals.addParam(i, list((2048 + 100 * i).to_bytes(4, "little")))
+    assert goals.txPacket() == COMM_SUCCESS
+    with pty.lock:
+        plant.step(1.0)
+    reader = GroupSyncRead(port, ph, PRESENT, 4)
+    for i in IDS:
+        reader.addParam(i)
+    assert reader.txRxPacket() == COMM_SUCCESS
+    assert [reader.getData(i, PRESENT, 4) for i in IDS] == [2148, 2248, 2348]
+
+
+def test_bulk_read_different_fields(rig) -> None:
+    _, _, port, ph = rig
+    bulk = GroupBulkRead(port, ph)
+    assert bulk.addParam(1, 0, 2) and bulk.addParam(3, 146, 1)
+    assert bulk.txRxPacket() == COMM_SUCCESS
+    assert bulk.getData(1, 0, 2) == ct.MODEL_NUMBER and bulk.getData(3, 146, 1) == 30
+
+
+def test_torque_off_is_limp_and_limits_and_eeprom_are_enforced(rig) -> None:
+    pty, plant, port, ph = rig
+    ph.write4ByteTxRx(port, 1, GOAL, 3000)
+    with pty.lock:
+        plant.step(1.0)
+    assert ph.read4ByteTxRx(port, 1, PRESENT)[0:1] == (2048,)  # torque off: did not move
+    ph.write1ByteTxRx(port, 1, TORQUE, 1)
+    assert ph.write1ByteTxRx(port, 1, 11, 1)[1] == Error.ACCESS  # EEPROM locked
+    assert ph.write4ByteTxRx(port, 1, PRESENT, 5)[1] == Error.ACCESS  # read-only
+    ph.write1ByteTxRx(port, 1, TORQUE, 0)
+    assert ph.write4ByteTxRx(port, 1, 48, 3000)[1] == 0  # max position limit, torque off
+    ph.write1ByteTxRx(port, 1, TORQUE, 1)
+    assert ph.write4ByteTxRx(port, 1, GOAL, 3500)[1] == Error.DATA_LIMIT
+
+
+def test_malformed_packets_get_what_a_servo_gives(rig) -> None:
+    pty, _, port, ph = rig
+    fd = os.open(pty.port, os.O_RDWR | os.O_NOCTTY)
+    try:
+        bad = bytearray(encode(1, Instruction.PING))
+        bad[-1] ^= 0xFF
+        os.write(fd, bytes(bad))
+        unknown = encode(2, 0x42)
+        os.write(fd, unknown)
+        os.write(fd, encode(0xFE, Instruction.READ, b"\x00\x00\x02\x00"))  # ignored
+        replies = Parser()
+        got: list[Packet] = []
+        while len(got) < 2:
+            got += replies.feed(os.read(fd, 256))
+    finally:
+        os.close(fd)
+    assert [(p.dxl_id, p.params[0]) for p in got] == [(1, Error.CRC), (2, Error.INSTRUCTION)]
+    assert ph.ping(port, 1)[1] == COMM_SUCCESS  # still serving
+
+
+def test_unplugged_servo_does_not_answer(rig) -> None:
+    pty, _, port, ph = rig
+    with pty.lock:
+        pty.bus.servos[3].connected = False
+    assert ph.ping(port, 3)[1] != COMM_SUCCESS
+    ids, result = ph.broadcastPing(port)
+    assert result == COMM_SUCCESS and sorted(ids) == [1, 2]
