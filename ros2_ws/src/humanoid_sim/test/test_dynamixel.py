@@ -87,6 +87,8 @@ def test_sync_write_goals_and_sync_read_positions(rig) -> None:
     for i in IDS:
         goals.addParam(i, list((2048 + 100 * i).to_bytes(4, "little")))
     assert goals.txPacket() == COMM_SUCCESS
+    # Sync write has no reply; the bus is ordered, so a ping's reply means it was applied.
+    assert ph.ping(port, 1)[1] == COMM_SUCCESS
     with pty.lock:
         plant.step(1.0)
     reader = GroupSyncRead(port, ph, PRESENT, 4)

@@ -9,6 +9,7 @@ skipped until the next header, and nothing a driver sends can stop the thread.
 from __future__ import annotations
 
 import os
+import random
 import select
 import threading
 import tty
@@ -21,8 +22,11 @@ from .protocol import Parser
 class PtyBus:
     """A context manager: the bus answers on a pty until closed."""
 
-    def __init__(self, bus: Bus) -> None:
+    def __init__(self, bus: Bus, *, corrupt: float = 0.0, seed: int = 0) -> None:
+        """``corrupt``: the share of replies in which one byte is flipped (line noise)."""
         self.bus = bus
+        self.corrupt = corrupt
+        self._rng = random.Random(seed)
         self._master, self._slave = os.openpty()
         tty.setraw(self._master)
         tty.setraw(self._slave)
@@ -56,6 +60,10 @@ class PtyBus:
                     self.errors.append(exc)
                     continue
                 if reply:
+                    if self.corrupt and self._rng.random() < self.corrupt:
+                        noisy = bytearray(reply)
+                        noisy[self._rng.randrange(len(noisy))] ^= 1 << self._rng.randrange(8)
+                        reply = bytes(noisy)
                     os.write(self._master, reply)
 
     def close(self) -> None:
