@@ -75,3 +75,23 @@ def test_breadth_first_reports_only_the_subscriber_that_changed_it() -> None:
     assert [r.culprit.split()[0:2] for r in container.executor.mutations] == [
         ["subscriber", "/vandal"]
     ]
+
+
+def test_fingerprints_are_stable_for_unchanged_messages_and_see_deep_changes() -> None:
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from sensor_msgs.msg import Image
+
+    from efficient_comm.guard import fingerprint
+
+    array_msg = DiagnosticArray(status=[
+        DiagnosticStatus(name=f"servo {i}", level=DiagnosticStatus.OK,
+                         values=[KeyValue(key="k", value=str(i))]) for i in range(20)
+    ])
+    before = fingerprint(array_msg)
+    assert all(fingerprint(array_msg) == before for _ in range(100))
+    array_msg.status[7].values[0].value = "changed"
+    assert fingerprint(array_msg) != before
+    image = Image(data=bytes(1000))
+    before = fingerprint(image)
+    image.data[500] = 1
+    assert fingerprint(image) != before
