@@ -663,15 +663,7 @@ def source_state() -> dict[str, str]:
 
 
 def meta(args: argparse.Namespace, elapsed_s: float, state: dict[str, str]) -> dict[str, Any]:
-    def cmd(*c: str) -> str:
-        try:
-            return subprocess.run(
-                c, capture_output=True, text=True, cwd=ROOT, check=False
-            ).stdout.strip()
-        except OSError:
-            return ""
-
-    rclpy_version = cmd(
+    rclpy_version = _cmd(
         sys.executable, "-c", "from importlib.metadata import version; print(version('ros-rclpy'))"
     )
     return {

@@ -17,6 +17,7 @@ from ._clock import ManualClock as ManualClock
 from ._clock import SystemClock as SystemClock
 from ._clock import from_msg as from_msg
 from ._clock import to_msg as to_msg
+from ._closing import Closing as Closing
 from .config import ComponentSpec as ComponentSpec
 from .container import Container as Container
 from .container import LoadedComponent as LoadedComponent

@@ -22,13 +22,13 @@ import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
+from ._closing import Closing
 from ._names import apply_node_remaps, check_node_name, fully_qualified, parse_remaps
 from .bus import Bus
 from .composed import ComposedHandle, LocalService, RecordingLogger
@@ -62,7 +62,7 @@ def _guard_from_env() -> GuardMode:
     return "raise" if value == "raise" else value in ("1", "true", "yes", "on")
 
 
-class Container:
+class Container(Closing):
     """Hosts components; a context manager that unloads them all on exit.
 
     Like the components it hosts, a container belongs to one thread: add and unload
@@ -267,14 +267,3 @@ class Container:
             self._node = None
         if self.context is not None:
             self.context.try_shutdown()
-
-    def __enter__(self) -> Container:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

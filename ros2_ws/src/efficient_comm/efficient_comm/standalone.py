@@ -23,7 +23,6 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from types import TracebackType
 from typing import Any, cast
 
 import rclpy
@@ -32,6 +31,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
+from ._closing import Closing
 from ._future import Future
 from ._params import ParameterMethods, RclpyParameters
 from ._qos import to_profile
@@ -180,7 +180,7 @@ class StandaloneClient:
         return future
 
 
-class Standalone:
+class Standalone(Closing):
     """One component on its own rclpy context, node and executor (a context manager).
 
     ``args`` are command-line arguments (``--ros-args`` ones are honoured).
@@ -235,16 +235,6 @@ class Standalone:
             self.node.destroy_node()
             self.context.try_shutdown()
 
-    def __enter__(self) -> Standalone:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def run(factory: Callable[[Any], Any], *, name: str, args: Sequence[str] | None = None) -> int:

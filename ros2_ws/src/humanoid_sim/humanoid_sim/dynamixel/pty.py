@@ -13,13 +13,14 @@ import random
 import select
 import threading
 import tty
-from types import TracebackType
+
+from efficient_comm import Closing
 
 from .bus import Bus
 from .protocol import Parser
 
 
-class PtyBus:
+class PtyBus(Closing):
     """A context manager: the bus answers on a pty until closed."""
 
     def __init__(self, bus: Bus, *, corrupt: float = 0.0, seed: int = 0) -> None:
@@ -71,14 +72,3 @@ class PtyBus:
         self._thread.join(timeout=2)
         os.close(self._master)
         os.close(self._slave)
-
-    def __enter__(self) -> PtyBus:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
