@@ -7,6 +7,10 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 root=$PWD
 venv=$root/.venv
 
+# One set-up at a time per checkout: pip and colcon write the same trees.
+exec 9>"$root/.setup.lock"
+flock 9
+
 if [[ ! -x $venv/bin/python ]]; then
   echo "setup: creating .venv"
   python3.11 -m venv "$venv"
