@@ -15,7 +15,22 @@ setup(
     zip_safe=True,
     maintainer="efficient_comm dev",
     maintainer_email="dev@example.com",
-    description="Simulated humanoid robot that exercises efficient_comm.",
+    description="MuJoCo behind emulated Dynamixel servos: a simulated kid-size soccer humanoid.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={
+        "console_scripts": [
+            "soccer_demo = humanoid_sim.demo:main",
+            "simulator = humanoid_sim.simulator:main",
+            "servo_driver = humanoid_sim.driver:main",
+        ],
+        "efficient_comm.components": [
+            "humanoid_sim::Simulator = humanoid_sim.simulator:Simulator",
+            "humanoid_sim::ServoDriver = humanoid_sim.driver:ServoDriver",
+            "humanoid_sim::BallDetector = humanoid_sim.soccer.vision:BallDetector",
+            "humanoid_sim::BallModel = humanoid_sim.soccer.world_model:BallModel",
+            "humanoid_sim::HeadBehaviour = humanoid_sim.soccer.behaviour:HeadBehaviour",
+            "humanoid_sim::Motion = humanoid_sim.soccer.motion:Motion",
+            "humanoid_sim::SoccerMonitor = humanoid_sim.soccer.monitor:SoccerMonitor",
+        ],
+    },
 )

@@ -27,6 +27,7 @@ from sensor_msgs.msg import JointState
 
 from efficient_comm import to_msg
 from efficient_comm.handle import NodeHandle
+from efficient_comm.standalone import standalone_main
 
 from .dynamixel import control_table as ct
 
@@ -178,3 +179,7 @@ class ServoDriver:
 
     def status(self) -> dict[str, Any]:
         return {"present": sorted(self.present), "comm_errors": self.comm_errors}
+
+
+#: ``ros2 run humanoid_sim servo_driver --ros-args -p port:=/dev/ttyUSB0 -p ids:=[1,2]``.
+main = standalone_main(ServoDriver, name="servo_driver")

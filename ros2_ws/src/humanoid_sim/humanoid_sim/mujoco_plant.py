@@ -11,10 +11,11 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from .dynamixel.plant import JointState
 
-MODEL = Path(__file__).with_name("models") / "robot.xml"
+MODEL = Path(__file__).with_name("models") / "soccer_field.xml"
 
 #: Servo ids of the 20 joints, as the robot's wiring would number them.
 JOINTS: dict[int, str] = {
@@ -38,6 +39,10 @@ class MujocoPlant:
         self._kp = {i: float(self.model.actuator_gainprm[a, 0]) for i, a in self._actuator.items()}
         self._kv = {i: float(-self.model.actuator_biasprm[a, 2]) for i, a in self._actuator.items()}
         self._goal: dict[int, tuple[bool, float, float]] = {}
+        # Set-point slewing for all torqued joints at once: actuator index, goal, speed.
+        self._slew_index = np.zeros(0, dtype=np.intp)
+        self._slew_goal = np.zeros(0)
+        self._slew_speed = np.zeros(0)
         for dxl_id in joints:
             self._set_torque(dxl_id, on=False)
         mujoco.mj_forward(self.model, self.data)
@@ -58,17 +63,20 @@ class MujocoPlant:
             self.data.ctrl[self._actuator[dxl_id]] = self.data.qpos[self._joint[dxl_id].qposadr[0]]
         self._goal[dxl_id] = (torque, goal_rad, max_speed_rad_s)
         self._set_torque(dxl_id, on=torque)
+        on = [(self._actuator[i], g, s) for i, (t, g, s) in self._goal.items() if t]
+        self._slew_index = np.array([a for a, _, _ in on], dtype=np.intp)
+        self._slew_goal = np.array([g for _, g, _ in on])
+        self._slew_speed = np.array([s for _, _, s in on])
 
     def step(self, seconds: float) -> None:
         """Advance the simulation; set-points move toward goals at the allowed speed."""
         steps = max(1, round(seconds / self.model.opt.timestep))
         dt = self.model.opt.timestep
+        index, goal, limit = self._slew_index, self._slew_goal, self._slew_speed * dt
         for _ in range(steps):
-            for dxl_id, (torque, goal, speed) in self._goal.items():
-                if torque:
-                    a = self._actuator[dxl_id]
-                    ctrl = self.data.ctrl[a]
-                    self.data.ctrl[a] = ctrl + max(-speed * dt, min(speed * dt, goal - ctrl))
+            if len(index):
+                ctrl = self.data.ctrl[index]
+                self.data.ctrl[index] = ctrl + np.clip(goal - ctrl, -limit, limit)
             mujoco.mj_step(self.model, self.data)
 
     def state(self, dxl_id: int) -> JointState:

@@ -1,0 +1,260 @@
+"""The simulator component: MuJoCo physics behind the emulated servo bus, camera, IMU, truth.
+
+It owns the world (``models/soccer_field.xml``) and serves the robot's 20 servos on a
+pseudo-terminal, so the servo driver runs unchanged against it: the only thing the driver
+sees of the simulation is a serial port. Every timer tick advances physics by one period:
+
+* on a wall clock (a composed or standalone run), physics follows real time: a late tick
+  steps further to catch up (at most :data:`MAX_CATCH_UP` periods, so a stalled machine
+  slows the world down instead of making it jump), and :attr:`Simulator.real_time_factor`
+  says whether the machine kept up;
+* on a manual clock (``Container(clock=ManualClock())``, ``TestHandle``), everything moves in
+  lockstep: ``advance(t)`` steps the physics, the driver and the pipeline by exactly ``t``,
+  and the same seed gives the same run.
+
+Published (names relative to the component): ``camera/image_raw`` (rgb8, rendered offscreen),
+``camera/camera_info`` (transient local), ``imu/data``, and ground truth for tests and views:
+``ground_truth/robot``, ``ground_truth/ball`` and ``ground_truth/camera`` (poses in the field
+frame: origin at the centre spot, x toward the opponent goal, z up; the camera pose uses
+MuJoCo's camera frame, which looks along -z with y up).
+"""
+
+from __future__ import annotations
+
+import array
+import math
+import os
+import random
+import time
+from contextlib import suppress
+from typing import Any
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import CameraInfo, Image, Imu
+
+from efficient_comm import to_msg
+from efficient_comm.handle import NodeHandle
+from efficient_comm.standalone import standalone_main
+
+from .dynamixel.bus import Bus
+from .dynamixel.pty import PtyBus
+from .errors import SimConfigError
+from .mujoco_plant import JOINTS, MujocoPlant
+from .render import OffscreenCamera
+
+CAMERA = "head_camera"
+BALL_RADIUS_M = 0.07
+#: Where kicked balls go: in front of the robot, where its head can follow them.
+KICK_AREA = ((0.8, 2.5), (-1.2, 1.2))
+KICK_SECONDS = 2.0
+MAX_CATCH_UP = 4
+TRANSIENT_LOCAL = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def _pose(position: npt.ArrayLike, quat_wxyz: npt.ArrayLike) -> Pose:
+    p, q = np.asarray(position, dtype=float), np.asarray(quat_wxyz, dtype=float)
+    return Pose(position=Point(x=p[0], y=p[1], z=p[2]),
+                orientation=Quaternion(w=q[0], x=q[1], y=q[2], z=q[3]))
+
+
+class Simulator:
+    def __init__(self, node: NodeHandle) -> None:
+        self.node = node
+        step_hz = node.declare_parameter("step_hz", 100.0)
+        camera_hz = node.declare_parameter("camera_hz", 30.0)
+        width = node.declare_parameter("camera_width", 320)
+        height = node.declare_parameter("camera_height", 240)
+        port_link = node.declare_parameter("port_link", "")
+        line_noise = node.declare_parameter("line_noise", 0.0)
+        seed = node.declare_parameter("seed", 0)
+        ball_position = node.declare_parameter("ball_position", [1.5, 0.0])
+        ball_velocity = node.declare_parameter("ball_velocity", [0.0, 0.0])
+        self.kick_period_s = node.declare_parameter("ball_kick_period", 0.0)
+        if step_hz <= 0 or camera_hz < 0 or not 0.0 <= line_noise < 1.0:
+            raise SimConfigError(
+                f"need step_hz > 0, camera_hz >= 0, 0 <= line_noise < 1; got {step_hz}, "
+                f"{camera_hz}, {line_noise}"
+            )
+        if len(ball_position) != 2 or len(ball_velocity) != 2:
+            raise SimConfigError("ball_position and ball_velocity are [x, y] in metres (per s)")
+
+        self.plant = MujocoPlant()
+        self.model, self.data = self.plant.model, self.plant.data
+        self._rng = random.Random(seed)
+        self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed)
+        self.port = self.pty.port
+        self._link = port_link
+        if port_link:
+            with suppress(FileNotFoundError):
+                os.unlink(port_link)
+            os.symlink(self.port, port_link)
+            self.port = port_link
+        self._ball = self.model.joint("ball")
+        self.roll_ball(position=(ball_position[0], ball_position[1]),
+                       velocity=(ball_velocity[0], ball_velocity[1]))
+
+        self.period_s = 1.0 / step_hz
+        self.camera: OffscreenCamera | None = None
+        self.camera_period_ns = round(1e9 / camera_hz) if camera_hz > 0 else 0
+        if camera_hz > 0:
+            self.camera = OffscreenCamera(self.model, camera=CAMERA, width=width, height=height)
+        self.image_pub = node.create_publisher(Image, "camera/image_raw", qos=2)
+        info_pub = node.create_publisher(CameraInfo, "camera/camera_info", qos=TRANSIENT_LOCAL)
+        info_pub.publish(self.camera_info(width, height))
+        self.imu_pub = node.create_publisher(Imu, "imu/data", qos=10)
+        self.truth_pubs = {
+            what: node.create_publisher(PoseStamped, f"ground_truth/{what}", qos=10)
+            for what in ("robot", "ball", "camera")
+        }
+        self.frames = 0
+        self.render_ns = 0
+        self.steps = 0
+        self._next_frame_ns: int | None = None
+        self._next_kick_s = self.kick_period_s
+        self._wall_start: float | None = None
+        self._lockstep = bool(getattr(node.clock, "is_manual", False))
+        node.create_timer(self.period_s, self.tick)
+        node.logger.info(
+            f"servos on {self.port}; physics {step_hz:g} Hz, camera {camera_hz:g} Hz "
+            f"({self.camera.backend if self.camera else 'off'})"
+        )
+
+    # -- the world ------------------------------------------------------------------------
+
+    def camera_info(self, width: int, height: int) -> CameraInfo:
+        fovy = math.radians(float(self.model.cam_fovy[self.model.camera(CAMERA).id]))
+        f = (height / 2) / math.tan(fovy / 2)
+        info = CameraInfo(width=width, height=height, distortion_model="plumb_bob")
+        info.header.frame_id = CAMERA
+        info.k = [f, 0.0, width / 2, 0.0, f, height / 2, 0.0, 0.0, 1.0]
+        info.p = [f, 0.0, width / 2, 0.0, 0.0, f, height / 2, 0.0, 0.0, 0.0, 1.0, 0.0]
+        info.d = [0.0] * 5
+        return info
+
+    def roll_ball(self, *, position: tuple[float, float] | None = None,
+                  velocity: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Put the ball at ``position`` (if given) and set it rolling at ``velocity`` (m/s)."""
+        with self.pty.lock:
+            q, v = self._ball.qposadr[0], self._ball.dofadr[0]
+            if position is not None:
+                self.data.qpos[q : q + 7] = [position[0], position[1], BALL_RADIUS_M, 1, 0, 0, 0]
+            self.data.qvel[v : v + 6] = [velocity[0], velocity[1], 0, 0, 0, 0]
+            mujoco.mj_forward(self.model, self.data)
+
+    def ball_position(self) -> npt.NDArray[np.float64]:
+        return np.array(self.data.xpos[self.model.body("ball").id])
+
+    def _kick(self) -> None:
+        (x0, x1), (y0, y1) = KICK_AREA
+        target = np.array([self._rng.uniform(x0, x1), self._rng.uniform(y0, y1)])
+        velocity = (target - self.ball_position()[:2]) / KICK_SECONDS
+        self.roll_ball(velocity=(float(velocity[0]), float(velocity[1])))
+
+    # -- the loop -------------------------------------------------------------------------
+
+    @property
+    def sim_time_s(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated seconds per wall-clock second since the first tick."""
+        if self._wall_start is None:
+            return 0.0
+        wall = time.monotonic() - self._wall_start
+        return self.sim_time_s / wall if wall > 0 else 0.0
+
+    def _step_s(self) -> float:
+        """How far to step now: one period in lockstep, up to the wall clock otherwise."""
+        if self._lockstep or self._wall_start is None:
+            return self.period_s
+        behind = time.monotonic() - self._wall_start - self.sim_time_s
+        return min(max(behind, self.period_s / 2), MAX_CATCH_UP * self.period_s)
+
+    def tick(self) -> None:
+        step = self._step_s()
+        if self._wall_start is None:
+            self._wall_start = time.monotonic() - self.period_s
+        if self.kick_period_s > 0 and self.sim_time_s >= self._next_kick_s:
+            self._next_kick_s += self.kick_period_s
+            self._kick()
+        with self.pty.lock:
+            self.plant.step(step)
+        self.steps += 1
+        now = self.node.clock.now_ns()
+        self._publish_imu(now)
+        self._publish_truth(now)
+        if self.camera is not None and (self._next_frame_ns is None or now >= self._next_frame_ns):
+            self._next_frame_ns = (self._next_frame_ns or now) + self.camera_period_ns
+            self._next_frame_ns = max(self._next_frame_ns, now)  # no burst after a stall
+            self._publish_image(now)
+
+    def _publish_image(self, now: int) -> None:
+        assert self.camera is not None
+        w, h = self.camera.width, self.camera.height
+        buffer = array.array("B", bytes(w * h * 3))
+        started = time.perf_counter_ns()
+        self.camera.render(self.data, np.frombuffer(buffer, dtype=np.uint8).reshape(h, w, 3))
+        self.render_ns += time.perf_counter_ns() - started
+        image = Image(height=h, width=w, encoding="rgb8", step=w * 3)
+        image.header.stamp = to_msg(now)
+        image.header.frame_id = CAMERA
+        image.data = buffer  # an array.array is taken as is: no copy, no per-byte check
+        self.frames += 1
+        self.image_pub.publish(image)
+
+    def _publish_imu(self, now: int) -> None:
+        imu = Imu()
+        imu.header.stamp = to_msg(now)
+        imu.header.frame_id = "imu"
+        w, x, y, z = self.data.sensor("imu_orientation").data
+        imu.orientation = Quaternion(w=float(w), x=float(x), y=float(y), z=float(z))
+        gx, gy, gz = self.data.sensor("imu_gyro").data
+        imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z = (
+            float(gx), float(gy), float(gz))
+        ax, ay, az = self.data.sensor("imu_accel").data
+        imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = (
+            float(ax), float(ay), float(az))
+        self.imu_pub.publish(imu)
+
+    def _publish_truth(self, now: int) -> None:
+        torso, ball = self.model.body("torso").id, self.model.body("ball").id
+        cam = self.model.camera(CAMERA).id
+        cam_quat = np.zeros(4)
+        mujoco.mju_mat2Quat(cam_quat, self.data.cam_xmat[cam])
+        poses = {
+            "robot": _pose(self.data.xpos[torso], self.data.xquat[torso]),
+            "ball": _pose(self.data.xpos[ball], self.data.xquat[ball]),
+            "camera": _pose(self.data.cam_xpos[cam], cam_quat),
+        }
+        for what, pose in poses.items():
+            msg = PoseStamped(pose=pose)
+            msg.header.stamp = to_msg(now)
+            msg.header.frame_id = "field"
+            self.truth_pubs[what].publish(msg)
+
+    def status(self) -> dict[str, Any]:
+        return {
+            "sim_time_s": self.sim_time_s,
+            "real_time_factor": self.real_time_factor,
+            "frames": self.frames,
+            "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
+            "bus_errors": len(self.pty.errors),
+        }
+
+    def close(self) -> None:
+        if self.camera is not None:
+            self.camera.close()
+        self.pty.close()
+        if self._link:
+            with suppress(FileNotFoundError):
+                os.unlink(self._link)
+
+
+#: ``ros2 run humanoid_sim simulator --ros-args -p port_link:=/tmp/ttyDXL``: the simulator in
+#: a process of its own; a driver elsewhere opens the link.
+main = standalone_main(Simulator, name="simulator")

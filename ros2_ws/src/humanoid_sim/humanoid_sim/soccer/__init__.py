@@ -1,0 +1,17 @@
+"""The soccer robot's software, as composable components (camera to servos).
+
+``vision`` finds the ball in camera images (OpenCV); ``world_model`` filters its bearing in
+the robot's frame; ``behaviour`` points the head at it (and searches when it is lost);
+``motion`` turns stance and head goals into joint commands for the servo driver;
+``monitor`` measures what the pipeline achieves against the simulator's ground truth.
+``compose`` wires them, the simulator and the driver into one container.
+
+Messages between them (all standard types, passed by reference when composed):
+
+* ``ball/detection`` (PointStamped): x = yaw of the ball from the image centre (rad, left
+  positive), y = pitch (rad, down positive), z = its angular radius (rad); the header is the
+  image's.
+* ``ball/estimate`` (PointStamped): x, y = filtered yaw and pitch of the ball from the
+  torso's forward axis (rad), z = distance (m); stamped with the image it came from.
+* ``head/goal`` (JointState): neck_yaw and neck_pitch, stamped with the image it came from.
+"""

@@ -1,0 +1,62 @@
+"""The simulated soccer robot in one container: simulator, driver and the soccer pipeline.
+
+The same wiring serves the demo, the software-in-the-loop tests and the benchmarks, on a
+wall clock (real time) or a manual one (lockstep). The driver is given the simulator's pty
+path as its port; everything else it does is what it would do on the robot.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from efficient_comm import Container
+
+from ..driver import ServoDriver
+from ..mujoco_plant import JOINTS
+from ..simulator import Simulator
+from .behaviour import HeadBehaviour
+from .monitor import SoccerMonitor
+from .motion import Motion
+from .vision import BallDetector
+from .world_model import BallModel
+
+
+@dataclass(frozen=True)
+class SoccerRobot:
+    """The composed components, for inspection by tests, benchmarks and the demo."""
+
+    simulator: Simulator
+    driver: ServoDriver
+    detector: BallDetector
+    ball_model: BallModel
+    behaviour: HeadBehaviour
+    motion: Motion
+    monitor: SoccerMonitor
+
+
+def compose(container: Container, *, namespace: str = "/robot",
+            simulator: Mapping[str, Any] | None = None,
+            driver: Mapping[str, Any] | None = None) -> SoccerRobot:
+    """Add the robot to ``container``; ``simulator``/``driver`` override their parameters.
+
+    Order matters on a shared timer deadline: the simulator steps (and renders, and the
+    pipeline reacts to the image in the same pass) before the driver reads and writes the
+    servos, as on a robot whose camera and servo bus are sampled each cycle.
+    """
+    sim: Simulator = container.add(Simulator, name="simulator", namespace=namespace,
+                                   parameters=dict(simulator or {}))
+    driver_parameters = {"port": sim.port, "ids": list(JOINTS),
+                         "joint_names": list(JOINTS.values()), **(driver or {})}
+    robot = SoccerRobot(
+        simulator=sim,
+        driver=container.add(ServoDriver, name="servo_driver", namespace=namespace,
+                             parameters=driver_parameters),
+        detector=container.add(BallDetector, name="ball_detector", namespace=namespace),
+        ball_model=container.add(BallModel, name="ball_model", namespace=namespace),
+        behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
+        motion=container.add(Motion, name="motion", namespace=namespace),
+        monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),
+    )
+    return robot

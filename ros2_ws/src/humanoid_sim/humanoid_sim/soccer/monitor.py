@@ -1,0 +1,166 @@
+"""What the soccer pipeline achieves, measured against the simulator's ground truth.
+
+Tracking error is the angle between the camera's optical axis and the true direction to the
+ball at each camera frame: what "the head keeps the ball centred" means, independent of what
+the pipeline believes. Latency runs from an image's capture stamp to the joint command it
+caused. Rates count what each stage produced. :meth:`SoccerMonitor.window` returns the
+figures since its last call (live statistics); :meth:`SoccerMonitor.totals` those of the run.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+from geometry_msgs.msg import PointStamped, PoseStamped
+from sensor_msgs.msg import Image, JointState
+
+from efficient_comm import from_msg
+from efficient_comm.handle import NodeHandle
+
+
+def _rotation(pose: PoseStamped) -> np.ndarray:
+    q = pose.pose.orientation
+    w, x, y, z = q.w, q.x, q.y, q.z
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def ball_in_camera(camera: PoseStamped, ball: PoseStamped) -> tuple[float, float, float]:
+    """(yaw, pitch, off-axis angle) of the ball seen from the camera, in radians.
+
+    Yaw is positive to the left of the image centre, pitch positive below it, like the
+    detector's output; the camera frame is MuJoCo's (x right, y up, looking along -z).
+    """
+    c, b = camera.pose.position, ball.pose.position
+    d = _rotation(camera).T @ np.array([b.x - c.x, b.y - c.y, b.z - c.z])
+    forward = -d[2]
+    off_axis = math.acos(max(-1.0, min(1.0, forward / float(np.linalg.norm(d)))))
+    return math.atan2(-d[0], forward), math.atan2(-d[1], forward), off_axis
+
+
+@dataclass
+class Figures:
+    """What one stretch of the run achieved."""
+
+    seconds: float = 0.0
+    frames: int = 0
+    detections: int = 0
+    joint_states: int = 0
+    commands: int = 0
+    tracking_error_deg: list[float] = field(default_factory=list)
+    detection_error_deg: list[float] = field(default_factory=list)
+    latency_ms: list[float] = field(default_factory=list)
+
+    def rate(self, count: int) -> float:
+        return count / self.seconds if self.seconds > 0 else 0.0
+
+    @staticmethod
+    def percentile(values: list[float], q: float) -> float:
+        if not values:
+            return math.nan
+        ordered = sorted(values)
+        return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+    def summary(self) -> dict[str, float]:
+        return {
+            "camera_fps": self.rate(self.frames),
+            "detection_rate_hz": self.rate(self.detections),
+            "joint_state_rate_hz": self.rate(self.joint_states),
+            "tracking_error_mean_deg": (statistics.fmean(self.tracking_error_deg)
+                                        if self.tracking_error_deg else math.nan),
+            "tracking_error_p95_deg": self.percentile(self.tracking_error_deg, 0.95),
+            "tracking_error_max_deg": max(self.tracking_error_deg, default=math.nan),
+            "detection_error_p95_deg": self.percentile(self.detection_error_deg, 0.95),
+            "latency_median_ms": self.percentile(self.latency_ms, 0.5),
+            "latency_p99_ms": self.percentile(self.latency_ms, 0.99),
+        }
+
+
+class SoccerMonitor:
+    def __init__(self, node: NodeHandle) -> None:
+        self.node = node
+        self.camera: PoseStamped | None = None
+        self.ball: PoseStamped | None = None
+        # Commands caused by an image reach us before the image itself when composed
+        # depth-first (the detector subscribed first), so either side may come first.
+        self._image_stamps: deque[int] = deque(maxlen=64)
+        self._command_times: dict[int, int] = {}
+        self._window = Figures()
+        self._total = Figures()
+        self._window_start = self._total_start = node.clock.now_ns()
+        node.create_subscription(PoseStamped, "ground_truth/camera", self._on_camera, qos=10)
+        node.create_subscription(PoseStamped, "ground_truth/ball", self._on_ball, qos=10)
+        node.create_subscription(Image, "camera/image_raw", self._on_image, qos=10)
+        node.create_subscription(PointStamped, "ball/detection", self._on_detection, qos=10)
+        node.create_subscription(JointState, "joint_states", self._on_state, qos=10)
+        node.create_subscription(JointState, "joint_commands", self._on_command, qos=10)
+
+    def _both(self) -> tuple[Figures, Figures]:
+        return self._window, self._total
+
+    def _on_camera(self, pose: PoseStamped) -> None:
+        self.camera = pose
+
+    def _on_ball(self, pose: PoseStamped) -> None:
+        self.ball = pose
+
+    def _on_image(self, image: Image) -> None:
+        stamp = from_msg(image.header.stamp)
+        self._image_stamps.append(stamp)
+        if (sent := self._command_times.pop(stamp, None)) is not None:
+            self._latency((sent - stamp) / 1e6)
+        error = None
+        if self.camera is not None and self.ball is not None:
+            error = math.degrees(ball_in_camera(self.camera, self.ball)[2])
+        for figures in self._both():
+            figures.frames += 1
+            if error is not None:
+                figures.tracking_error_deg.append(error)
+
+    def _on_detection(self, detection: PointStamped) -> None:
+        error = None
+        if self.camera is not None and self.ball is not None:
+            yaw, pitch, _ = ball_in_camera(self.camera, self.ball)
+            error = math.degrees(math.hypot(detection.point.x - yaw, detection.point.y - pitch))
+        for figures in self._both():
+            figures.detections += 1
+            if error is not None:
+                figures.detection_error_deg.append(error)
+
+    def _on_state(self, _: JointState) -> None:
+        for figures in self._both():
+            figures.joint_states += 1
+
+    def _on_command(self, command: JointState) -> None:
+        stamp, now = from_msg(command.header.stamp), self.node.clock.now_ns()
+        if stamp in self._image_stamps:
+            self._latency((now - stamp) / 1e6)
+        else:
+            self._command_times.setdefault(stamp, now)
+            while len(self._command_times) > 64:  # stance commands never meet an image
+                del self._command_times[next(iter(self._command_times))]
+        for figures in self._both():
+            figures.commands += 1
+
+    def _latency(self, milliseconds: float) -> None:
+        for figures in self._both():
+            figures.latency_ms.append(milliseconds)
+
+    def window(self) -> Figures:
+        """The figures since the previous call, and start a new window."""
+        now = self.node.clock.now_ns()
+        window, self._window = self._window, Figures()
+        window.seconds = (now - self._window_start) / 1e9
+        self._window_start = now
+        return window
+
+    def totals(self) -> Figures:
+        self._total.seconds = (self.node.clock.now_ns() - self._total_start) / 1e9
+        return self._total
