@@ -1,0 +1,16 @@
+"""Console scripts: ``recorder`` (the component standalone, recording from the start)."""
+
+from __future__ import annotations
+
+import sys
+
+from efficient_comm.standalone import run
+
+from .recorder import Recorder
+
+
+def record_main() -> int:
+    """``recorder --ros-args -p topics:='[/a, /b]' -p output_dir:=/data``: records at once."""
+    return run(lambda node: Recorder(node, autostart=True), name="recorder",
+               args=sys.argv)
+

@@ -1,0 +1,115 @@
+"""Message types by name, and their complete ``ros2msg`` definitions for MCAP schemas.
+
+ROS tools that read a bag without the message packages installed (rosbags, Foxglove,
+``mcap`` with mcap-ros2-support) decode it from the schema stored in the file, so each schema
+must hold the type's own .msg text followed by every type it uses, recursively, each after a
+two-line delimiter (80 ``=`` and ``MSG: pkg/msg/Type``), as rosbag2 writes them. The .msg
+files come from ``share/<pkg>/msg/`` of every prefix on the ament index
+(``AMENT_PREFIX_PATH``), where rosidl installs them.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import os
+import re
+from pathlib import Path
+
+from .errors import UnknownTypeError
+
+__all__ = ["full_definition", "import_type", "type_name"]
+
+DELIMITER = "=" * 80
+_PRIMITIVES = frozenset({
+    "bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16",
+    "int32", "uint32", "int64", "uint64", "string", "wstring",
+})
+_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*/(msg/)?[A-Za-z][A-Za-z0-9_]*$")
+
+
+def type_name(msg_type: type) -> str:
+    """``pkg/msg/Type`` of a generated message class (what rosbag2 stores as the type)."""
+    module = msg_type.__module__.split(".")
+    if len(module) < 2 or module[1] != "msg":
+        raise UnknownTypeError(f"{msg_type!r} is not a generated ROS message class")
+    return f"{module[0]}/msg/{msg_type.__name__}"
+
+
+def _split(name: str) -> tuple[str, str]:
+    if not _NAME.match(name):
+        raise UnknownTypeError(f"message type must be pkg/msg/Type, not {name!r}")
+    parts = name.split("/")
+    return parts[0], parts[-1]
+
+
+def import_type(name: str) -> type:
+    """The message class for ``pkg/msg/Type`` (or ``pkg/Type``)."""
+    package, short = _split(name)
+    try:
+        module = importlib.import_module(f"{package}.msg")
+    except ImportError as exc:
+        raise UnknownTypeError(f"message package {package!r} is not installed: {exc}") from exc
+    msg_type = getattr(module, short, None)
+    if not isinstance(msg_type, type):
+        raise UnknownTypeError(f"{package}.msg has no message {short!r}")
+    return msg_type
+
+
+def _prefixes() -> list[Path]:
+    return [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+
+
+@functools.cache
+def _msg_text(package: str, short: str) -> str:
+    for prefix in _prefixes():
+        path = prefix / "share" / package / "msg" / f"{short}.msg"
+        if path.is_file():
+            return path.read_text(encoding="utf-8")
+    raise UnknownTypeError(
+        f"no {package}/msg/{short}.msg under share/ of any AMENT_PREFIX_PATH entry "
+        f"({os.environ.get('AMENT_PREFIX_PATH', '')!r}); is the package installed and sourced?"
+    )
+
+
+def _dependencies(package: str, text: str) -> list[tuple[str, str]]:
+    """Types a .msg text uses, in order of first use: ``(package, Type)``."""
+    deps: list[tuple[str, str]] = []
+    for raw in text.splitlines():
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        field_type = line.split()[0]
+        base = re.split(r"[\[<]", field_type, maxsplit=1)[0]
+        if base in _PRIMITIVES:
+            continue
+        if "/" in base:
+            parts = base.split("/")
+            dep = (parts[0], parts[-1])
+        elif base == "Header":  # the one short name ROS resolves outside the own package
+            dep = ("std_msgs", "Header")
+        else:
+            dep = (package, base)
+        if dep not in deps:
+            deps.append(dep)
+    return deps
+
+
+@functools.cache
+def full_definition(name: str) -> str:
+    """The complete ``ros2msg`` definition of ``pkg/msg/Type``: its text, then its deps."""
+    package, short = _split(name)
+    text = _msg_text(package, short)
+    seen: list[tuple[str, str]] = []
+    todo = _dependencies(package, text)
+    while todo:
+        dep = todo.pop(0)
+        if dep in seen or dep == (package, short):
+            continue
+        seen.append(dep)
+        todo.extend(_dependencies(dep[0], _msg_text(*dep)))
+    parts = [text.rstrip("\n")]
+    for dep_package, dep_short in seen:
+        parts.append(f"{DELIMITER}\nMSG: {dep_package}/msg/{dep_short}\n"
+                     + _msg_text(dep_package, dep_short).rstrip("\n"))
+    return "\n".join(parts) + "\n"

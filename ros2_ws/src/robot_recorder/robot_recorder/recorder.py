@@ -1,0 +1,348 @@
+"""The recorder component: subscribes, enqueues by reference, and takes remote commands.
+
+Composed with the robot's components it receives their messages by reference (no copy, no
+serialization in the callback); messages from other processes reach it through its DDS
+reader like any composed subscriber. Its callback only appends to the writer's queue
+(:mod:`robot_recorder.writer`); serializing, compressing and writing happen in the writer
+thread.
+
+Remote control (services, relative to the node: ``~/start``, ``~/stop``, ``~/split``,
+``~/snapshot``, ``~/set_topics``) and ``~/status`` (about once a second and on every change).
+"""
+
+from __future__ import annotations
+
+import datetime
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from efficient_comm import to_msg
+from efficient_comm.handle import NodeHandle, Subscription
+from throttle_publisher import ThrottledSubscription
+
+from .errors import RecorderConfigError, RecorderError, UnknownTypeError
+from .msgdefs import full_definition, import_type, type_name
+from .selection import TopicSelection, parse_selection
+from .storage import FileSystem
+from .writer import RECORDING, RecordWriter, TopicState
+
+__all__ = ["DEFAULT_CLOCK_TOPIC", "Recorder"]
+
+DEFAULT_CLOCK_TOPIC = "/team_clock/offset"
+#: How long a service waits for the writer thread to confirm a command.
+SERVICE_WAIT_S = 5.0
+
+
+class _Active:
+    """A subscribed topic: its selection, state and endpoint."""
+
+    def __init__(self, selection: TopicSelection, state: TopicState, endpoint: Any) -> None:
+        self.selection = selection
+        self.state = state
+        self.endpoint = endpoint
+
+
+class Recorder:
+    """Records selected topics into MCAP bags (rosbag2 layout), controlled remotely.
+
+    Parameters (ROS): ``topics`` (see :mod:`robot_recorder.selection`), ``output_dir``,
+    ``autostart``, ``queue_depth``, ``chunk_interval_s``, ``chunk_bytes``,
+    ``max_file_bytes``, ``max_file_duration_s``, ``min_free_bytes``, ``compression``,
+    ``snapshot_bytes``, ``snapshot_seconds``, ``status_period_s``, ``clock_topic``.
+    Keyword options override them from Python; ``fs`` is the file-system seam.
+    """
+
+    def __init__(
+        self,
+        node: NodeHandle,
+        *,
+        topics: Sequence[TopicSelection | str] | None = None,
+        output_dir: str | Path | None = None,
+        autostart: bool | None = None,
+        clock_topic: str | None = None,
+        fs: FileSystem | None = None,
+    ) -> None:
+        self._node = node
+        p = node.declare_parameter
+        names = p("topics", [""], description="NAME [TYPE] [max_rate_hz=R] [every_nth=N]")
+        self.output_dir = Path(output_dir if output_dir is not None
+                               else p("output_dir", "recordings"))
+        start = p("autostart", False) if autostart is None else autostart
+        self.clock_topic = (p("clock_topic", DEFAULT_CLOCK_TOPIC)
+                            if clock_topic is None else clock_topic)
+        bag_options = {
+            "chunk_interval_s": p("chunk_interval_s", 1.0),
+            "chunk_bytes": p("chunk_bytes", 1 << 20),
+            "max_file_bytes": p("max_file_bytes", 0),
+            "max_file_duration_s": p("max_file_duration_s", 0.0),
+            "min_free_bytes": p("min_free_bytes", 64 << 20),
+            "compression": p("compression", "zstd"),
+        }
+        selections = [s if isinstance(s, TopicSelection) else parse_selection(s)
+                      for s in (topics if topics is not None else [n for n in names if n])]
+        self._status_dirty = True
+        self.writer = RecordWriter(
+            queue_depth=p("queue_depth", 1000),
+            snapshot_bytes=p("snapshot_bytes", 0),
+            snapshot_seconds=p("snapshot_seconds", 10.0),
+            bag_options=bag_options,
+            fs=fs,
+            clock_topic=self._resolve(self.clock_topic) if self.clock_topic else "",
+            on_state=self._mark_dirty,
+            name=node.name,
+        )
+        self._fs = fs or FileSystem()
+        self._selections: dict[str, TopicSelection] = {}
+        self._active: dict[str, _Active] = {}
+        self._status_pub: Any = None
+        try:
+            self.set_topics(selections)
+            self._serve(node)
+        except BaseException:
+            self.writer.close()
+            raise
+        node.create_timer(p("status_period_s", 1.0), self._on_timer)
+        if start:
+            self.start().result(SERVICE_WAIT_S)
+
+    # -- Python API ----------------------------------------------------------------------
+
+    def start(self, bag: str | Path | None = None) -> Any:
+        """Start recording into ``bag`` (default: a new directory under ``output_dir``).
+
+        Returns a future of the bag path (completed by the writer thread).
+        """
+        return self.writer.start(Path(bag) if bag else self._new_bag_path(""))
+
+    def stop(self) -> Any:
+        return self.writer.stop()
+
+    def split(self) -> Any:
+        return self.writer.split()
+
+    def snapshot(self, bag: str | Path | None = None) -> Any:
+        return self.writer.snapshot(Path(bag) if bag else self._new_bag_path("snapshot_"))
+
+    def set_topics(self, selections: Iterable[TopicSelection]) -> None:
+        """Record exactly these topics from now on (throttle options may change)."""
+        wanted: dict[str, TopicSelection] = {}
+        for selection in selections:
+            name = self._resolve(selection.name)
+            if name in wanted:
+                raise RecorderConfigError(f"topic {name} selected twice")
+            wanted[name] = selection
+        for name in list(self._active):
+            if wanted.get(name) != self._active[name].selection:
+                self._unsubscribe(name)
+        self._selections = wanted
+        self._subscribe_known()
+
+    def topic_states(self) -> dict[str, TopicState]:
+        return {name: a.state for name, a in self._active.items()}
+
+    def close(self) -> None:
+        """Finish the recording (every queued message is written); called on unload."""
+        self.writer.close()
+
+    # -- subscriptions -------------------------------------------------------------------
+
+    def _resolve(self, topic: str) -> str:
+        resolve = getattr(self._node, "resolve", None)
+        if callable(resolve):
+            return str(resolve(topic))
+        rclpy_node = getattr(self._node, "rclpy_node", None)
+        if rclpy_node is not None:
+            return str(rclpy_node.resolve_topic_name(topic))
+        return topic
+
+    def _subscribe_known(self) -> None:
+        pending = {n: s for n, s in self._selections.items() if n not in self._active}
+        clock = self.writer._clock_topic
+        if clock and clock not in self._selections and clock not in self._active:
+            pending[clock] = TopicSelection(name=clock)
+        if not pending:
+            return
+        graph = _graph_types(self._node)
+        for name, selection in pending.items():
+            type_str = selection.type or graph.get(name, "")
+            if not type_str:
+                continue  # no publisher yet: the timer looks again
+            try:
+                msg_type = import_type(type_str)
+                type_str = type_name(msg_type)
+                full_definition(type_str)  # refuse now what could not be written later
+            except UnknownTypeError as exc:
+                self._node.logger.error(f"not recording {name}: {exc}")
+                self.writer.error = str(exc)
+                continue
+            self._subscribe(name, selection, msg_type, type_str)
+
+    def _subscribe(self, name: str, selection: TopicSelection, msg_type: type,
+                   type_str: str) -> None:
+        state = self.writer.topics.get(name)
+        if state is None or state.type_name != type_str:
+            state = self.writer.topics[name] = TopicState(name, type_str)
+        enqueue, clock = self.writer.enqueue, self._node.clock
+
+        def on_message(msg: Any, state: TopicState = state) -> None:
+            enqueue(state, msg, clock.now_ns())
+
+        qos = _record_qos(self._node, name)
+        throttle = selection.throttle()
+        endpoint: Any
+        if throttle is not None:
+            endpoint = ThrottledSubscription(self._node, msg_type, name, on_message,
+                                             options=throttle, qos=qos)
+        else:
+            endpoint = self._node.create_subscription(msg_type, name, on_message, qos=qos)
+        self._active[name] = _Active(selection, state, endpoint)
+        self._mark_dirty()
+
+    def _unsubscribe(self, name: str) -> None:
+        active = self._active.pop(name)
+        if isinstance(active.endpoint, ThrottledSubscription):
+            active.endpoint.close()
+        else:
+            sub: Subscription = active.endpoint
+            self._node.destroy_subscription(sub)
+
+    # -- services and status --------------------------------------------------------------
+
+    def _serve(self, node: NodeHandle) -> None:
+        from robot_recorder_interfaces.msg import RecorderStatus
+        from robot_recorder_interfaces.srv import SetTopics, Snapshot, Split, Start, Stop
+
+        self._status_pub = node.create_publisher(RecorderStatus, "~/status", qos=10)
+        node.create_service(Start, "~/start", self._srv_start)
+        node.create_service(Stop, "~/stop", self._srv_stop)
+        node.create_service(Split, "~/split", self._srv_split)
+        node.create_service(Snapshot, "~/snapshot", self._srv_snapshot)
+        node.create_service(SetTopics, "~/set_topics", self._srv_set_topics)
+
+    def _answer(self, response: Any, call: Callable[[], Any],
+                fill: Callable[[Any], None]) -> Any:
+        try:
+            result = call()
+            fill(result.result(SERVICE_WAIT_S) if hasattr(result, "result") else result)
+            response.success = True
+        except (RecorderError, OSError, TimeoutError) as exc:
+            response.success = False
+            response.message = str(exc) or type(exc).__name__
+        self._mark_dirty()
+        return response
+
+    def _srv_start(self, request: Any, response: Any) -> Any:
+        def fill(bag: Path) -> None:
+            response.bag = str(bag)
+        return self._answer(response, lambda: self.start(request.bag or None), fill)
+
+    def _srv_stop(self, request: Any, response: Any) -> Any:
+        def fill(bag: Path | None) -> None:
+            response.bag = str(bag or "")
+            response.message = "" if bag else "was not recording"
+        return self._answer(response, self.stop, fill)
+
+    def _srv_split(self, request: Any, response: Any) -> Any:
+        def fill(_closed: Path | None) -> None:
+            response.file = ""
+        return self._answer(response, self.split, fill)
+
+    def _srv_snapshot(self, request: Any, response: Any) -> Any:
+        def fill(result: tuple[Path, int]) -> None:
+            response.bag, response.messages = str(result[0]), result[1]
+        return self._answer(response, lambda: self.snapshot(request.bag or None), fill)
+
+    def _srv_set_topics(self, request: Any, response: Any) -> Any:
+        def call() -> None:
+            self.set_topics([
+                TopicSelection(name=t.name, type=t.type, max_rate_hz=t.max_rate_hz,
+                               every_nth=max(1, t.every_nth))
+                for t in request.topics
+            ])
+        return self._answer(response, call, lambda _: None)
+
+    def _mark_dirty(self) -> None:
+        self._status_dirty = True
+
+    def _on_timer(self) -> None:
+        self._subscribe_known()
+        self.publish_status()
+
+    def status(self) -> Any:
+        """The current :class:`RecorderStatus` message."""
+        from robot_recorder_interfaces.msg import RecorderStatus, TopicStatus
+
+        w = self.writer
+        msg = RecorderStatus()
+        msg.stamp = to_msg(self._node.clock.now_ns())
+        msg.state = w.state
+        msg.bag = str(w.bag_path or "")
+        msg.file = ""
+        msg.error = w.error
+        topics = list(w.topics.values())
+        msg.topics = [TopicStatus(name=t.name, type=t.type_name, messages=t.messages,
+                                  bytes=t.bytes, drops=t.drops) for t in topics]
+        msg.messages = sum(t.messages for t in topics)
+        msg.bytes = sum(t.bytes for t in topics)
+        msg.drops = sum(t.drops for t in topics)
+        try:
+            where = w.bag_path if w.bag_path and w.bag_path.exists() else self.output_dir
+            while not where.exists() and where != where.parent:
+                where = where.parent
+            msg.free_bytes = max(0, self._fs.free_bytes(where))
+        except OSError:
+            msg.free_bytes = 0
+        msg.snapshot_bytes = w.ring_bytes
+        msg.snapshot_seconds = w.ring_seconds()
+        return msg
+
+    def publish_status(self) -> None:
+        self._status_dirty = False
+        if self._status_pub is not None:
+            self._status_pub.publish(self.status())
+
+    @property
+    def recording(self) -> bool:
+        return self.writer.state == RECORDING
+
+    def _new_bag_path(self, kind: str) -> Path:
+        stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%d_%H%M%S_%f")
+        return self.output_dir / f"{self._node.name}_{kind}{stamp}"
+
+
+def _graph_types(node: NodeHandle) -> dict[str, str]:
+    """Topic name -> ``pkg/msg/Type`` of every topic this process or the DDS graph knows."""
+    found: dict[str, str] = {}
+    container = getattr(node, "_container", None)  # composed handles: the in-process bus
+    bus = getattr(container, "bus", None)
+    if bus is not None:
+        for name, msg_type in bus.topics().items():
+            try:
+                found[name] = type_name(msg_type)
+            except UnknownTypeError:
+                continue
+    rclpy_node = getattr(node, "rclpy_node", None)
+    if rclpy_node is not None:
+        for name, types in rclpy_node.get_topic_names_and_types():
+            if types and name not in found:
+                found[name] = types[0]
+    return found
+
+
+def _record_qos(node: NodeHandle, topic: str) -> QoSProfile:
+    """Reliable unless a known publisher is best effort (a reliable reader would miss it)."""
+    reliability = ReliabilityPolicy.RELIABLE
+    container = getattr(node, "_container", None)
+    bus = getattr(container, "bus", None)
+    local = bus._topics.get(topic) if bus is not None else None
+    publishers: list[Any] = [p.qos for p in local.publishers] if local is not None else []
+    rclpy_node = getattr(node, "rclpy_node", None)
+    if rclpy_node is not None:
+        publishers += [i.qos_profile for i in rclpy_node.get_publishers_info_by_topic(topic)]
+    if any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in publishers):
+        reliability = ReliabilityPolicy.BEST_EFFORT
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=reliability,
+                      durability=DurabilityPolicy.VOLATILE)

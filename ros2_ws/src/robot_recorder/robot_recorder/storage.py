@@ -1,0 +1,366 @@
+"""A bag directory of MCAP files in the rosbag2 layout, written by one thread.
+
+Layout, as rosbag2's MCAP storage writes it so ROS tools read it: profile ``ros2``, one
+schema per type with encoding ``ros2msg`` and the complete definition, channels with
+message encoding ``cdr``, zstd-compressed chunks, and ``metadata.yaml`` (rosbag2 format
+version 9) beside the files ``<bag>_0.mcap``, ``<bag>_1.mcap``, ...
+
+Robustness is decided here:
+
+* chunks are closed at least every ``chunk_interval_s`` (and at ``chunk_bytes``) and handed
+  to the operating system, so a process killed with SIGKILL leaves a file readable up to its
+  last completed chunk (:func:`robot_recorder.bag.recover` rewrites such a file whole);
+* files split by size and by duration; ``metadata.yaml`` is rewritten whenever a file
+  closes, so it always lists every completed file;
+* a free-space guard closes the bag cleanly while ``min_free_bytes`` are still free, and a
+  write error (disk full) closes what can be closed and raises :class:`StorageError`.
+
+The file system is a seam (:class:`FileSystem`): tests inject failures through it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import shutil
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import yaml
+from mcap.writer import CompressionType, Writer
+
+from .errors import RecorderConfigError, StorageError
+from .msgdefs import full_definition
+
+__all__ = ["BagWriter", "FileSystem", "TopicMetadata"]
+
+METADATA_VERSION = 9
+# The free-space guard asks the file system at every flush and after this many bytes.
+_FREE_CHECK_BYTES = 4 << 20
+
+
+class FileSystem:
+    """Where the bytes go. Subclass to inject failures (disk full) or to count bytes."""
+
+    def open_new(self, path: Path) -> IO[bytes]:
+        """Open ``path`` for writing; it must not exist yet."""
+        return open(path, "xb")
+
+    def free_bytes(self, path: Path) -> int:
+        """Bytes available to this process on the file system holding ``path``."""
+        return shutil.disk_usage(path).free
+
+    def write_text(self, path: Path, text: str) -> None:
+        """Replace ``path`` atomically (readers never see half a file)."""
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(path)
+
+
+@dataclass
+class TopicMetadata:
+    """What the bag knows about one topic."""
+
+    name: str
+    type: str
+    messages: int = 0
+    bytes: int = 0
+
+
+@dataclass
+class _FileInfo:
+    path: Path
+    start_ns: int = 0
+    end_ns: int = 0
+    messages: int = 0
+
+
+@dataclass
+class _OpenFile:
+    info: _FileInfo
+    stream: IO[bytes]
+    writer: Writer
+    opened_ns: int
+    channels: dict[str, int] = field(default_factory=dict)
+    schemas: dict[str, int] = field(default_factory=dict)
+    bytes: int = 0
+    unflushed: int = 0
+    flushed_at: float = 0.0
+
+
+class BagWriter:
+    """Writes one bag directory. Not thread-safe: one thread (the recorder's writer) owns it."""
+
+    def __init__(
+        self,
+        bag: str | Path,
+        *,
+        chunk_interval_s: float = 1.0,
+        chunk_bytes: int = 1 << 20,
+        max_file_bytes: int = 0,
+        max_file_duration_s: float = 0.0,
+        min_free_bytes: int = 64 << 20,
+        compression: str = "zstd",
+        file_metadata: Callable[[], Mapping[str, Mapping[str, str]]] | None = None,
+        fs: FileSystem | None = None,
+    ) -> None:
+        if compression not in ("zstd", "lz4", "none"):
+            raise RecorderConfigError(f"compression must be zstd, lz4 or none, not {compression!r}")
+        if chunk_interval_s <= 0 or chunk_bytes <= 0:
+            raise RecorderConfigError("chunk_interval_s and chunk_bytes must be positive")
+        if max_file_bytes < 0 or max_file_duration_s < 0 or min_free_bytes < 0:
+            raise RecorderConfigError("split limits and min_free_bytes must be >= 0 (0 = none)")
+        self.path = Path(bag)
+        self._fs = fs or FileSystem()
+        self._compression = {
+            "zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE
+        }[compression]
+        self._chunk_interval_s = chunk_interval_s
+        self._chunk_bytes = chunk_bytes
+        self._max_file_bytes = max_file_bytes
+        self._max_file_ns = int(max_file_duration_s * 1e9)
+        self._min_free_bytes = min_free_bytes
+        self._file_metadata = file_metadata
+        self.topics: dict[str, TopicMetadata] = {}
+        self.files: list[_FileInfo] = []
+        self._open: _OpenFile | None = None
+        self._since_free_check = 0
+        self.closed = False
+        try:
+            self.path.mkdir(parents=True, exist_ok=False)
+        except FileExistsError as exc:
+            raise RecorderConfigError(f"bag directory {self.path} exists already") from exc
+        except OSError as exc:
+            raise StorageError(f"cannot create bag directory {self.path}: {exc}") from exc
+        self._check_free()
+
+    # -- writing ---------------------------------------------------------------------------
+
+    @property
+    def current_file(self) -> Path | None:
+        return self._open.info.path if self._open is not None else None
+
+    @property
+    def bytes_written(self) -> int:
+        """Serialized message bytes written to the bag so far."""
+        return sum(t.bytes for t in self.topics.values())
+
+    def write(self, topic: str, type_name: str, data: bytes, log_time_ns: int) -> None:
+        """Add one serialized (CDR) message; splits, flushes and guards as configured."""
+        if self.closed:
+            raise StorageError(f"bag {self.path} is closed")
+        f = self._open
+        if f is not None and self._should_split(f, log_time_ns):
+            self._close_file()
+            f = None
+        if f is None:
+            f = self._open_file(log_time_ns)
+        try:
+            channel = f.channels.get(topic)
+            if channel is None:
+                channel = self._channel(f, topic, type_name)
+            f.writer.add_message(channel, log_time_ns, data, log_time_ns)
+        except OSError as exc:
+            self._fail(f"writing {f.info.path}: {exc}", exc)
+        info = f.info
+        if info.messages == 0 or log_time_ns < info.start_ns:
+            info.start_ns = log_time_ns
+        info.end_ns = max(info.end_ns, log_time_ns)
+        info.messages += 1
+        meta = self.topics[topic]
+        meta.messages += 1
+        meta.bytes += len(data)
+        f.bytes += len(data)
+        f.unflushed += 1
+        self._since_free_check += len(data)
+        if self._since_free_check >= _FREE_CHECK_BYTES:
+            self._check_free()
+
+    def tick(self, now: float | None = None) -> None:
+        """Close the chunk in progress if it is older than ``chunk_interval_s``; guard space."""
+        f = self._open
+        if f is None or not f.unflushed:
+            return
+        now = time.monotonic() if now is None else now
+        if now - f.flushed_at >= self._chunk_interval_s:
+            self.flush()
+
+    def flush(self) -> None:
+        """Close the chunk in progress and hand everything written to the operating system."""
+        f = self._open
+        if f is None:
+            return
+        try:
+            f.writer.flush()  # type: ignore[no-untyped-call]
+        except OSError as exc:
+            self._fail(f"writing {f.info.path}: {exc}", exc)
+        f.unflushed = 0
+        f.flushed_at = time.monotonic()
+        self._check_free()
+
+    def split(self) -> Path | None:
+        """Close the current file; the next message opens the next one. Returns the closed file."""
+        if self._open is None:
+            return None
+        path = self._open.info.path
+        self._close_file()
+        return path
+
+    def close(self) -> None:
+        """Close the current file and write ``metadata.yaml``. Idempotent."""
+        if self.closed:
+            return
+        try:
+            if self._open is not None:
+                self._close_file()
+            else:
+                self._write_metadata()
+        finally:
+            self.closed = True
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _should_split(self, f: _OpenFile, log_time_ns: int) -> bool:
+        if self._max_file_bytes and f.bytes >= self._max_file_bytes:
+            return True
+        return bool(self._max_file_ns and log_time_ns - f.opened_ns >= self._max_file_ns)
+
+    def _open_file(self, log_time_ns: int) -> _OpenFile:
+        path = self.path / f"{self.path.name}_{len(self.files)}.mcap"
+        try:
+            stream = self._fs.open_new(path)
+        except OSError as exc:
+            self._fail(f"opening {path}: {exc}", exc)
+        writer = Writer(stream, chunk_size=self._chunk_bytes, compression=self._compression)
+        info = _FileInfo(path)
+        self.files.append(info)
+        f = _OpenFile(info, stream, writer, log_time_ns, flushed_at=time.monotonic())
+        self._open = f
+        try:
+            writer.start(profile="ros2", library="robot_recorder")
+        except OSError as exc:
+            self._fail(f"writing {path}: {exc}", exc)
+        return f
+
+    def _channel(self, f: _OpenFile, topic: str, type_name: str) -> int:
+        meta = self.topics.get(topic)
+        if meta is None:
+            meta = self.topics[topic] = TopicMetadata(topic, type_name)
+        elif meta.type != type_name:
+            raise RecorderConfigError(f"{topic} was recorded as {meta.type}, not {type_name}")
+        schema = f.schemas.get(type_name)
+        if schema is None:
+            definition = full_definition(type_name)
+            schema = f.writer.register_schema(type_name, "ros2msg", definition.encode())
+            f.schemas[type_name] = schema
+        channel = f.writer.register_channel(topic, "cdr", schema, {"offered_qos_profiles": ""})
+        f.channels[topic] = channel
+        return channel
+
+    def _close_file(self) -> None:
+        f, self._open = self._open, None
+        if f is None:
+            return
+        try:
+            if self._file_metadata is not None:
+                for name, data in self._file_metadata().items():
+                    f.writer.add_metadata(name, dict(data))
+            f.writer.finish()  # type: ignore[no-untyped-call]
+            f.stream.close()
+        except OSError as exc:
+            _close_quietly(f.stream)
+            self._fail(f"closing {f.info.path}: {exc}", exc, metadata=True)
+        self._write_metadata()
+
+    def _check_free(self) -> None:
+        self._since_free_check = 0
+        if not self._min_free_bytes:
+            return
+        try:
+            free = self._fs.free_bytes(self.path)
+        except OSError as exc:
+            self._fail(f"cannot ask free space of {self.path}: {exc}", exc)
+        if free < self._min_free_bytes:
+            message = (f"free-space guard: {free} bytes free on the file system of {self.path}, "
+                       f"below min_free_bytes={self._min_free_bytes}; recording stopped")
+            self._abort(message)
+
+    def _abort(self, message: str) -> None:
+        """Close cleanly (space for the summary is what the guard keeps) and raise."""
+        f, self._open = self._open, None
+        if f is not None:
+            try:
+                f.writer.finish()  # type: ignore[no-untyped-call]
+                f.stream.close()
+            except OSError:
+                _close_quietly(f.stream)
+        with contextlib.suppress(OSError):
+            self._write_metadata()
+        self.closed = True
+        raise StorageError(message)
+
+    def _fail(self, message: str, exc: OSError, *, metadata: bool = True) -> Any:
+        f, self._open = self._open, None
+        if f is not None:
+            _close_quietly(f.stream)
+        if metadata:
+            with contextlib.suppress(OSError):
+                self._write_metadata()
+        self.closed = True
+        raise StorageError(message) from exc
+
+    def _write_metadata(self) -> None:
+        files = [f for f in self.files if f is not (self._open.info if self._open else None)]
+        start = min((f.start_ns for f in files if f.messages), default=0)
+        end = max((f.end_ns for f in files if f.messages), default=0)
+        counts = _count_per_topic(self)
+        info: dict[str, Any] = {
+            "version": METADATA_VERSION,
+            "storage_identifier": "mcap",
+            "duration": {"nanoseconds": end - start},
+            "starting_time": {"nanoseconds_since_epoch": start},
+            "message_count": sum(f.messages for f in files),
+            "topics_with_message_count": [
+                {
+                    "topic_metadata": {
+                        "name": t.name,
+                        "type": t.type,
+                        "serialization_format": "cdr",
+                        "offered_qos_profiles": [],
+                        "type_description_hash": "",
+                    },
+                    "message_count": counts.get(t.name, 0),
+                }
+                for t in self.topics.values()
+            ],
+            "compression_format": "",
+            "compression_mode": "",
+            "relative_file_paths": [f.path.name for f in files],
+            "files": [
+                {
+                    "path": f.path.name,
+                    "starting_time": {"nanoseconds_since_epoch": f.start_ns},
+                    "duration": {"nanoseconds": f.end_ns - f.start_ns},
+                    "message_count": f.messages,
+                }
+                for f in files
+            ],
+            "custom_data": {"recorder": "robot_recorder",
+                            "written": datetime.datetime.now(datetime.UTC).isoformat()},
+            "ros_distro": "jazzy",
+        }
+        text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False)
+        self._fs.write_text(self.path / "metadata.yaml", text)
+
+
+def _count_per_topic(bag: BagWriter) -> dict[str, int]:
+    # Messages of closed files only are listed; TopicMetadata counts include the open file.
+    return {t.name: t.messages for t in bag.topics.values()}
+
+
+def _close_quietly(stream: IO[bytes]) -> None:
+    with contextlib.suppress(OSError):
+        stream.close()

@@ -1,0 +1,308 @@
+"""The writer thread: everything that costs time happens here, off the callback path.
+
+A recorder's subscription callback only appends ``(topic, message, receive time)`` to a
+bounded queue; messages are shared by reference in a container, so nothing is copied. This
+thread serializes (CDR), keeps the pre-event ring buffer, and writes through
+:class:`~robot_recorder.storage.BagWriter` (compression happens there, per chunk).
+Commands (start, stop, split, snapshot) travel through the same queue, so a stop writes every
+message received before it.
+
+When the queue is full the newest message is dropped and counted for its topic: a full
+queue means the writer cannot keep up, and blocking the callback would stall the robot.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from collections.abc import Callable, Mapping
+from concurrent.futures import Future
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rclpy.serialization import serialize_message
+
+from .errors import RecorderConfigError, RecorderError, StorageError
+from .storage import BagWriter, FileSystem
+
+__all__ = ["RecordWriter", "TopicState", "message_fields"]
+
+IDLE, RECORDING, FAILED = 0, 1, 2
+
+
+@dataclass(eq=False)
+class TopicState:
+    """One recorded topic; counters are written by one thread each and read by any."""
+
+    name: str
+    type_name: str
+    messages: int = 0  # written to the current recording (writer thread)
+    bytes: int = 0  # serialized bytes written (writer thread)
+    drops: int = 0  # queue full (callback thread)
+
+
+@dataclass
+class _Command:
+    action: Callable[[], Any]
+    future: Future[Any]
+
+
+class RecordWriter:
+    """Owns the queue, the thread and the open bag. Create, :meth:`start`, :meth:`close`."""
+
+    def __init__(
+        self,
+        *,
+        queue_depth: int = 1000,
+        snapshot_bytes: int = 0,
+        snapshot_seconds: float = 10.0,
+        bag_options: Mapping[str, Any] | None = None,
+        fs: FileSystem | None = None,
+        clock_topic: str = "",
+        on_state: Callable[[], None] | None = None,
+        name: str = "recorder",
+    ) -> None:
+        if queue_depth < 1:
+            raise RecorderConfigError(f"queue_depth must be >= 1, not {queue_depth}")
+        if snapshot_bytes < 0 or snapshot_seconds < 0:
+            raise RecorderConfigError("snapshot_bytes and snapshot_seconds must be >= 0")
+        self._queue: deque[tuple[TopicState, Any, int] | _Command] = deque()
+        self._depth = queue_depth
+        self._snapshot_bytes = snapshot_bytes
+        self._snapshot_ns = int(snapshot_seconds * 1e9)
+        self._ring: deque[tuple[TopicState, bytes, int]] = deque()
+        self.ring_bytes = 0
+        self._bag_options = dict(bag_options or {})
+        self._fs = fs
+        self._clock_topic = clock_topic
+        self._clock_msg: Any = None
+        self._on_state = on_state
+        self._bag: BagWriter | None = None
+        self._wake = threading.Event()
+        self._sleeping = False
+        self._closing = False
+        # Read by the callback on every message: a plain attribute, no lock.
+        self.accepting = snapshot_bytes > 0
+        self.state = IDLE
+        self.error = ""
+        self.bag_path: Path | None = None
+        self.topics: dict[str, TopicState] = {}
+        self._thread = threading.Thread(target=self._run, name=f"{name}-writer", daemon=True)
+        self._thread.start()
+
+    # -- the hot path (subscription callbacks) ---------------------------------------------
+
+    def enqueue(self, topic: TopicState, msg: Any, receive_ns: int) -> None:
+        """Hand ``msg`` (by reference) to the writer; count a drop if the queue is full."""
+        if not self.accepting:
+            return
+        queue = self._queue
+        if len(queue) >= self._depth:
+            topic.drops += 1
+            return
+        queue.append((topic, msg, receive_ns))
+        if self._sleeping:
+            self._wake.set()
+
+    # -- commands (any thread) -------------------------------------------------------------
+
+    def start(self, bag: Path) -> Future[Path]:
+        """Open ``bag``; messages enqueued from now on are recorded."""
+        return self._command(lambda: self._start(bag))
+
+    def stop(self) -> Future[Path | None]:
+        return self._command(self._stop)
+
+    def split(self) -> Future[Path | None]:
+        """Close the current file; returns the closed file (None if none was open)."""
+        return self._command(self._split)
+
+    def snapshot(self, bag: Path) -> Future[tuple[Path, int]]:
+        """Write the ring buffer's messages as bag ``bag``; returns it and the message count."""
+        return self._command(lambda: self._snapshot(bag))
+
+    def drain(self) -> Future[None]:
+        """Completes once everything enqueued before it was handled (tests, benchmarks)."""
+        return self._command(lambda: None)
+
+    def queue_length(self) -> int:
+        return len(self._queue)
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Finish the recording (every queued message is written) and end the thread."""
+        if self._closing:
+            return
+        stopped = self.stop()
+        self._closing = True
+        self._wake.set()
+        self._thread.join(timeout_s)
+        if not stopped.done():
+            stopped.cancel()
+
+    def _command(self, action: Callable[[], Any]) -> Future[Any]:
+        future: Future[Any] = Future()
+        if self._closing:
+            future.set_exception(RecorderError("the recorder is closed"))
+            return future
+        self._queue.append(_Command(action, future))
+        self._wake.set()
+        return future
+
+    # -- the writer thread -----------------------------------------------------------------
+
+    def _run(self) -> None:
+        queue = self._queue
+        while True:
+            if not queue:
+                if self._closing:
+                    return
+                self._sleeping = True
+                if not queue:
+                    self._wake.wait(0.1)
+                    self._wake.clear()
+                self._sleeping = False
+                self._tick()
+                continue
+            item = queue.popleft()
+            if isinstance(item, _Command):
+                self._execute(item)
+                continue
+            topic, msg, receive_ns = item
+            try:
+                data = serialize_message(msg)
+            except Exception as exc:  # a message rclpy cannot serialize: count, report
+                topic.drops += 1
+                self.error = f"cannot serialize a message of {topic.name}: {exc!r}"
+                continue
+            if topic.name == self._clock_topic:
+                self._clock_msg = msg
+            if self._snapshot_bytes:
+                self._keep(topic, data, receive_ns)
+            bag = self._bag
+            if bag is not None:
+                try:
+                    bag.write(topic.name, topic.type_name, data, receive_ns)
+                except StorageError as exc:
+                    self._failed(str(exc))
+                    continue
+                except RecorderError as exc:  # a topic changed its type: keep the rest
+                    topic.drops += 1
+                    self.error = str(exc)
+                    continue
+                topic.messages += 1
+                topic.bytes += len(data)
+                self._tick()
+
+    def _tick(self) -> None:
+        bag = self._bag
+        if bag is not None:
+            try:
+                bag.tick()
+            except StorageError as exc:
+                self._failed(str(exc))
+
+    def _execute(self, command: _Command) -> None:
+        if not command.future.set_running_or_notify_cancel():
+            return
+        try:
+            result = command.action()
+        except BaseException as exc:
+            command.future.set_exception(exc)
+        else:
+            command.future.set_result(result)
+        if self._on_state is not None:
+            self._on_state()
+
+    def _keep(self, topic: TopicState, data: bytes, receive_ns: int) -> None:
+        ring = self._ring
+        ring.append((topic, data, receive_ns))
+        self.ring_bytes += len(data)
+        while ring and (
+            self.ring_bytes > self._snapshot_bytes
+            or (self._snapshot_ns and receive_ns - ring[0][2] > self._snapshot_ns)
+        ):
+            self.ring_bytes -= len(ring.popleft()[1])
+
+    def ring_seconds(self) -> float:
+        ring = self._ring
+        try:
+            return (ring[-1][2] - ring[0][2]) / 1e9 if ring else 0.0
+        except IndexError:  # emptied by the writer thread meanwhile
+            return 0.0
+
+    def _new_bag(self, bag: Path) -> BagWriter:
+        return BagWriter(bag, file_metadata=self._file_metadata, fs=self._fs,
+                         **self._bag_options)
+
+    def _start(self, bag: Path) -> Path:
+        if self._bag is not None:
+            raise RecorderError(f"already recording into {self._bag.path}")
+        for topic in self.topics.values():
+            topic.messages = topic.bytes = topic.drops = 0
+        self._bag = self._new_bag(bag)
+        self.bag_path = bag
+        self.state, self.error = RECORDING, ""
+        self.accepting = True
+        return bag
+
+    def _stop(self) -> Path | None:
+        bag, self._bag = self._bag, None
+        self.accepting = self._snapshot_bytes > 0
+        if bag is None:
+            return None
+        try:
+            bag.close()
+        except StorageError as exc:
+            self._failed(str(exc))
+            raise
+        self.state = IDLE
+        return bag.path
+
+    def _split(self) -> Path | None:
+        if self._bag is None:
+            raise RecorderError("not recording")
+        try:
+            return self._bag.split()
+        except StorageError as exc:
+            self._failed(str(exc))
+            raise
+
+    def _snapshot(self, path: Path) -> tuple[Path, int]:
+        if not self._snapshot_bytes:
+            raise RecorderConfigError("snapshots are off (snapshot_bytes = 0)")
+        bag = self._new_bag(path)
+        count = 0
+        try:
+            for topic, data, receive_ns in list(self._ring):
+                bag.write(topic.name, topic.type_name, data, receive_ns)
+                count += 1
+        finally:
+            bag.close()
+        return path, count
+
+    def _failed(self, message: str) -> None:
+        self._bag = None
+        self.accepting = self._snapshot_bytes > 0
+        self.state, self.error = FAILED, message
+        if self._on_state is not None:
+            self._on_state()
+
+    def _file_metadata(self) -> dict[str, dict[str, str]]:
+        if self._clock_msg is None:
+            return {}
+        fields = message_fields(self._clock_msg)
+        fields["topic"] = self._clock_topic
+        return {"team_clock": fields}
+
+
+def message_fields(msg: Any, prefix: str = "") -> dict[str, str]:
+    """A message flattened to ``{"stamp.sec": "12", ...}`` (MCAP metadata holds strings)."""
+    out: dict[str, str] = {}
+    for name in msg.get_fields_and_field_types():
+        value = getattr(msg, name)
+        if hasattr(value, "get_fields_and_field_types"):
+            out.update(message_fields(value, f"{prefix}{name}."))
+        else:
+            out[f"{prefix}{name}"] = str(value)
+    return out
