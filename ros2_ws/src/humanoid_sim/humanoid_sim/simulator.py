@@ -85,6 +85,11 @@ class Simulator:
         self.plant = MujocoPlant()
         self.model, self.data = self.plant.model, self.plant.data
         self._rng = random.Random(seed)
+        self.period_s = 1.0 / step_hz
+        self.camera: OffscreenCamera | None = None
+        self.camera_period_ns = round(1e9 / camera_hz) if camera_hz > 0 else 0
+        if camera_hz > 0:  # before the pty: a camera error must not leave a bus running
+            self.camera = OffscreenCamera(self.model, camera=CAMERA, width=width, height=height)
         self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed)
         self.port = self.pty.port
         self._link = port_link
@@ -97,11 +102,6 @@ class Simulator:
         self.roll_ball(position=(ball_position[0], ball_position[1]),
                        velocity=(ball_velocity[0], ball_velocity[1]))
 
-        self.period_s = 1.0 / step_hz
-        self.camera: OffscreenCamera | None = None
-        self.camera_period_ns = round(1e9 / camera_hz) if camera_hz > 0 else 0
-        if camera_hz > 0:
-            self.camera = OffscreenCamera(self.model, camera=CAMERA, width=width, height=height)
         self.image_pub = node.create_publisher(Image, "camera/image_raw", qos=2)
         info_pub = node.create_publisher(CameraInfo, "camera/camera_info", qos=TRANSIENT_LOCAL)
         info_pub.publish(self.camera_info(width, height))
