@@ -23,6 +23,7 @@ from typing import Any
 
 from rclpy.serialization import serialize_message
 
+from .cdr import trim
 from .errors import RecorderConfigError, RecorderError, StorageError
 from .storage import BagWriter, FileSystem
 
@@ -108,7 +109,14 @@ class RecordWriter:
     # -- commands (any thread) -------------------------------------------------------------
 
     def start(self, bag: Path) -> Future[Path]:
-        """Open ``bag``; messages enqueued from now on are recorded."""
+        """Open ``bag``; messages enqueued from now on are recorded.
+
+        Call it from the thread that runs the subscription callbacks (or before they run):
+        it resets the drop counters those callbacks increment.
+        """
+        for topic in self.topics.values():
+            topic.drops = 0
+        self.accepting = True
         return self._command(lambda: self._start(bag))
 
     def stop(self) -> Future[Path | None]:
@@ -170,7 +178,7 @@ class RecordWriter:
                 continue
             topic, msg, receive_ns = item
             try:
-                data = serialize_message(msg)
+                data = trim(msg, serialize_message(msg))
             except Exception as exc:  # a message rclpy cannot serialize: count, report
                 topic.drops += 1
                 self.error = f"cannot serialize a message of {topic.name}: {exc!r}"
@@ -239,8 +247,12 @@ class RecordWriter:
         if self._bag is not None:
             raise RecorderError(f"already recording into {self._bag.path}")
         for topic in self.topics.values():
-            topic.messages = topic.bytes = topic.drops = 0
-        self._bag = self._new_bag(bag)
+            topic.messages = topic.bytes = 0
+        try:
+            self._bag = self._new_bag(bag)
+        except RecorderError:
+            self.accepting = self._snapshot_bytes > 0
+            raise
         self.bag_path = bag
         self.state, self.error = RECORDING, ""
         self.accepting = True
