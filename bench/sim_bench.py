@@ -1,0 +1,241 @@
+"""Software-in-the-loop speed: the servo bus, the simulator with the whole pipeline, the camera.
+
+Three measures, each run in a fresh child process ``--repeat`` times, medians printed:
+
+* ``bus``: cycles per second of the servo driver's work for 20 servos, one sync read
+  (present velocity + position) and one sync write (goal position), through dynamixel-sdk,
+  the pty and the emulator with MuJoCo behind it. Target >= 200 Hz. The baseline is a bare
+  pty round trip of the same byte counts (an echo thread), the floor of the transport.
+* ``lockstep``: the whole robot (simulator, camera, driver, pipeline) on a manual clock, as
+  fast as the machine allows: simulated seconds per wall second is the real-time factor
+  the machine can sustain. Target >= 1.0.
+* ``realtime``: the same robot on the wall clock for ``--seconds``: the real-time factor and
+  camera frame rate achieved, and the process's CPU use; the baseline for the camera is
+  rendering alone (frames per second with nothing else running).
+
+Run: ``source scripts/env.sh && python bench/sim_bench.py`` (``--quick`` for a smoke run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import select
+import statistics
+import subprocess
+import sys
+import threading
+import time
+import tty
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_OUT = ROOT / "bench" / "out" / "sim_bench.json"
+TARGET_BUS_HZ = 200.0
+TARGET_RTF = 1.0
+
+
+def bus_cycles(cycles: int) -> dict[str, float]:
+    from dynamixel_sdk import (
+        COMM_SUCCESS,
+        GroupSyncRead,
+        GroupSyncWrite,
+        PacketHandler,
+        PortHandler,
+    )
+
+    from humanoid_sim.dynamixel.bus import Bus
+    from humanoid_sim.dynamixel.pty import PtyBus
+    from humanoid_sim.mujoco_plant import JOINTS, MujocoPlant
+
+    with PtyBus(Bus(JOINTS, MujocoPlant())) as pty:
+        port, packets = PortHandler(pty.port), PacketHandler(2.0)
+        assert port.openPort() and port.setBaudRate(1_000_000)
+        for dxl_id in JOINTS:
+            packets.write1ByteTxRx(port, dxl_id, 64, 1)
+        reader = GroupSyncRead(port, packets, 128, 8)
+        writer = GroupSyncWrite(port, packets, 116, 4)
+        for dxl_id in JOINTS:
+            reader.addParam(dxl_id)
+            writer.addParam(dxl_id, list((2048).to_bytes(4, "little")))
+        failures = 0
+        started = time.perf_counter()
+        for _ in range(cycles):
+            failures += reader.txRxPacket() != COMM_SUCCESS
+            failures += writer.txPacket() != COMM_SUCCESS
+        elapsed = time.perf_counter() - started
+        port.closePort()
+    return {"bus_hz": cycles / elapsed, "failures": failures,
+            "echo_hz": _pty_echo(cycles, request=14 + 20 * 1 + 3, reply=20 * (11 + 8))}
+
+
+def _pty_echo(cycles: int, *, request: int, reply: int) -> float:
+    """Round trips per second on a bare pty: ``request`` bytes out, ``reply`` bytes back."""
+    master, slave = os.openpty()
+
+
+    tty.setraw(master)
+    tty.setraw(slave)
+    stop = threading.Event()
+
+    def echo() -> None:
+        got = 0
+        while not stop.is_set():
+            if select.select([master], [], [], 0.05)[0]:
+                got += len(os.read(master, 65536))
+                while got >= request:
+                    got -= request
+                    os.write(master, bytes(reply))
+
+    thread = threading.Thread(target=echo, daemon=True)
+    thread.start()
+    started = time.perf_counter()
+    for _ in range(cycles):
+        os.write(slave, bytes(request))
+        need = reply
+        while need:
+            need -= len(os.read(slave, need))
+    elapsed = time.perf_counter() - started
+    stop.set()
+    thread.join()
+    os.close(master)
+    os.close(slave)
+    return cycles / elapsed
+
+
+def robot_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
+    from efficient_comm import Container, ManualClock
+    from humanoid_sim.soccer.compose import compose
+
+    clock = ManualClock() if lockstep else None
+    with Container("bench", dds=False, clock=clock) as container:
+        robot = compose(container, simulator={"ball_velocity": [0.0, 0.3],
+                                              "ball_kick_period": 3.0})
+        warm = 1.0
+        if lockstep:
+            container.advance(warm)
+        else:
+            container.spin_for(warm)
+        robot.monitor.window()
+        sim0, cpu0, wall0 = robot.simulator.sim_time_s, time.process_time(), time.monotonic()
+        frames0 = robot.simulator.frames
+        if lockstep:
+            container.advance(seconds)
+        else:
+            container.spin_for(seconds)
+        wall = time.monotonic() - wall0
+        window = robot.monitor.window().summary()
+        return {
+            "rtf": (robot.simulator.sim_time_s - sim0) / wall,
+            "camera_fps_wall": (robot.simulator.frames - frames0) / wall,
+            "cpu_share": (time.process_time() - cpu0) / wall,
+            "render_ms": robot.simulator.status()["render_ms_mean"],
+            "tracking_p95_deg": window["tracking_error_p95_deg"],
+            "latency_median_ms": window["latency_median_ms"],
+        }
+
+
+def render_only(frames: int) -> dict[str, float]:
+    import mujoco
+    import numpy as np
+
+    from humanoid_sim.mujoco_plant import MujocoPlant
+    from humanoid_sim.render import OffscreenCamera
+
+    plant = MujocoPlant()
+    camera = OffscreenCamera(plant.model, camera="head_camera", width=320, height=240)
+    out = np.empty((240, 320, 3), dtype=np.uint8)
+    mujoco.mj_forward(plant.model, plant.data)
+    camera.render(plant.data, out)
+    started = time.perf_counter()
+    for _ in range(frames):
+        camera.render(plant.data, out)
+    fps = frames / (time.perf_counter() - started)
+    camera.close()
+    return {"render_fps": fps, "backend_egl": float(camera.backend == "egl")}
+
+
+def child(kind: str, args: argparse.Namespace) -> dict[str, Any]:
+    if kind == "bus":
+        return bus_cycles(args.cycles)
+    if kind == "render":
+        return render_only(args.frames)
+    return robot_run(args.seconds, lockstep=kind == "lockstep")
+
+
+KINDS = ("bus", "render", "lockstep", "realtime")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--seconds", type=float, default=10.0, help="per robot run")
+    ap.add_argument("--cycles", type=int, default=1000, help="bus cycles per run")
+    ap.add_argument("--frames", type=int, default=200, help="frames of the render baseline")
+    ap.add_argument("--quick", action="store_true", help="1 short run each: a smoke test")
+    ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    ap.add_argument("--child", choices=KINDS, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.quick:
+        args.repeat, args.seconds, args.cycles, args.frames = 1, 2.0, 100, 20
+    if args.child:
+        print(json.dumps(child(args.child, args)))
+        return 0
+
+    runs: dict[str, list[dict[str, float]]] = {k: [] for k in KINDS}
+    for _ in range(args.repeat):  # interleaved, so drifting machine load hits all alike
+        for kind in KINDS:
+            result = subprocess.run(
+                [sys.executable, __file__, "--child", kind, "--seconds", str(args.seconds),
+                 "--cycles", str(args.cycles), "--frames", str(args.frames)],
+                capture_output=True, text=True, timeout=600, check=False,
+            )
+            if result.returncode:
+                print(result.stdout + result.stderr, file=sys.stderr)
+                return 1
+            runs[kind].append(json.loads(result.stdout.strip().splitlines()[-1]))
+
+    def med(kind: str, key: str) -> float:
+        return statistics.median(r[key] for r in runs[kind])
+
+    summary = {
+        "bus_hz": med("bus", "bus_hz"),
+        "bus_failures": sum(r["failures"] for r in runs["bus"]),
+        "pty_echo_hz": med("bus", "echo_hz"),
+        "lockstep_rtf": med("lockstep", "rtf"),
+        "lockstep_tracking_p95_deg": med("lockstep", "tracking_p95_deg"),
+        "realtime_rtf": med("realtime", "rtf"),
+        "realtime_camera_fps": med("realtime", "camera_fps_wall"),
+        "realtime_cpu_share": med("realtime", "cpu_share"),
+        "realtime_latency_median_ms": med("realtime", "latency_median_ms"),
+        "realtime_tracking_p95_deg": med("realtime", "tracking_p95_deg"),
+        "render_ms_in_pipeline": med("realtime", "render_ms"),
+        "render_only_fps": med("render", "render_fps"),
+    }
+    s = summary
+    print(f"medians of {args.repeat} run(s), {args.seconds:g} s robot runs, "
+          f"{args.cycles} bus cycles")
+    print(f"bus, 20 servos sync read+write: {s['bus_hz']:8.0f} Hz  = "
+          f"{s['bus_hz'] / TARGET_BUS_HZ:5.2f}x the 200 Hz target "
+          f"({s['bus_failures']} failed transfers; bare pty round trip {s['pty_echo_hz']:.0f} Hz,"
+          f" bus/pty {s['bus_hz'] / s['pty_echo_hz']:.2f})")
+    print(f"whole robot, lockstep as fast as possible: RTF {s['lockstep_rtf']:5.2f} "
+          f"= {s['lockstep_rtf'] / TARGET_RTF:.2f}x the 1.0 target "
+          f"(tracking p95 {s['lockstep_tracking_p95_deg']:.2f}°)")
+    print(f"whole robot, real time: RTF {s['realtime_rtf']:.2f}, camera "
+          f"{s['realtime_camera_fps']:.1f} fps of 30, CPU {100 * s['realtime_cpu_share']:.0f} % "
+          f"of one core, image->command latency median {s['realtime_latency_median_ms']:.1f} ms,"
+          f" tracking p95 {s['realtime_tracking_p95_deg']:.2f}°")
+    print(f"camera: {s['render_ms_in_pipeline']:.1f} ms per frame in the pipeline; rendering "
+          f"alone {s['render_only_fps']:.0f} fps (camera at 30 fps uses "
+          f"{30 / s['render_only_fps'] * 100:.0f} % of that)")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"summary": summary, "runs": runs}, indent=1))
+    print(f"written {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

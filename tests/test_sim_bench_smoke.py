@@ -1,0 +1,33 @@
+"""The simulator benchmark runs end to end (a short run) and measures what it claims to.
+
+It asserts what the figures mean, not how fast this machine is: every bus transfer
+succeeded, the robot runs were real (simulated time advanced, frames rendered, the ball
+tracked), and the real-time run kept to the wall clock's order of magnitude.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "bench" / "sim_bench.py"
+
+
+@pytest.mark.timeout(180)
+def test_sim_bench_smoke(tmp_path: Path) -> None:
+    out = tmp_path / "sim.json"
+    result = subprocess.run([sys.executable, str(BENCH), "--quick", "--out", str(out)],
+                            capture_output=True, text=True, timeout=170, check=False)
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = json.loads(out.read_text())["summary"]
+    assert summary["bus_failures"] == 0
+    assert summary["bus_hz"] > 0 and summary["pty_echo_hz"] > summary["bus_hz"]
+    assert summary["lockstep_rtf"] > 0
+    assert summary["lockstep_tracking_p95_deg"] < 10
+    assert 0.2 < summary["realtime_rtf"] < 1.5  # physics follows the wall clock
+    assert summary["realtime_camera_fps"] > 0 and summary["render_only_fps"] > 0
+    assert "bus, 20 servos" in result.stdout and "RTF" in result.stdout
