@@ -1,0 +1,21 @@
+"""team_clock: clock offsets between robots, and logs of several robots merged in one time.
+
+Where things live (docs/TEAM_CLOCK.md explains the method):
+
+* ``estimator`` offset and drift from NTP four-timestamp samples, with an error bound (no ROS);
+* ``clocks``    the local-clock seam (``SkewedClock`` for simulated robots);
+* ``sync``      the ``ClockSync`` component: exchanges, relaying through the team, publishing
+  ``/team_clock/offset``;
+* ``model``     ``OffsetModel``: a recorded robot's local time -> team reference time;
+* ``bag``       reading and writing MCAP in the rosbag2 layout; ``merge`` aligning logs;
+* ``testing``   a simulated lossy, delayed team network for tests.
+"""
+
+from .clocks import SkewedClock as SkewedClock
+from .errors import LogFormatError as LogFormatError
+from .errors import MergeError as MergeError
+from .errors import NoEstimateError as NoEstimateError
+from .errors import TeamClockError as TeamClockError
+from .estimator import Estimate as Estimate
+from .estimator import OffsetEstimator as OffsetEstimator
+from .estimator import Sample as Sample

@@ -1,0 +1,187 @@
+"""Several robots' logs -> one time-aligned MCAP in the rosbag2 layout.
+
+Each robot's messages move to team reference time through its :class:`OffsetModel`
+(usually read from the log itself) and to its own namespace (``/robotA/joint_states``);
+the merged file lists them in reference-time order. Log and publish times are always
+moved; with ``stamps=True`` the ``header.stamp`` of messages that start with a
+``std_msgs/Header`` is moved too, patched in the CDR bytes without decoding (the stamp is
+the first field, so it sits right after the 4-byte encapsulation header). Only stamps
+within ``stamp_window_ns`` of the log time are taken to be on the robot's clock; others
+(simulated time, zeros, stamps copied from elsewhere) are left as they are and counted.
+
+Streaming: one message per log is held at a time, so logs larger than memory merge.
+"""
+
+from __future__ import annotations
+
+import heapq
+import os
+import re
+import struct
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mcap.records import Channel, Message, Schema
+
+from .bag import BagWriter, LogReader
+from .errors import MergeError
+from .model import OffsetModel
+
+__all__ = ["MergeReport", "RobotLog", "RobotReport", "merge"]
+
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_HEADER_TYPES = {"std_msgs/Header", "std_msgs/msg/Header", "Header"}
+
+
+@dataclass(frozen=True)
+class RobotLog:
+    """One robot's log and how to align it.
+
+    ``model`` None reads the offsets recorded in the log (``robot`` picks whose, when the
+    log holds several robots' estimates). ``namespace`` None uses the model's robot name.
+    """
+
+    path: Path
+    namespace: str | None = None
+    model: OffsetModel | None = None
+    robot: str | None = None
+
+
+@dataclass
+class RobotReport:
+    namespace: str
+    path: Path
+    model: OffsetModel
+    messages: int = 0
+    #: Messages not merged, by reason (e.g. ``schemaless``): counted, never silent.
+    skipped: Counter[str] = field(default_factory=Counter)
+    stamps_moved: int = 0
+    stamps_left: int = 0
+    truncated_files: list[Path] = field(default_factory=list)
+    #: Largest error bound of the applied offsets over this robot's messages.
+    max_uncertainty_ns: int = 0
+
+
+@dataclass
+class MergeReport:
+    output: Path
+    robots: list[RobotReport]
+
+    @property
+    def messages(self) -> int:
+        return sum(r.messages for r in self.robots)
+
+
+def merge(
+    logs: Sequence[RobotLog],
+    output: str | os.PathLike[str],
+    *,
+    stamps: bool = False,
+    stamp_window_ns: int = 3_600_000_000_000,
+    compression: str = "zstd",
+) -> MergeReport:
+    """Merge ``logs`` into ``output`` (a bag directory, or a file if it ends in ``.mcap``)."""
+    if not logs:
+        raise MergeError("nothing to merge: no logs given")
+    reports: list[RobotReport] = []
+    for log in logs:
+        model = log.model or OffsetModel.from_mcap(log.path, robot=log.robot)
+        namespace = log.namespace or model.robot or Path(log.path).stem
+        if not _NAME.match(namespace):
+            raise MergeError(f"namespace {namespace!r} of {log.path} is not a ROS name token")
+        if namespace in {r.namespace for r in reports}:
+            raise MergeError(f"two logs would be merged under /{namespace}")
+        reports.append(RobotReport(namespace, Path(log.path), model))
+    references = {r.model.reference for r in reports} - {""}
+    if len(references) > 1:
+        raise MergeError(f"the logs are aligned to different reference robots {sorted(references)}")
+
+    readers = [LogReader(r.path) for r in reports]
+    streams = [_aligned(i, reader, report) for i, (reader, report)
+               in enumerate(zip(readers, reports, strict=True))]
+    channels: dict[tuple[int, int], int] = {}
+    has_header: dict[tuple[int, int], bool] = {}
+    with BagWriter(output, compression=compression) as writer:
+        for report in reports:
+            m = report.model
+            first = m.knots[0]
+            writer.add_metadata(f"team_clock.merge.{report.namespace}", {
+                "path": str(report.path), "robot": m.robot, "reference": m.reference,
+                "estimates": str(len(m.knots)), "first_offset_ns": str(first.offset_ns),
+                "first_stamp_ns": str(first.stamp_ns), "drift_ppm": repr(first.drift_ppm),
+            })
+        for ref_time, _, index, schema, channel, message in heapq.merge(*streams):
+            report = reports[index]
+            key = (index, channel.id)
+            out_id = channels.get(key)
+            if out_id is None:
+                assert schema is not None  # schemaless channels are skipped in _aligned
+                out_id = writer.add_topic(
+                    f"/{report.namespace}{_absolute(channel.topic)}", schema.name,
+                    definition=schema.data, schema_encoding=schema.encoding,
+                    metadata=channel.metadata,
+                )
+                channels[key] = out_id
+                has_header[key] = _starts_with_header(schema)
+            data = message.data
+            if stamps and has_header[key]:
+                data = _move_stamp(data, message.log_time, report, stamp_window_ns)
+            model = report.model
+            writer.write(out_id, ref_time, data, sequence=message.sequence,
+                         publish_time=model.to_reference(message.publish_time))
+            report.messages += 1
+            report.max_uncertainty_ns = max(report.max_uncertainty_ns,
+                                            model.uncertainty_at(message.log_time))
+    for reader, report in zip(readers, reports, strict=True):
+        report.truncated_files = list(reader.truncated)
+    return MergeReport(Path(output), reports)
+
+
+def _aligned(
+    index: int, reader: LogReader, report: RobotReport
+) -> Iterator[tuple[int, int, int, Schema | None, Channel, Message]]:
+    """``(reference time, order, log index, ...)`` tuples, sortable without comparing records."""
+    order = 0
+    for schema, channel, message in reader.messages():
+        if schema is None or not schema.data or channel.message_encoding != "cdr":
+            report.skipped["schemaless" if schema is None or not schema.data else
+                           f"encoding {channel.message_encoding}"] += 1
+            continue
+        order += 1
+        yield report.model.to_reference(message.log_time), order, index, schema, channel, message
+
+
+def _absolute(topic: str) -> str:
+    return topic if topic.startswith("/") else f"/{topic}"
+
+
+def _starts_with_header(schema: Schema | None) -> bool:
+    """Whether the message's first field is a std_msgs/Header (so its stamp leads the CDR)."""
+    if schema is None or schema.encoding != "ros2msg":
+        return False
+    for line in schema.data.decode(errors="replace").splitlines():
+        line = line.split("#", 1)[0].strip()
+        if line:
+            parts = line.split()
+            return len(parts) >= 2 and parts[0] in _HEADER_TYPES
+    return False
+
+
+def _move_stamp(data: bytes, log_time: int, report: RobotReport, window_ns: int) -> bytes:
+    """Shift the leading header stamp (int32 sec, uint32 nanosec) to reference time."""
+    if len(data) < 12 or data[0] != 0 or data[1] not in (0, 1):
+        report.stamps_left += 1
+        return data
+    fmt = "<iI" if data[1] == 1 else ">iI"
+    sec, nanosec = struct.unpack_from(fmt, data, 4)
+    stamp = sec * 1_000_000_000 + nanosec
+    if stamp == 0 or nanosec >= 1_000_000_000 or abs(stamp - log_time) > window_ns:
+        report.stamps_left += 1
+        return data
+    moved = report.model.to_reference(stamp)
+    out = bytearray(data)
+    struct.pack_into(fmt, out, 4, moved // 1_000_000_000, moved % 1_000_000_000)
+    report.stamps_moved += 1
+    return bytes(out)

@@ -1,0 +1,114 @@
+"""A simulated team network for the clock-sync exchange, to test it in one process.
+
+Each simulated robot's :class:`~team_clock.sync.ClockSync` is remapped (see
+:func:`sim_remappings`) so that its pings and pongs go to its own topics. A
+:class:`SimNetwork` component carries them to the robots it is linked with, each message
+after its own random delay (so the two directions of a round trip differ, as on a real
+radio link) and with a given loss probability. Robots that are not linked never hear each
+other: a robot two links away from the reference must synchronise through the one between.
+
+    container = test_container()
+    net = container.add(lambda node: SimNetwork(node, links=[("ref", "a"), ("a", "b")],
+                                                delay=SimDelay(min_s=0.001, jitter_s=0.002),
+                                                loss=0.2, seed=1), name="net")
+    for robot, clock in clocks.items():
+        container.add(partial(ClockSync, local_clock=clock), name="clock_sync",
+                      namespace=f"/{robot}", remappings=sim_remappings(robot),
+                      parameters={"reference": "ref"})
+    container.advance(30.0)
+
+Delays need the container's executor to run timers, which a manual clock does exactly.
+"""
+
+from __future__ import annotations
+
+import random
+from collections import Counter, defaultdict
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
+
+from efficient_comm.handle import NodeHandle, Timer
+from team_clock_interfaces.msg import TimeSyncPing, TimeSyncPong
+
+from .sync import EXCHANGE_QOS, OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC
+
+__all__ = ["SimDelay", "SimNetwork", "sim_remappings"]
+
+
+def sim_remappings(robot: str) -> dict[str, str]:
+    """Remappings that put ``robot``'s exchange on the simulated network's topics."""
+    return {
+        PING_TOPIC: f"/sim_net/{robot}/ping",
+        PONG_TOPIC: f"/sim_net/{robot}/pong",
+        OFFSET_TOPIC: f"/{robot}{OFFSET_TOPIC}",
+    }
+
+
+@dataclass(frozen=True, slots=True)
+class SimDelay:
+    """One-way delay: ``min_s`` plus an exponentially distributed queueing delay."""
+
+    min_s: float = 0.001
+    jitter_s: float = 0.002
+
+    def draw(self, rng: random.Random) -> float:
+        return self.min_s + (rng.expovariate(1.0 / self.jitter_s) if self.jitter_s > 0 else 0.0)
+
+
+class SimNetwork:
+    """Carries pings and pongs between linked robots with delay and loss (see module doc)."""
+
+    def __init__(
+        self,
+        node: NodeHandle,
+        *,
+        links: Iterable[tuple[str, str]],
+        delay: SimDelay | None = None,
+        loss: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        if not 0.0 <= loss < 1.0:
+            raise ValueError(f"loss must be in [0, 1), got {loss}")
+        self._node = node
+        self._delay = delay or SimDelay()
+        self._loss = loss
+        self._rng = random.Random(seed)
+        self.neighbours: dict[str, set[str]] = defaultdict(set)
+        for a, b in links:
+            self.neighbours[a].add(b)
+            self.neighbours[b].add(a)
+        #: Messages delivered, dropped (lost on a link), in flight.
+        self.counts: Counter[str] = Counter()
+        self._pubs: dict[tuple[str, str], Any] = {}
+        for robot in self.neighbours:
+            for kind, msg_type in (("ping", TimeSyncPing), ("pong", TimeSyncPong)):
+                topic = f"/sim_net/{robot}/{kind}"
+                self._pubs[robot, kind] = node.create_publisher(msg_type, topic, qos=EXCHANGE_QOS)
+                node.create_subscription(msg_type, topic, self._handler(robot, kind),
+                                         qos=EXCHANGE_QOS)
+
+    def _handler(self, robot: str, kind: str) -> Callable[[Any], None]:
+        return lambda msg: self._on_message(robot, kind, msg)
+
+    def _on_message(self, robot: str, kind: str, msg: Any) -> None:
+        sender = msg.client if kind == "ping" else msg.server
+        if sender != robot:
+            return  # a message this network delivered to `robot`, not one it sent
+        for other in sorted(self.neighbours[robot]):
+            if self._rng.random() < self._loss:
+                self.counts["lost"] += 1
+                continue
+            self._deliver_later(self._pubs[other, kind], msg, self._delay.draw(self._rng))
+
+    def _deliver_later(self, pub: Any, msg: Any, delay_s: float) -> None:
+        self.counts["in_flight"] += 1
+        timer: list[Timer] = []
+
+        def fire() -> None:
+            self._node.destroy_timer(timer[0])
+            self.counts["in_flight"] -= 1
+            self.counts["delivered"] += 1
+            pub.publish(msg)
+
+        timer.append(self._node.create_timer(delay_s, fire))
