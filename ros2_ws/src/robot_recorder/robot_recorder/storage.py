@@ -38,7 +38,8 @@ from .msgdefs import full_definition
 __all__ = ["BagWriter", "FileSystem", "TopicMetadata"]
 
 METADATA_VERSION = 9
-# The free-space guard asks the file system at every flush and after this many bytes.
+# The free-space guard asks the file system at every flush and after each chunk's worth of
+# bytes (at most this many).
 _FREE_CHECK_BYTES = 4 << 20
 
 
@@ -176,7 +177,7 @@ class BagWriter:
         f.bytes += len(data)
         f.unflushed += 1
         self._since_free_check += len(data)
-        if self._since_free_check >= _FREE_CHECK_BYTES:
+        if self._since_free_check >= min(_FREE_CHECK_BYTES, self._chunk_bytes):
             self._check_free()
 
     def tick(self, now: float | None = None) -> None:
