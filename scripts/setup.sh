@@ -31,6 +31,7 @@ else
 fi
 
 "$venv/bin/python" scripts/fix_wheel_cmake_paths.py
+bash scripts/setup_gl.sh  # the simulator's offscreen camera (EGL, OSMesa)
 
 echo "setup: building ros2_ws"
 # CMake finds rosidl typesupports through both paths. colcon then warns that .venv has no

@@ -1,0 +1,51 @@
+"""Offscreen rendering on either backend, chosen per process (EGL first, OSMesa fallback)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from humanoid_sim.render import gl_backend
+
+_RENDER = """
+import json, mujoco, numpy as np
+from humanoid_sim.mujoco_plant import MujocoPlant
+from humanoid_sim.render import OffscreenCamera
+from humanoid_sim.soccer.vision import BallDetector
+from efficient_comm.testing import TestHandle
+plant = MujocoPlant()
+mujoco.mj_forward(plant.model, plant.data)
+camera = OffscreenCamera(plant.model, camera="head_camera", width=320, height=240)
+image = np.zeros((240, 320, 3), dtype=np.uint8)
+camera.render(plant.data, image)
+camera.close()
+found = BallDetector(TestHandle("d")).find(image)
+print(json.dumps({"backend": camera.backend, "ball": found, "mean": float(image.mean())}))
+"""
+
+
+def _render_with(backend: str | None) -> tuple[str, list[float], float]:
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    if backend:
+        env["MUJOCO_GL"] = backend
+    result = subprocess.run([sys.executable, "-c", _RENDER], capture_output=True, text=True,
+                            env=env, timeout=90, check=False)
+    assert result.returncode == 0, result.stderr
+    out = json.loads(result.stdout.strip().splitlines()[-1])
+    return str(out["backend"]), [float(x) for x in out["ball"]], float(out["mean"])
+
+
+@pytest.mark.parametrize("backend", ["egl", "osmesa"])
+def test_both_backends_render_the_same_scene(backend: str) -> None:
+    used, (u, v, r), mean = _render_with(backend)
+    assert used == backend
+    assert abs(u - 160) < 2 and v > 120 and r > 3  # the ball straight ahead, on the ground
+    assert 20 < mean < 200  # a lit scene, not black
+
+
+def test_without_a_choice_egl_is_probed_first() -> None:
+    assert _render_with(None)[0] == "egl" == gl_backend()
