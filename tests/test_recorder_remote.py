@@ -1,0 +1,100 @@
+"""The recorder over DDS: controlled by services from another participant, recording topics
+of its own process (by reference) and of other participants, reporting on its status topic.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from efficient_comm import Container
+from efficient_comm.handle import NodeHandle
+from efficient_comm.testing import isolated_domain_id, unique_topic
+from robot_recorder import Recorder
+from robot_recorder.writer import IDLE, RECORDING
+from robot_recorder_interfaces.msg import RecorderStatus, TopicSelection
+from robot_recorder_interfaces.srv import SetTopics, Snapshot, Split, Start, Stop
+
+from ._recording import read_rosbags
+from ._ros import Peer, peer
+
+RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class Talker:
+    def __init__(self, node: NodeHandle, topic: str) -> None:
+        self.pub = node.create_publisher(String, topic, qos=RELIABLE)
+
+    def say(self, text: str) -> None:
+        self.pub.publish(String(data=text))
+
+
+def _call(p: Peer, container: Container, srv_type: Any, name: str, **fields: Any) -> Any:
+    client = p.node.create_client(srv_type, name)
+    assert p.wait_for(client.service_is_ready, also=container.spin_once), name
+    future = client.call_async(srv_type.Request(**fields))
+    assert p.wait_for(future.done, also=container.spin_once), name
+    p.node.destroy_client(client)
+    return future.result()
+
+
+def test_remote_control_local_and_remote_topics_and_status(tmp_path: Path) -> None:
+    local, remote = unique_topic("local"), unique_topic("remote")
+    domain = isolated_domain_id()
+    with Container("robot", domain_id=domain, serve=False) as container, \
+            peer(domain, "laptop") as laptop:
+        talker = container.add(lambda n: Talker(n, local), name="talker")
+        recorder = container.add(
+            lambda n: Recorder(n, output_dir=tmp_path, topics=[]), name="recorder",
+            parameters={"status_period_s": 0.2, "snapshot_bytes": 1 << 20,
+                        "min_free_bytes": 0})
+        statuses: list[Any] = []
+        laptop.node.create_subscription(RecorderStatus, "/recorder/status", statuses.append, 10)
+        remote_pub = laptop.node.create_publisher(String, remote, RELIABLE)
+
+        reply = _call(laptop, container, SetTopics, "/recorder/set_topics", topics=[
+            TopicSelection(name=local), TopicSelection(name=remote)])
+        assert reply.success, reply.message
+        # The remote topic's type is learnt from the graph once its publisher is seen.
+        assert laptop.wait_for(lambda: set(recorder.topic_states()) == {local, remote},
+                               also=container.spin_once)
+        assert laptop.wait_for(lambda: remote_pub.get_subscription_count() == 1,
+                               also=container.spin_once)
+        reply = _call(laptop, container, Start, "/recorder/start", bag=str(tmp_path / "bag"))
+        assert reply.success and reply.bag == str(tmp_path / "bag"), reply.message
+        for i in range(10):
+            talker.say(f"local {i}")
+            remote_pub.publish(String(data=f"remote {i}"))
+        states = recorder.topic_states()
+        assert laptop.wait_for(lambda: states[remote].messages == 10
+                               and states[local].messages == 10, also=container.spin_once)
+        assert _call(laptop, container, Split, "/recorder/split").success
+        talker.say("local after split")
+        assert laptop.wait_for(
+            lambda: any(s.state == RECORDING and s.messages == 21 for s in statuses),
+            also=container.spin_once)
+        reply = _call(laptop, container, Snapshot, "/recorder/snapshot",
+                      bag=str(tmp_path / "event"))
+        assert reply.success and reply.messages == 21, reply.message
+        reply = _call(laptop, container, Stop, "/recorder/stop")
+        assert reply.success and reply.bag == str(tmp_path / "bag")
+        assert laptop.wait_for(lambda: statuses[-1].state == IDLE, also=container.spin_once)
+        # Bad requests are refused with a reason, and the recorder keeps going.
+        reply = _call(laptop, container, Start, "/recorder/start", bag=str(tmp_path / "bag"))
+        assert not reply.success and "exists" in reply.message
+        reply = _call(laptop, container, SetTopics, "/recorder/set_topics", topics=[
+            TopicSelection(name=local, every_nth=1, max_rate_hz=-1.0)])
+        assert not reply.success and "max_rate_hz" in reply.message
+
+    final = statuses[-1]
+    assert final.free_bytes > 0 and final.drops == 0
+    assert {t.name: t.messages for t in final.topics} == {local: 11, remote: 10}
+    got = read_rosbags(tmp_path / "bag")
+    assert sorted(m.data for t, m in got if t == local) == sorted(
+        [f"local {i}" for i in range(10)] + ["local after split"])
+    assert [m.data for t, m in got if t == remote] == [f"remote {i}" for i in range(10)]
+    assert len(list((tmp_path / "bag").glob("*.mcap"))) == 2
+    assert len(read_rosbags(tmp_path / "event")) == 21
