@@ -14,7 +14,7 @@ setup(
     zip_safe=True,
     maintainer="efficient_comm dev",
     maintainer_email="dev@example.com",
-    description="Bridge between RoboFrame-style components and ROS, built on efficient_comm.",
+    description="RoboFrame-style messaging bridge: ROS 2 to ROS 1 and robot-to-robot links.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["rf_bridge = rf_bridge.adapters.ros2:main"]},
 )

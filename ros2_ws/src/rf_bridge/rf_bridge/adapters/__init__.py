@@ -1,0 +1,1 @@
+"""Channel adapters, one per external system, plus the ROS 2 side."""

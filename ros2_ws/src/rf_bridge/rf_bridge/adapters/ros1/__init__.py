@@ -1,0 +1,1 @@
+"""The ROS 1 channel adapter: master API (XML-RPC), TCPROS, registration watchdog."""

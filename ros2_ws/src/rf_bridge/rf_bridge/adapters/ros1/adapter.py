@@ -1,0 +1,348 @@
+"""The ROS 1 channel adapter: a ROS 1 node of its own, without rospy.
+
+It registers the bridge's publications and subscriptions with the master, serves TCPROS to
+ROS 1 subscribers and connects to ROS 1 publishers. A watchdog asks the master every
+``master_check_s`` whether it still knows the bridge; after a master restart it registers
+everything again, so ROS 1 nodes started later find the bridged topics without a restart.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..._log import Logger, RateLimitedLog
+from ...config import Ros1Options
+from ...core.adapter import Deliver, Route
+from ...core.qos import ros1_latch
+from ...errors import LinkError, ProtocolError, RfBridgeError, TranslationError
+from ...translate import Translator, TranslatorSet
+from .tcpros import InboundLink, OutboundConnection, encode_header, frame, read_header
+from .xmlrpc import MasterRefused, SlaveServer, call
+
+
+@dataclass(eq=False)
+class _Publication:
+    route: Route
+    ros1_type: str
+    md5sum: str
+    definition: str
+    translator: Translator
+    latch: bool
+    connections: list[OutboundConnection] = field(default_factory=list)
+    last: bytes | None = None
+
+
+@dataclass(eq=False)
+class _Subscription:
+    route: Route
+    ros1_type: str  # "*" when the type is learned from the publisher
+    links: dict[str, InboundLink] = field(default_factory=dict)
+
+
+class Ros1Adapter:
+    name = "ros1"
+
+    def __init__(self, options: Ros1Options, translators: TranslatorSet, logger: Logger) -> None:
+        self.options = options
+        self._translators = translators
+        self._log = RateLimitedLog(logger)
+        self._caller_id = options.node_name
+        self._master = options.master_uri
+        self._pubs: dict[str, _Publication] = {}
+        self._subs: dict[str, _Subscription] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._deliver: Deliver | None = None
+        self._listener: socket.socket | None = None
+        self._slave: SlaveServer | None = None
+        self._registered = threading.Event()
+        self.registrations = 0  # how many times everything was registered (restarts + 1)
+
+    # --- lifecycle ---------------------------------------------------------------------
+
+    def start(self, routes: Sequence[Route], deliver: Deliver) -> None:
+        self._deliver = deliver
+        host = self.options.bind
+        advertise = self.options.advertise_host or (host if host != "0.0.0.0" else "127.0.0.1")
+        self._advertise = advertise
+        self._listener = socket.create_server((host, 0))
+        self._tcp_port = self._listener.getsockname()[1]
+        self._slave = SlaveServer(
+            host=host, advertise_host=advertise, master_uri=self._master,
+            on_publishers=self._on_publishers, on_request=self._on_request,
+            publications=lambda: [[t, p.ros1_type] for t, p in self._pubs.items()],
+            subscriptions=lambda: [[t, s.ros1_type] for t, s in self._subs.items()],
+        )
+        for route in routes:
+            try:
+                if route.spec.outbound:
+                    self._add_publication(route)
+                if route.spec.inbound:
+                    self._add_subscription(route)
+            except RfBridgeError as exc:
+                self._log.error(f"ROS 1 topic {route.peer_topic} not bridged: {exc}")
+        threading.Thread(target=self._accept, name="tcpros-accept", daemon=True).start()
+        threading.Thread(target=self._watch_master, name="ros1-master", daemon=True).start()
+
+    @property
+    def uri(self) -> str:
+        assert self._slave is not None
+        return self._slave.uri
+
+    def wait_registered(self, timeout_s: float) -> bool:
+        return self._registered.wait(timeout_s)
+
+    def close(self) -> None:
+        self._stop.set()
+        for topic, pub in list(self._pubs.items()):
+            self._quietly("unregisterPublisher", topic)
+            for conn in list(pub.connections):
+                conn.close()
+        for topic, sub in list(self._subs.items()):
+            self._quietly("unregisterSubscriber", topic)
+            for link in sub.links.values():
+                link.stop()
+        if self._listener is not None:
+            self._listener.close()
+        if self._slave is not None:
+            self._slave.close()
+
+    def _quietly(self, method: str, topic: str) -> None:
+        try:
+            call(self._master, method, self._caller_id, topic, self.uri, timeout_s=0.5)
+        except LinkError:
+            pass
+
+    # --- master --------------------------------------------------------------------------
+
+    def _add_publication(self, route: Route) -> None:
+        ros1_type = self._translators.ros1_type_for(route.ros2_cls, route.spec.peer_type)
+        registry = self._translators.registry
+        pub = _Publication(
+            route=route, ros1_type=ros1_type, md5sum=registry.md5sum(ros1_type),
+            definition=registry.full_definition(ros1_type),
+            translator=self._translators.translator(ros1_type, route.ros2_cls),
+            latch=ros1_latch(route.spec.qos),
+        )
+        self._pubs[route.peer_topic] = pub
+
+    def _add_subscription(self, route: Route) -> None:
+        ros1_type = route.spec.peer_type
+        if ros1_type is None:
+            ros1_type = self._translators.ros1_type_for(route.ros2_cls)
+        self._subs[route.peer_topic] = _Subscription(route=route, ros1_type=ros1_type)
+
+    def _register_all(self) -> None:
+        for topic, pub in self._pubs.items():
+            call(self._master, "registerPublisher", self._caller_id, topic, pub.ros1_type, self.uri)
+        for topic, sub in self._subs.items():
+            uris = call(self._master, "registerSubscriber", self._caller_id, topic, sub.ros1_type,
+                        self.uri)
+            self._on_publishers(topic, list(uris))
+        self.registrations += 1
+        self._registered.set()
+
+    def _watch_master(self) -> None:
+        reachable = True
+        while not self._stop.is_set():
+            try:
+                try:
+                    known = call(self._master, "lookupNode", self._caller_id, self._caller_id)
+                except MasterRefused:
+                    known = None
+                if known != self.uri:
+                    if self.registrations:
+                        self._log.warning(
+                            f"ROS 1 master {self._master} does not know this bridge (restarted?): "
+                            f"registering {len(self._pubs)} publication(s) and "
+                            f"{len(self._subs)} subscription(s) again"
+                        )
+                    self._register_all()
+                elif not reachable:
+                    self._log.info(f"ROS 1 master {self._master} reachable again")
+                reachable = True
+            except LinkError as exc:
+                if reachable:
+                    self._log.warning(f"ROS 1 master unreachable: {exc}; retrying")
+                reachable = False
+            self._stop.wait(self.options.master_check_s)
+
+    # --- ROS 2 -> ROS 1 --------------------------------------------------------------------
+
+    def send(self, route: Route, msg: Any, received_ns: int) -> None:
+        pub = self._pubs.get(route.peer_topic)
+        if pub is None:
+            route.stats_out.dropped("not_bridged")
+            return
+        conns = pub.connections
+        if not conns and not pub.latch:
+            route.stats_out.dropped("no_subscriber")
+            return
+        try:
+            payload = self._translators.codec.encode(pub.ros1_type, pub.translator.to_ros1(msg))
+        except (TranslationError, ProtocolError, TypeError, ValueError, KeyError) as exc:
+            route.stats_out.dropped("untranslatable")
+            self._log.error(f"cannot translate a message for ROS 1 {route.peer_topic}: {exc}")
+            return
+        data = frame(payload)
+        if pub.latch:
+            pub.last = data
+        if not conns:
+            route.stats_out.dropped("no_subscriber")
+            return
+        for conn in conns:
+            conn.send(data)
+        route.stats_out.delivered(len(payload), time.perf_counter_ns() - received_ns)
+
+    def _accept(self) -> None:
+        assert self._listener is not None
+        while not self._stop.is_set():
+            try:
+                sock, addr = self._listener.accept()
+            except OSError:
+                return
+            threading.Thread(
+                target=self._handshake, args=(sock, addr), name="tcpros-handshake", daemon=True
+            ).start()
+
+    def _handshake(self, sock: socket.socket, addr: Any) -> None:
+        sock.settimeout(5.0)
+        try:
+            header = read_header(sock)
+        except (OSError, LinkError, ProtocolError) as exc:
+            self._log.warning(f"rejecting TCPROS connection from {addr[0]}:{addr[1]}: {exc}")
+            sock.close()
+            return
+        topic = header.get("topic", "")
+        peer = header.get("callerid", f"{addr[0]}:{addr[1]}")
+        pub = self._pubs.get(topic)
+        error = None
+        if pub is None:
+            error = f"the bridge does not publish {topic!r}"
+        elif header.get("md5sum", "*") not in ("*", pub.md5sum):
+            error = (f"md5sum mismatch for {topic}: {pub.ros1_type} is {pub.md5sum}, "
+                     f"subscriber wants {header.get('md5sum')} ({header.get('type')})")
+        if error is not None or pub is None:
+            self._log.warning(f"rejecting TCPROS subscriber {peer}: {error}")
+            try:
+                sock.sendall(encode_header({"error": str(error)}))
+            except OSError:
+                pass
+            sock.close()
+            return
+        reply = {
+            "callerid": self._caller_id, "topic": topic, "type": pub.ros1_type,
+            "md5sum": pub.md5sum, "message_definition": pub.definition,
+            "latching": "1" if pub.latch else "0",
+        }
+        try:
+            sock.sendall(encode_header(reply))
+        except OSError as exc:
+            self._log.warning(f"TCPROS subscriber {peer} on {topic} left during handshake: {exc}")
+            sock.close()
+            return
+        if header.get("probe") == "1":
+            sock.close()
+            return
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        stats = pub.route.stats_out
+        conn = OutboundConnection(
+            sock, peer=peer, topic=topic, queue_size=self.options.queue_size,
+            send_timeout_s=self.options.send_timeout_s, on_undelivered=stats.dropped,
+            on_closed=lambda c: self._remove(pub, c), log=self._log,
+        )
+        with self._lock:
+            if pub.latch and pub.last is not None:
+                conn.send(pub.last)
+            pub.connections = [*pub.connections, conn]  # copy on write: send() iterates freely
+        self._log.info(f"ROS 1 subscriber {peer} connected to {topic}")
+
+    def _remove(self, pub: _Publication, conn: OutboundConnection) -> None:
+        with self._lock:
+            pub.connections = [c for c in pub.connections if c is not conn]
+
+    def _on_request(self, topic: str, protocols: list[list[Any]]) -> list[Any]:
+        if topic not in self._pubs:
+            raise LookupError(f"the bridge does not publish {topic!r}")
+        if not any(p and p[0] == "TCPROS" for p in protocols):
+            raise LookupError("only TCPROS is supported")
+        return ["TCPROS", self._advertise, self._tcp_port]
+
+    # --- ROS 1 -> ROS 2 --------------------------------------------------------------------
+
+    def _on_publishers(self, topic: str, uris: list[str]) -> None:
+        sub = self._subs.get(topic)
+        if sub is None or self._stop.is_set():
+            return
+        wanted = {u for u in uris if u != self.uri}  # never subscribe to ourselves
+        with self._lock:
+            for uri in list(sub.links):
+                if uri not in wanted:
+                    sub.links.pop(uri).stop()
+            for uri in wanted - set(sub.links):
+                sub.links[uri] = self._link(sub, uri)
+
+    def _link(self, sub: _Subscription, uri: str) -> InboundLink:
+        route = sub.route
+        state: dict[str, Any] = {}
+
+        def request() -> tuple[str, int]:
+            value = call(uri, "requestTopic", self._caller_id, route.peer_topic, [["TCPROS"]])
+            if not isinstance(value, list) or len(value) != 3 or value[0] != "TCPROS":
+                raise ProtocolError(f"publisher {uri} offered {value!r}, not TCPROS")
+            return str(value[1]), int(value[2])
+
+        def on_header(reply: dict[str, str]) -> None:
+            ros1_type = reply.get("type", "")
+            definition = reply.get("message_definition")
+            registry = self._translators.registry
+            try:
+                if definition:
+                    before = registry.md5sum(ros1_type) if ros1_type in registry else None
+                    registry.add_full_definition(ros1_type, definition)
+                    if before is not None and before != registry.md5sum(ros1_type):
+                        self._translators.forget(ros1_type)
+                if ros1_type not in registry:
+                    raise TranslationError(f"unknown type {ros1_type!r} and no message_definition")
+                if reply.get("md5sum") not in (None, "*", registry.md5sum(ros1_type)):
+                    self._log.warning(
+                        f"{route.peer_topic}: md5sum of {ros1_type} from {uri} differs from the "
+                        "one computed from its definition; translating by field names"
+                    )
+                state["type"] = ros1_type
+                state["translator"] = self._translators.translator(ros1_type, route.ros2_cls)
+            except TranslationError as exc:
+                route.stats_in.dropped("unknown_type")
+                raise ProtocolError(f"cannot bridge {ros1_type!r} to ROS 2: {exc}") from None
+
+        deliver = self._deliver
+        assert deliver is not None
+        codec = self._translators.codec
+
+        def on_frame(payload: bytes) -> None:
+            received = time.perf_counter_ns()
+            try:
+                msg = state["translator"].to_ros2(codec.decode(state["type"], payload))
+            except ProtocolError:
+                route.stats_in.dropped("malformed")
+                raise
+            except TranslationError:
+                route.stats_in.dropped("untranslatable")
+                raise
+            deliver(route, msg, received, len(payload))
+
+        def on_oversize() -> None:
+            route.stats_in.dropped("oversize")
+
+        return InboundLink(
+            publisher_uri=uri, topic=route.peer_topic, request=request,
+            header={"callerid": self._caller_id, "topic": route.peer_topic, "md5sum": "*",
+                    "type": sub.ros1_type, "tcp_nodelay": "1"},
+            max_bytes=self.options.max_message_bytes, on_header=on_header, on_frame=on_frame,
+            on_oversize=on_oversize, log=self._log,
+        )

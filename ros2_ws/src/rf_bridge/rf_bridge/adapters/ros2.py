@@ -1,0 +1,137 @@
+"""The ROS 2 side: the bridge as an efficient_comm component.
+
+Written against the node handle, so it runs standalone (``rf_bridge --ros-args -p
+config:=bridge.yaml``), composed in a container next to the components it serves (then ROS
+2 messages reach it by reference, no serialisation on the ROS 2 side), or under
+``TestHandle``. Adapter threads publish into ROS 2 from their own threads; the composed
+executor queues such messages and runs subscribers in its own thread.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from efficient_comm.handle import NodeHandle, Publisher
+
+from ..config import BridgeConfig, load_config
+from ..core.adapter import ChannelAdapter, Route
+from ..core.router import Router
+from ..core.stats import TopicStats, TopicStatsSnapshot
+from ..errors import ConfigError, RfBridgeError
+from ..translate import TranslatorSet, ros2_class
+
+
+class BridgeNode:
+    """The bridge: routes configured topics between ROS 2 and the configured systems.
+
+    ``config`` (a :class:`BridgeConfig`) wins over the ``config`` parameter (a file path).
+    ``adapters`` replaces the adapters built from the configuration (tests, other systems).
+    """
+
+    def __init__(
+        self,
+        node: NodeHandle,
+        *,
+        config: BridgeConfig | None = None,
+        adapters: Mapping[str, ChannelAdapter] | None = None,
+    ) -> None:
+        self._node = node
+        if config is None:
+            path = node.declare_parameter("config", "")
+            if not path:
+                raise ConfigError("rf_bridge needs a bridge file: -p config:=bridge.yaml")
+            config = load_config(path)
+        for error in config.errors:
+            node.logger.error(error)
+        self.config = config
+        self.translators = TranslatorSet(config.rules)
+        self.adapters: dict[str, ChannelAdapter] = dict(adapters or self._build_adapters(config))
+        self._publishers: dict[int, Publisher] = {}
+        self.routes: list[Route] = []
+        self.router = Router(self.adapters, publish=self._publish, now_ns=node.clock.now_ns)
+        for spec in config.topics:
+            try:
+                route = self._route(spec)
+            except RfBridgeError as exc:
+                node.logger.error(f"topic {spec.ros2_topic} not bridged: {exc}")
+                continue
+            self.routes.append(route)
+            self.router.add(route)
+        for name, adapter in self.adapters.items():
+            adapter.start([r for r in self.routes if r.spec.peer == name], self.router.from_peer)
+        self._throttled: list[Any] = []
+        for route in self.routes:
+            self._connect_ros2(route)
+        node.logger.info(
+            f"rf_bridge: {len(self.routes)} topic(s) bridged with {sorted(self.adapters)}"
+        )
+
+    def _build_adapters(self, config: BridgeConfig) -> dict[str, ChannelAdapter]:
+        out: dict[str, ChannelAdapter] = {}
+        peers = {t.peer for t in config.topics}
+        if config.ros1 is not None and "ros1" in peers:
+            from .ros1.adapter import Ros1Adapter
+
+            out["ros1"] = Ros1Adapter(config.ros1, self.translators, self._node.logger)
+        if config.team is not None and "team" in peers:
+            from .team import TeamAdapter
+
+            out["team"] = TeamAdapter(config.team, self._node.logger)
+        return out
+
+    def _route(self, spec: Any) -> Route:
+        if spec.peer not in self.adapters:
+            raise ConfigError(f"no adapter for peer {spec.peer!r}")
+        if spec.ros2_type is not None:
+            cls = ros2_class(spec.ros2_type)
+        else:
+            cls = self.translators.ros2_class_for(spec.peer_type)
+        return Route(
+            spec=spec, ros2_cls=cls,
+            stats_out=TopicStats(spec.ros2_topic, f"to_{spec.peer}"),
+            stats_in=TopicStats(spec.ros2_topic, f"from_{spec.peer}"),
+        )
+
+    def _connect_ros2(self, route: Route) -> None:
+        spec = route.spec
+        if spec.inbound:
+            self._publishers[id(route)] = self._node.create_publisher(
+                route.ros2_cls, spec.ros2_topic, qos=spec.qos
+            )
+        if spec.outbound:
+            def callback(msg: Any, route: Route = route) -> None:
+                self.router.from_ros2(route, msg)
+
+            if spec.throttle is not None and spec.throttle_mode == "publisher":
+                from throttle_publisher import ThrottledSubscription
+
+                self._throttled.append(ThrottledSubscription(
+                    self._node, route.ros2_cls, spec.ros2_topic, callback,
+                    options=spec.throttle, qos=spec.qos,
+                ))
+            else:
+                self._node.create_subscription(route.ros2_cls, spec.ros2_topic, callback, qos=spec.qos)
+
+    def _publish(self, route: Route, msg: Any) -> None:
+        self._publishers[id(route)].publish(msg)
+
+    def stats(self) -> list[TopicStatsSnapshot]:
+        """Messages, bytes, drops by reason and latency, per topic and direction."""
+        out = []
+        for route in self.routes:
+            if route.spec.outbound:
+                out.append(route.stats_out.snapshot())
+            if route.spec.inbound:
+                out.append(route.stats_in.snapshot())
+        return out
+
+    def close(self) -> None:
+        for adapter in self.adapters.values():
+            adapter.close()
+
+
+def main() -> int:
+    from efficient_comm.standalone import run
+
+    return run(BridgeNode, name="rf_bridge")

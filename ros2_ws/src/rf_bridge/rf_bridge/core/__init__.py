@@ -1,0 +1,1 @@
+"""The bridge core: routes, the adapter interface, router, statistics, QoS mapping."""

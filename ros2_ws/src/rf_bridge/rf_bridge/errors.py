@@ -1,0 +1,42 @@
+"""The one exception root of rf_bridge and its tree.
+
+::
+
+    RfBridgeError
+    ├── ConfigError          a bridge file or option is wrong (names the file and entry)
+    ├── TranslationError     a message cannot be mapped between two systems' types
+    │   └── UnknownTypeError no definition (ROS 1) or no importable class (ROS 2) for a type
+    ├── ProtocolError        a peer sent bytes that break the wire protocol (TCPROS, XML-RPC)
+    │   └── OversizeError    a frame larger than the configured limit
+    └── LinkError            an external system cannot be reached (master down, peer gone)
+"""
+
+from __future__ import annotations
+
+
+class RfBridgeError(Exception):
+    """Root of every error rf_bridge raises on purpose."""
+
+
+class ConfigError(RfBridgeError):
+    pass
+
+
+class TranslationError(RfBridgeError):
+    pass
+
+
+class UnknownTypeError(TranslationError):
+    pass
+
+
+class ProtocolError(RfBridgeError):
+    pass
+
+
+class OversizeError(ProtocolError):
+    pass
+
+
+class LinkError(RfBridgeError):
+    pass

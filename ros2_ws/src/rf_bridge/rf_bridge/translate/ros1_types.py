@@ -1,0 +1,316 @@
+"""ROS 1 message types at run time: parse ``.msg`` text, compute md5sums, build full definitions.
+
+ROS 1 names a type by ``package/Name`` and checks compatibility by an md5sum of a canonical
+form of its definition. The bridge needs no generated code: it learns a type from the
+``message_definition`` a peer sends in its connection header, from a YAML rule, or derives
+it from the matching ROS 2 type (see :func:`derive_from_ros2`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import threading
+from pathlib import Path
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import TranslationError, UnknownTypeError
+
+#: Built-in field types of ROS 1 and their wire size (0: variable length).
+PRIMITIVES: dict[str, int] = {
+    "bool": 1, "int8": 1, "uint8": 1, "byte": 1, "char": 1,
+    "int16": 2, "uint16": 2, "int32": 4, "uint32": 4, "int64": 8, "uint64": 8,
+    "float32": 4, "float64": 8, "string": 0, "time": 8, "duration": 8,
+}
+_SEPARATOR = "=" * 80
+
+
+@dataclass(frozen=True, slots=True)
+class Field:
+    """One field; ``array`` is None (scalar), -1 (unbounded) or the fixed length."""
+
+    name: str
+    type: str  # primitive name or resolved "pkg/Name"
+    array: int | None = None
+
+    @property
+    def is_primitive(self) -> bool:
+        return self.type in PRIMITIVES
+
+    def spec_type(self) -> str:
+        suffix = "" if self.array is None else "[]" if self.array < 0 else f"[{self.array}]"
+        return self.type + suffix
+
+
+@dataclass(frozen=True, slots=True)
+class Constant:
+    type: str
+    name: str
+    value_text: str
+
+
+@dataclass(frozen=True, slots=True)
+class MsgSpec:
+    name: str  # "pkg/Name"
+    fields: tuple[Field, ...]
+    constants: tuple[Constant, ...] = ()
+
+    def text(self) -> str:
+        """This type's own definition in ``.msg`` form (no comments)."""
+        lines = [f"{c.type} {c.name}={c.value_text}" for c in self.constants]
+        lines += [f"{f.spec_type()} {f.name}" for f in self.fields]
+        return "\n".join(lines)
+
+
+def _resolve(type_name: str, package: str) -> str:
+    if type_name in PRIMITIVES:
+        return type_name
+    if type_name == "Header":
+        return "std_msgs/Header"
+    return type_name if "/" in type_name else f"{package}/{type_name}"
+
+
+def parse_msg(name: str, text: str) -> MsgSpec:
+    """Parse one ``.msg`` text for type ``name`` (``pkg/Name``); raises TranslationError."""
+    if name.count("/") != 1:
+        raise TranslationError(f"ROS 1 type name must be 'package/Name', not {name!r}")
+    package = name.split("/")[0]
+    fields: list[Field] = []
+    constants: list[Constant] = []
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.split(None, 1)
+        if len(parts) != 2:
+            raise TranslationError(f"{name}: line {lineno}: expected 'type name': {raw!r}")
+        type_text, rest = parts
+        if "=" in rest.split("#", 1)[0] or (type_text == "string" and "=" in rest):
+            cname, value = rest.split("=", 1)
+            value = value.strip() if type_text == "string" else value.split("#", 1)[0].strip()
+            constants.append(Constant(type_text, cname.strip(), value))
+            continue
+        field_name = rest.split("#", 1)[0].strip()
+        if not field_name.isidentifier():
+            raise TranslationError(f"{name}: line {lineno}: bad field name {field_name!r}")
+        array: int | None = None
+        if type_text.endswith("]"):
+            base, _, size = type_text[:-1].partition("[")
+            try:
+                array = int(size) if size else -1
+            except ValueError:
+                raise TranslationError(f"{name}: line {lineno}: bad array {type_text!r}") from None
+            type_text = base
+        fields.append(Field(field_name, _resolve(type_text, package), array))
+    return MsgSpec(name, tuple(fields), tuple(constants))
+
+
+class TypeRegistry:
+    """ROS 1 types known to this process, with their md5sums and full definitions.
+
+    Thread-safe: connections learn types from their own threads.
+    """
+
+    def __init__(self) -> None:
+        self._specs: dict[str, MsgSpec] = {}
+        self._md5: dict[str, str] = {}
+        self._lock = threading.Lock()
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._specs
+
+    def add(self, spec: MsgSpec) -> None:
+        with self._lock:
+            old = self._specs.get(spec.name)
+            if old != spec:
+                self._specs[spec.name] = spec
+                self._md5.clear()
+
+    def get(self, name: str) -> MsgSpec:
+        try:
+            return self._specs[name]
+        except KeyError:
+            raise UnknownTypeError(f"unknown ROS 1 type {name!r}") from None
+
+    def add_full_definition(self, name: str, full_text: str) -> MsgSpec:
+        """Learn ``name`` and every type embedded in its full definition (as peers send it)."""
+        sections = full_text.split("\n" + _SEPARATOR + "\n")
+        specs = [parse_msg(name, sections[0])]
+        for section in sections[1:]:
+            head, _, body = section.partition("\n")
+            if not head.startswith("MSG: "):
+                raise TranslationError(f"{name}: embedded definition without 'MSG:' line")
+            specs.append(parse_msg(head[5:].strip(), body))
+        for spec in specs:
+            self.add(spec)
+        self.md5sum(name)  # every dependency must be present
+        return specs[0]
+
+    def md5sum(self, name: str) -> str:
+        """The ROS 1 md5sum of ``name`` (genmsg's canonical text: constants, then fields
+        with nested types replaced by their own md5sum)."""
+        cached = self._md5.get(name)
+        if cached is not None:
+            return cached
+        spec = self.get(name)
+        lines = [f"{c.type} {c.name}={c.value_text}" for c in spec.constants]
+        for f in spec.fields:
+            if f.is_primitive:
+                lines.append(f"{f.spec_type()} {f.name}")
+            else:
+                lines.append(f"{self.md5sum(f.type)} {f.name}")
+        digest = hashlib.md5("\n".join(lines).encode()).hexdigest()
+        self._md5[name] = digest
+        return digest
+
+    def full_definition(self, name: str) -> str:
+        """The definition with every nested type appended, as ``message_definition``."""
+        spec = self.get(name)
+        out = [spec.text()]
+        for dep in self._dependencies(name):
+            out.append(f"{_SEPARATOR}\nMSG: {dep}\n{self.get(dep).text()}")
+        return "\n".join(out) + "\n"
+
+    def _dependencies(self, name: str) -> list[str]:
+        seen: list[str] = []
+
+        def visit(n: str) -> None:
+            for f in self.get(n).fields:
+                if not f.is_primitive and f.type not in seen:
+                    seen.append(f.type)
+                    visit(f.type)
+
+        visit(name)
+        return seen
+
+
+# --- deriving a ROS 1 definition from a ROS 2 type -------------------------------------
+
+_ROS2_PRIMITIVES = {
+    "boolean": "bool", "octet": "uint8", "char": "uint8", "byte": "uint8", "int8": "int8",
+    "uint8": "uint8", "int16": "int16", "uint16": "uint16", "int32": "int32",
+    "uint32": "uint32", "int64": "int64", "uint64": "uint64", "float": "float32",
+    "double": "float64", "float32": "float32", "float64": "float64", "string": "string",
+    "wstring": "string",
+}
+_ROS2_SPECIAL = {"builtin_interfaces/Time": "time", "builtin_interfaces/Duration": "duration"}
+#: ROS 1's Header has a sequence number that ROS 2 dropped.
+#: Where ROS 2 renamed common_interfaces fields (lowercase), so derived twins keep ROS 1's
+#: md5sum. Types whose constants changed (sensor_msgs/NavSatStatus) need a peer's or a
+#: rule's definition instead.
+_ROS1_FIELD_NAMES = {"sensor_msgs/CameraInfo": {"d": "D", "k": "K", "r": "R", "p": "P"}}
+_ROS1_HEADER = MsgSpec(
+    "std_msgs/Header",
+    (Field("seq", "uint32"), Field("stamp", "time"), Field("frame_id", "string")),
+)
+
+
+def ros2_class(name: str) -> type:
+    """Import a ROS 2 message class from ``pkg/msg/Name`` or ``pkg/Name``."""
+    parts = name.split("/")
+    if len(parts) == 2:
+        parts = [parts[0], "msg", parts[1]]
+    if len(parts) != 3 or not all(p.isidentifier() for p in parts):
+        raise UnknownTypeError(f"bad ROS 2 type name {name!r} (expected 'pkg/msg/Name')")
+    try:
+        module = importlib.import_module(f"{parts[0]}.{parts[1]}")
+        cls = getattr(module, parts[2])
+    except (ImportError, AttributeError):
+        raise UnknownTypeError(f"ROS 2 type {name!r} is not installed") from None
+    if not isinstance(cls, type) or not hasattr(cls, "get_fields_and_field_types"):
+        raise UnknownTypeError(f"{name!r} is not a ROS 2 message type")
+    return cls
+
+
+def ros2_type_name(cls: type) -> str:
+    """``pkg/msg/Name`` of a ROS 2 message class."""
+    module = cls.__module__.split(".")
+    return f"{module[0]}/{module[1]}/{cls.__name__}"
+
+
+def ros2_constants(cls: type) -> dict[str, Any]:
+    meta = type(cls)
+    found: dict[str, Any] = getattr(meta, f"_{meta.__name__}__constants", {})
+    return found
+
+
+def _ros2_field(name: str, ros2_type: str) -> tuple[Field, str | None]:
+    """ROS 1 field for a ROS 2 field type string; returns the nested ROS 2 type to derive."""
+    array: int | None = None
+    t = ros2_type
+    if t.startswith("sequence<"):
+        t = t[len("sequence<"):-1].split(",")[0]
+        array = -1
+    elif t.endswith("]"):
+        t, _, size = t[:-1].partition("[")
+        array = int(size) if size.isdigit() else -1
+    if t.startswith(("string<", "wstring<")):
+        t = "string"
+    if t in _ROS2_PRIMITIVES:
+        return Field(name, _ROS2_PRIMITIVES[t], array), None
+    if t in _ROS2_SPECIAL:
+        return Field(name, _ROS2_SPECIAL[t], array), None
+    return Field(name, t, array), t
+
+
+def derive_from_ros2(registry: TypeRegistry, cls: type, *, ros1_name: str | None = None) -> str:
+    """Register the ROS 1 twin of ROS 2 message class ``cls`` and return its ROS 1 name.
+
+    Exact for types whose ROS 1 and ROS 2 definitions list the same fields and constants
+    (most of common_interfaces); where they differ, a YAML rule or a peer's own definition
+    gives the ROS 1 form. Types already known are kept (a learned definition wins).
+    """
+    pkg, _, msg_name = ros2_type_name(cls).split("/")
+    name = ros1_name or f"{pkg}/{msg_name}"
+    if name in registry:
+        return name
+    if name == "std_msgs/Header":
+        registry.add(_ROS1_HEADER)
+        return name
+    fields: list[Field] = []
+    renames = _ROS1_FIELD_NAMES.get(name, {})
+    for field_name, ros2_type in cls.get_fields_and_field_types().items():
+        field, nested = _ros2_field(renames.get(field_name, field_name), ros2_type)
+        if nested is not None:
+            nested_pkg, _, nested_name = nested.partition("/")
+            derive_from_ros2(registry, ros2_class(f"{nested_pkg}/msg/{nested_name}"))
+        fields.append(field)
+    registry.add(MsgSpec(name, tuple(fields), _ros2_constants(cls, pkg, msg_name)))
+    return name
+
+
+def _ros2_constants(cls: type, pkg: str, msg_name: str) -> tuple[Constant, ...]:
+    """Constants as the ROS 2 ``.msg`` file declares them (type and text matter for the
+    md5sum); from the class's values when the file is not installed."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        path = Path(get_package_share_directory(pkg)) / "msg" / f"{msg_name}.msg"
+        text = path.read_text()
+    except (ImportError, LookupError, OSError):
+        text = None
+    if text is not None:
+        found = []
+        for line in text.splitlines():
+            parts = line.strip().split(None, 1)
+            if len(parts) == 2 and not parts[0].startswith("#") and "=" in parts[1]:
+                cname, value = parts[1].split("=", 1)
+                if parts[0] != "string":
+                    value = value.split("#", 1)[0]
+                found.append(Constant(parts[0], cname.strip(), value.strip()))
+        return tuple(found)
+    return tuple(
+        Constant(_constant_type(value), cname, str(int(value) if isinstance(value, bool) else value))
+        for cname, value in ros2_constants(cls).items()
+    )
+
+
+def _constant_type(value: object) -> str:
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int):
+        return "int32"
+    if isinstance(value, float):
+        return "float64"
+    return "string"

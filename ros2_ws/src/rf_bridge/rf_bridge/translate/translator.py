@@ -1,0 +1,256 @@
+"""Message translators between ROS 2 message objects and ROS 1 dict messages.
+
+A translator is compiled once per (ROS 1 type, ROS 2 class) pair into a list of field
+steps. Fields pair up by name (exactly, then ignoring case: ROS 2 lowercased some), nested
+types recursively, ``time``/``duration`` with ``builtin_interfaces``; a :class:`TypeRule`
+from the YAML file renames fields where the names differ. Fields only one side has are left
+at their defaults (ROS 1's ``Header.seq``, for example) and listed in :attr:`unmatched`.
+"""
+
+from __future__ import annotations
+
+import array
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import TranslationError
+from .ros1_types import _ROS2_PRIMITIVES, Field, TypeRegistry, ros2_class
+
+Convert = Callable[[Any], Any]
+
+_ARRAY_CODES = {
+    "boolean": None, "int8": "b", "uint8": "B", "int16": "h", "uint16": "H", "int32": "i",
+    "uint32": "I", "int64": "q", "uint64": "Q", "float": "f", "double": "d",
+    "float32": "f", "float64": "d",
+}
+_TIME_TYPES = {"builtin_interfaces/Time": "time", "builtin_interfaces/Duration": "duration"}
+
+
+@dataclass(frozen=True, slots=True)
+class TypeRule:
+    """A YAML rule pairing a ROS 1 type with a ROS 2 type whose names do not match.
+
+    ``fields`` maps ROS 2 field names to ROS 1 field names; ``ros1_definition`` gives the
+    ROS 1 ``.msg`` text when no peer will tell it (needed to publish a custom type).
+    """
+
+    ros1: str
+    ros2: str
+    fields: Mapping[str, str] = field(default_factory=dict)
+    ros1_definition: str | None = None
+
+
+def _split(ros2_type: str) -> tuple[str, int | None]:
+    """Element type and array kind (None scalar, -1 sequence, n fixed) of a ROS 2 type."""
+    if ros2_type.startswith("sequence<"):
+        return ros2_type[len("sequence<"):-1].split(",")[0], -1
+    if ros2_type.endswith("]"):
+        base, _, size = ros2_type[:-1].partition("[")
+        return base, int(size) if size.isdigit() else -1
+    return ros2_type, None
+
+
+def _base(ros2_type: str) -> str:
+    return "string" if ros2_type.startswith(("string<", "wstring<")) else ros2_type
+
+
+class Translator:
+    """Converts one ROS 1 type to one ROS 2 class and back."""
+
+    def __init__(
+        self, registry: TypeRegistry, ros1_type: str, ros2_cls: type, *,
+        rules: Mapping[tuple[str, str], TypeRule] | None = None,
+    ) -> None:
+        self.ros1_type = ros1_type
+        self.ros2_cls = ros2_cls
+        self.unmatched: list[str] = []
+        self._registry = registry
+        self._rules = rules or {}
+        self._to_ros2 = self._plan_to_ros2(ros1_type, ros2_cls, "")
+        self._to_ros1 = self._plan_to_ros1(ros1_type, ros2_cls, "")
+
+    def to_ros2(self, value: dict[str, Any]) -> Any:
+        try:
+            return self._to_ros2(value)
+        except (TypeError, ValueError, AssertionError, KeyError) as exc:
+            raise TranslationError(f"{self.ros1_type} -> ROS 2: {exc}") from exc
+
+    def to_ros1(self, msg: Any) -> dict[str, Any]:
+        try:
+            result: dict[str, Any] = self._to_ros1(msg)
+            return result
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise TranslationError(f"ROS 2 -> {self.ros1_type}: {exc}") from exc
+
+    # --- pairing -----------------------------------------------------------------------
+
+    def _pairs(self, ros1_type: str, ros2_cls: type, where: str) -> list[tuple[str, str, Field]]:
+        spec = self._registry.get(ros1_type)
+        ros2_fields: dict[str, str] = ros2_cls.get_fields_and_field_types()  # type: ignore[attr-defined]
+        rule = self._rules.get((ros1_type, _ros2_name(ros2_cls)))
+        renames = dict(rule.fields) if rule else {}
+        by_name = {f.name: f for f in spec.fields}
+        by_lower = {f.name.lower(): f for f in spec.fields}
+        pairs: list[tuple[str, str, Field]] = []
+        used: set[str] = set()
+        for name, ros2_type in ros2_fields.items():
+            if name in renames:
+                f = by_name.get(renames[name])
+                if f is None:
+                    raise TranslationError(
+                        f"rule for {ros1_type}: ROS 1 field {renames[name]!r} does not exist"
+                    )
+            else:
+                f = by_name.get(name) or by_lower.get(name.lower())
+            if f is None:
+                self._note(f"{where}{name} (ROS 2 only)")
+                continue
+            used.add(f.name)
+            pairs.append((name, ros2_type, f))
+        for f in spec.fields:
+            if f.name not in used:
+                self._note(f"{where}{f.name} (ROS 1 only)")
+        return pairs
+
+    def _note(self, text: str) -> None:
+        if text not in self.unmatched:
+            self.unmatched.append(text)
+
+    # --- ROS 1 -> ROS 2 ----------------------------------------------------------------
+
+    def _plan_to_ros2(self, ros1_type: str, ros2_cls: type, where: str) -> Convert:
+        steps = [
+            (name, f.name, self._conv_to_ros2(ros2_type, f, f"{where}{name}."))
+            for name, ros2_type, f in self._pairs(ros1_type, ros2_cls, where)
+        ]
+
+        def convert(value: dict[str, Any]) -> Any:
+            msg = ros2_cls()
+            for attr, key, conv in steps:
+                setattr(msg, attr, conv(value[key]))
+            return msg
+
+        return convert
+
+    def _conv_to_ros2(self, ros2_type: str, f: Field, where: str) -> Convert:
+        elem, arr = _split(ros2_type)
+        elem = _base(elem)
+        if (arr is None) != (f.array is None):
+            raise TranslationError(f"{where[:-1]}: array on one side only ({ros2_type} vs {f.spec_type()})")
+        one = self._elem_to_ros2(elem, f, where)
+        if arr is None:
+            return one
+        if elem in ("uint8", "octet", "char", "byte") and f.type in ("uint8", "int8", "byte", "char"):
+            if elem == "octet" or elem == "byte":
+                return lambda v: [bytes((b,)) for b in v]
+            return lambda v: v if arr == -1 else list(v)
+        code = _ARRAY_CODES.get(elem)
+        if code is not None and arr == -1:
+            return lambda v: array.array(code, v)
+        if one is _identity:
+            return _identity
+        return lambda v: [one(x) for x in v]
+
+    def _elem_to_ros2(self, elem: str, f: Field, where: str) -> Convert:
+        if elem in _TIME_TYPES:
+            if f.type != _TIME_TYPES[elem]:
+                raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
+            cls = ros2_class(elem)
+            return lambda v: cls(sec=v[0], nanosec=v[1])
+        if elem in _ROS2_PRIMITIVES:
+            if not f.is_primitive or f.type in ("time", "duration"):
+                raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
+            if (elem == "string") != (f.type == "string"):
+                raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
+            if elem == "boolean":
+                return bool
+            if elem in ("octet", "byte") and f.array is None:
+                return lambda v: bytes((v & 0xFF,))
+            return _identity
+        if f.is_primitive:
+            raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
+        pkg, _, name = elem.partition("/")
+        return self._plan_to_ros2(f.type, ros2_class(f"{pkg}/msg/{name}"), where)
+
+    # --- ROS 2 -> ROS 1 ----------------------------------------------------------------
+
+    def _plan_to_ros1(self, ros1_type: str, ros2_cls: type, where: str) -> Convert:
+        spec = self._registry.get(ros1_type)
+        pairs = {f.name: (name, ros2_type) for name, ros2_type, f in self._pairs(ros1_type, ros2_cls, where)}
+        steps: list[tuple[str, str | None, Any]] = []
+        for f in spec.fields:
+            if f.name in pairs:
+                name, ros2_type = pairs[f.name]
+                steps.append((f.name, name, self._conv_to_ros1(ros2_type, f, f"{where}{name}.")))
+            else:
+                steps.append((f.name, None, self._default(f)))
+
+        def convert(msg: Any) -> dict[str, Any]:
+            out: dict[str, Any] = {}
+            for key, attr, conv in steps:
+                out[key] = conv(getattr(msg, attr)) if attr is not None else conv()
+            return out
+
+        return convert
+
+    def _conv_to_ros1(self, ros2_type: str, f: Field, where: str) -> Convert:
+        elem, arr = _split(ros2_type)
+        elem = _base(elem)
+        if arr is not None and f.type in ("uint8", "int8", "byte", "char"):
+            if elem in ("octet", "byte"):
+                return lambda v: b"".join(v)
+            return _to_bytes
+        if elem in _TIME_TYPES:
+            one: Convert = lambda v: (v.sec, v.nanosec)  # noqa: E731
+        elif elem in _ROS2_PRIMITIVES:
+            one = (lambda v: v[0]) if elem in ("octet", "byte") else _identity
+        else:
+            pkg, _, name = elem.partition("/")
+            one = self._plan_to_ros1(f.type, ros2_class(f"{pkg}/msg/{name}"), where)
+        if arr is None:
+            return one
+        if one is _identity:
+            return _identity
+        return lambda v: [one(x) for x in v]
+
+    def _default(self, f: Field) -> Callable[[], Any]:
+        if f.array is not None:
+            if f.array < 0:
+                return bytes if f.type in ("uint8", "int8", "byte", "char") else list
+            zero = self._default(Field(f.name, f.type))
+            if f.type in ("uint8", "int8", "byte", "char"):
+                return lambda: bytes(f.array or 0)
+            return lambda: [zero() for _ in range(f.array or 0)]
+        if f.type == "string":
+            return str
+        if f.type in ("time", "duration"):
+            return lambda: (0, 0)
+        if f.type in ("float32", "float64"):
+            return float
+        if f.type == "bool":
+            return bool
+        if f.is_primitive:
+            return int
+        spec = self._registry.get(f.type)
+        parts = [(g.name, self._default(g)) for g in spec.fields]
+        return lambda: {name: make() for name, make in parts}
+
+
+def _identity(v: Any) -> Any:
+    return v
+
+
+def _to_bytes(v: Any) -> bytes:
+    if isinstance(v, bytes):
+        return v
+    tobytes = getattr(v, "tobytes", None)
+    if tobytes is not None and getattr(v, "itemsize", 1) == 1:
+        data: bytes = tobytes()
+        return data
+    return bytes(v)
+
+
+def _ros2_name(cls: type) -> str:
+    module = cls.__module__.split(".")
+    return f"{module[0]}/{module[1]}/{cls.__name__}"

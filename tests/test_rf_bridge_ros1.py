@@ -1,0 +1,253 @@
+"""rf_bridge against a real ROS 1 system: Debian's rosmaster, rospy, rostopic and rosbag.
+
+The bridge runs in this process on a TestHandle (the ROS 2 side without DDS); ROS 1 programs
+run on the system Python in their own sessions, against a master on a free port.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import subprocess
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import Image
+from std_msgs.msg import String
+
+from efficient_comm.testing import TestHandle, unique_topic
+from rf_bridge import BridgeNode, parse_config
+from rf_bridge.testing import LineReader, Ros1System, wait_for
+
+# A rospy node for the tests: "listen" prints each message as a JSON line; "talk" publishes
+# eval(expr) for i in range(count) once a subscriber is connected, then waits.
+NODE = r"""
+import hashlib, importlib, json, sys, time
+import rospy
+mode, topic, type_name = sys.argv[1:4]
+definition = sys.argv[6] if len(sys.argv) > 6 else ""
+pkg, name = type_name.split("/")
+if definition:
+    from genpy.dynamic import generate_dynamic
+    cls = generate_dynamic(type_name, definition)[type_name]
+    module = None
+else:
+    module = importlib.import_module(pkg + ".msg")
+    cls = getattr(module, name)
+
+def plain(v):
+    if isinstance(v, bytes):
+        return {"len": len(v), "sha1": hashlib.sha1(v).hexdigest()}
+    if hasattr(v, "__slots__") and hasattr(v, "_slot_types"):
+        return {k: plain(getattr(v, k)) for k in v.__slots__}
+    if hasattr(v, "secs") and hasattr(v, "nsecs"):
+        return [v.secs, v.nsecs]
+    if isinstance(v, (list, tuple)):
+        return [plain(x) for x in v]
+    return v
+
+rospy.init_node("rf_test_" + mode, anonymous=True, disable_signals=True)
+if mode == "listen":
+    rospy.Subscriber(topic, cls, lambda m: print(json.dumps(plain(m)), flush=True))
+    print("ready", flush=True)
+    while True:
+        time.sleep(1)
+else:
+    expr, count = sys.argv[4], int(sys.argv[5])
+    pub = rospy.Publisher(topic, cls, queue_size=1000)
+    while pub.get_num_connections() == 0:
+        time.sleep(0.01)
+    time.sleep(0.2)
+    print("ready", flush=True)
+    for i in range(count):
+        pub.publish(eval(expr, {"i": i, "cls": cls, "m": module,
+                          "std": importlib.import_module("std_msgs.msg")}))
+        time.sleep(0.002)
+    print("done", flush=True)
+    while True:
+        time.sleep(1)
+"""
+
+
+@pytest.fixture
+def ros1() -> Iterator[Ros1System]:
+    with Ros1System() as system:
+        yield system
+
+
+def read_line(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> str:
+    reader = _readers.get(proc.pid)
+    if reader is None:
+        reader = _readers[proc.pid] = LineReader(proc)
+    return reader.next(timeout_s)
+
+
+_readers: dict[int, LineReader] = {}
+
+
+def bridge(ros1: Ros1System, topics: list[dict[str, Any]], **extra: Any) -> tuple[TestHandle, BridgeNode]:
+    config = parse_config({
+        "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge"),
+                 "master_check_s": 0.2, **extra.pop("ros1", {})},
+        "topics": topics, **extra,
+    })
+    assert not config.errors
+    node = TestHandle("rf_bridge")
+    b = BridgeNode(node, config=config)
+    adapter = b.adapters["ros1"]
+    assert adapter.wait_registered(10.0)  # type: ignore[attr-defined]
+    return node, b
+
+
+def spin_until(node: TestHandle, predicate: Any, timeout_s: float = 20.0) -> bool:
+    return node.container.executor.spin_until(predicate, timeout_s=timeout_s)
+
+
+def stat(b: BridgeNode, direction: str) -> Any:
+    return next(s for s in b.stats() if s.direction == direction)
+
+
+def test_ros2_to_ros1_string_and_pose(ros1: Ros1System) -> None:
+    chatter, pose = unique_topic("chatter"), unique_topic("pose")
+    node, b = bridge(ros1, [
+        {"ros2": chatter, "type": "std_msgs/msg/String"},
+        {"ros2": pose, "type": "geometry_msgs/msg/PoseStamped"},
+    ])
+    try:
+        l1 = ros1.python(NODE, "listen", chatter, "std_msgs/String", log="l1")
+        l2 = ros1.python(NODE, "listen", pose, "geometry_msgs/PoseStamped", log="l2")
+        assert read_line(l1) == "ready" and read_line(l2) == "ready"
+        pub = b.adapters["ros1"]._pubs  # type: ignore[attr-defined]
+        assert wait_for(lambda: pub[chatter].connections and pub[pose].connections, 20)
+        for i in range(3):
+            node.inject(chatter, String(data=f"hello {i}"))
+        p = PoseStamped()
+        p.header.frame_id = "map"
+        p.header.stamp.sec, p.header.stamp.nanosec = 12, 345
+        p.pose.position.x, p.pose.orientation.w = 1.5, 1.0
+        node.inject(pose, p)
+        assert [json.loads(read_line(l1))["data"] for _ in range(3)] == [
+            "hello 0", "hello 1", "hello 2"]
+        got = json.loads(read_line(l2))
+        assert got["header"]["frame_id"] == "map" and got["header"]["stamp"] == {"secs": 12, "nsecs": 345}
+        assert got["pose"]["position"]["x"] == 1.5 and got["pose"]["orientation"]["w"] == 1.0
+        assert stat(b, "to_ros1").messages >= 3
+    finally:
+        b.close()
+
+
+def test_ros1_to_ros2_string_pose_image(ros1: Ros1System) -> None:
+    chatter, pose, image = unique_topic("chatter"), unique_topic("pose"), unique_topic("image")
+    node, b = bridge(ros1, [
+        {"ros2": chatter, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        {"ros2": pose, "type": "geometry_msgs/msg/PoseStamped", "direction": "from_peer"},
+        {"ros2": image, "type": "sensor_msgs/msg/Image", "direction": "from_peer"},
+    ])
+    try:
+        ros1.python(NODE, "talk", chatter, "std_msgs/String", "m.String(data='n%d' % i)", "5",
+                    log="t1")
+        ros1.python(NODE, "talk", pose, "geometry_msgs/PoseStamped",
+                    "m.PoseStamped(header=std.Header(frame_id='odom'), pose=m.Pose(position=m.Point(x=i, y=2.0)))", "2", log="t2")
+        ros1.python(NODE, "talk", image, "sensor_msgs/Image",
+                    "m.Image(height=512, width=512, encoding='rgb8', step=1536,"
+                    " data=bytes([i % 256]) * (512 * 1536))", "2", log="t3")
+        counts = lambda: [len(node.published(t)) for t in (chatter, pose, image)]  # noqa: E731
+        assert spin_until(node, lambda: counts() >= [5, 2, 2]), (counts(), ros1.log_text("t2"))
+        assert [m.data for m in node.published(chatter)] == [f"n{i}" for i in range(5)]
+        poses = node.published(pose)
+        assert [(m.header.frame_id, m.pose.position.x, m.pose.position.y) for m in poses] == [
+            ("odom", 0.0, 2.0), ("odom", 1.0, 2.0)]
+        images = node.published(image)
+        assert images[1].width == 512 and images[1].encoding == "rgb8"
+        assert bytes(images[1].data) == bytes([1]) * (512 * 1536)
+        s = next(s for s in b.stats() if s.topic == image)
+        assert s.messages == 2 and s.bytes > 2 * 512 * 1536
+    finally:
+        b.close()
+
+
+def test_image_ros2_to_ros1(ros1: Ros1System) -> None:
+    topic = unique_topic("image")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/Image"}])
+    try:
+        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
+        assert read_line(listener) == "ready"
+        pubs = b.adapters["ros1"]._pubs  # type: ignore[attr-defined]
+        assert wait_for(lambda: bool(pubs[topic].connections), 20)
+        img = Image(height=1024, width=1024, encoding="mono8", step=1024)
+        img.data = bytes(range(256)) * 4096
+        node.inject(topic, img)
+        got = json.loads(read_line(listener))
+        assert got["height"] == 1024 and got["encoding"] == "mono8"
+        assert got["data"] == {"len": 1 << 20, "sha1": hashlib.sha1(bytes(img.data)).hexdigest()}
+    finally:
+        b.close()
+
+
+SIGHTING = "string label\nfloat64 distance\nfloat64 bearing\n"
+
+
+def test_type_learned_from_connection_with_yaml_rule(ros1: Ros1System) -> None:
+    """A ROS 1 type nobody built for the bridge: learned from the publisher's header."""
+    topic = unique_topic("sightings")
+    node, b = bridge(
+        ros1,
+        [{"ros2": topic, "peer_type": "lab_msgs/Sighting", "direction": "from_peer"}],
+        types=[{"ros1": "lab_msgs/Sighting", "ros2": "geometry_msgs/msg/Vector3",
+                "fields": {"x": "distance", "y": "bearing"}}],
+    )
+    try:
+        assert "lab_msgs/Sighting" not in b.translators.registry
+        ros1.python(NODE, "talk", topic, "lab_msgs/Sighting",
+                    "cls(label='ball', distance=2.5 + i, bearing=-0.25)", "3", SIGHTING, log="t")
+        assert spin_until(node, lambda: len(node.published(topic)) >= 3)
+        assert [(m.x, m.y, m.z) for m in node.published(topic)] == [
+            (2.5, -0.25, 0.0), (3.5, -0.25, 0.0), (4.5, -0.25, 0.0)]
+        assert "lab_msgs/Sighting" in b.translators.registry
+    finally:
+        b.close()
+
+
+def test_rostopic_echo_hz_and_rosbag_record(ros1: Ros1System) -> None:
+    topic = unique_topic("chatter")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
+    try:
+        echo = ros1.spawn(["rostopic", "echo", "-n", "3", topic], log="echo", stdout_pipe=True)
+        hz = ros1.spawn(["rostopic", "hz", topic], log="hz", stdout_pipe=True)
+        bag = ros1.workdir / "out.bag"
+        rec = ros1.spawn(["rosbag", "record", "-O", str(bag), topic], log="rec")
+        pubs = b.adapters["ros1"]._pubs  # type: ignore[attr-defined]
+        assert wait_for(lambda: len(pubs[topic].connections) >= 3, 30), "echo, hz, record"
+        sent = 0
+        deadline = time.monotonic() + 30
+        rates: list[str] = []
+        while time.monotonic() < deadline and not rates:
+            node.inject(topic, String(data=f"m{sent}"))
+            sent += 1
+            time.sleep(0.02)
+            if sent % 50 == 0:
+                assert hz.stdout is not None
+                import select
+
+                while select.select([hz.stdout], [], [], 0)[0]:
+                    line = hz.stdout.readline().decode()
+                    if "average rate" in line:
+                        rates.append(line)
+        assert rates, "rostopic hz saw no rate"
+        rate = float(rates[0].split(":")[1])
+        assert 10 < rate < 100
+        assert echo.wait(timeout=20) == 0
+        assert echo.stdout is not None
+        out = echo.stdout.read().decode()
+        assert "data: \"m0\"" in out or "data: m0" in out or "data: \"m" in out
+        Ros1System.kill(rec, sig=2)  # SIGINT: rosbag closes the bag
+        script = ("import rosbag,sys\nb=rosbag.Bag(sys.argv[1])\n"
+                  "print(len([m.data for _,m,_ in b.read_messages()]))")
+        count = subprocess.run(["/usr/bin/python3", "-c", script, str(bag)], env=ros1.env,
+                               capture_output=True, timeout=60, check=True)
+        assert int(count.stdout) > 10
+    finally:
+        b.close()
