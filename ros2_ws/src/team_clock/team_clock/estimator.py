@@ -206,7 +206,9 @@ def _weighted_fit(samples: list[Sample], at_ns: int, max_drift_ppm: float) -> _F
     bounded by ``max_drift_ppm`` and added to the error bound.
     """
     min_delay = min(max(s.delay_ns, 0) for s in samples)
-    floor = max(20_000.0, min_delay / 20)  # ns; finite weights for equal delays
+    # Typical asymmetry of the kept samples: half the median delay above the shortest.
+    excess = sorted(max(s.delay_ns, 0) - min_delay for s in samples)
+    floor = max(20_000.0, excess[len(excess) // 2] / 2)
     weights = [1.0 / ((max(s.delay_ns, 0) - min_delay) / 2 + s.server_uncertainty_ns / 4 + floor)
                ** 2 for s in samples]
     prior = 1.0 / (max_drift_ppm * 1e-6 / 2) ** 2  # slope prior: sigma = max_drift / 2

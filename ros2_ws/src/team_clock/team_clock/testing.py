@@ -24,16 +24,20 @@ from __future__ import annotations
 
 import random
 from collections import Counter, defaultdict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
+from efficient_comm import Container, ManualClock
 from efficient_comm.handle import NodeHandle, Timer
+from efficient_comm.testing import test_container
 from team_clock_interfaces.msg import TimeSyncPing, TimeSyncPong
 
-from .sync import EXCHANGE_QOS, OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC
+from .clocks import SkewedClock
+from .sync import EXCHANGE_QOS, OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC, ClockSync
 
-__all__ = ["SimDelay", "SimNetwork", "sim_remappings"]
+__all__ = ["SimDelay", "SimNetwork", "SimTeam", "sim_remappings"]
 
 
 def sim_remappings(robot: str) -> dict[str, str]:
@@ -88,6 +92,11 @@ class SimNetwork:
                 node.create_subscription(msg_type, topic, self._handler(robot, kind),
                                          qos=EXCHANGE_QOS)
 
+    def cut(self, a: str, b: str) -> None:
+        """Break the link between ``a`` and ``b`` (messages in flight still arrive)."""
+        self.neighbours[a].discard(b)
+        self.neighbours[b].discard(a)
+
     def _handler(self, robot: str, kind: str) -> Callable[[Any], None]:
         return lambda msg: self._on_message(robot, kind, msg)
 
@@ -112,3 +121,69 @@ class SimNetwork:
             pub.publish(msg)
 
         timer.append(self._node.create_timer(delay_s, fire))
+
+
+class SimTeam:
+    """Robots with skewed clocks running :class:`ClockSync` over a :class:`SimNetwork`.
+
+    ``skews`` maps each robot to ``(offset_ns, drift_ppm)`` of its clock against the true
+    (simulated) time; the reference robot's clock defines team time, so the truth a robot's
+    estimate is checked against is the reference's clock reading, not the true time.
+    Everything runs in one test container on a manual clock starting at ``start_ns``.
+    """
+
+    def __init__(
+        self,
+        skews: Mapping[str, tuple[int, float]],
+        *,
+        reference: str,
+        links: Iterable[tuple[str, str]],
+        delay: SimDelay | None = None,
+        loss: float = 0.0,
+        seed: int = 0,
+        period_s: float = 0.5,
+        start_ns: int = 1_700_000_000_000_000_000,
+        container: Container | None = None,
+    ) -> None:
+        self.container = container or test_container()
+        clock = self.container.executor.clock
+        if not isinstance(clock, ManualClock):
+            raise TypeError("a simulated team needs a container on a ManualClock")
+        self.clock = clock
+        if clock.now_ns() < start_ns:
+            clock.set_ns(start_ns)
+        epoch = clock.now_ns()
+        self.reference = reference
+        self.net: SimNetwork = self.container.add(
+            partial(SimNetwork, links=links, delay=delay, loss=loss, seed=seed), name="sim_net"
+        )
+        self.clocks = {robot: SkewedClock(clock, offset_ns=offset, drift_ppm=drift, epoch_ns=epoch)
+                       for robot, (offset, drift) in skews.items()}
+        self.syncs: dict[str, ClockSync] = {
+            robot: self.container.add(
+                partial(ClockSync, local_clock=local), name="clock_sync", namespace=f"/{robot}",
+                remappings=sim_remappings(robot),
+                parameters={"reference": reference, "period_s": period_s},
+            )
+            for robot, local in self.clocks.items()
+        }
+
+    def advance(self, seconds: float) -> None:
+        self.container.advance(seconds)
+
+    def reference_now(self) -> int:
+        """Team time now: the reference robot's clock."""
+        return self.clocks[self.reference].now_ns()
+
+    def error_ns(self, robot: str) -> int | None:
+        """``robot``'s estimated team time minus the true team time now (None: no estimate)."""
+        state = self.syncs[robot].state
+        if state is None:
+            return None
+        return state.estimate.to_reference(self.clocks[robot].now_ns()) - self.reference_now()
+
+    def uncertainty_ns(self, robot: str) -> int | None:
+        state = self.syncs[robot].state
+        if state is None:
+            return None
+        return state.estimate.uncertainty_at(self.clocks[robot].now_ns())
