@@ -88,10 +88,13 @@ def read_line(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> str:
 _readers: dict[int, LineReader] = {}
 
 
-def bridge(ros1: Ros1System, topics: list[dict[str, Any]], **extra: Any) -> tuple[TestHandle, BridgeNode]:
+def bridge(
+    system: Ros1System, topics: list[dict[str, Any]], *, ros1: dict[str, Any] | None = None,
+    **extra: Any,
+) -> tuple[TestHandle, BridgeNode]:
     config = parse_config({
-        "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge"),
-                 "master_check_s": 0.2, **extra.pop("ros1", {})},
+        "ros1": {"master_uri": system.master_uri, "node_name": unique_topic("rf_bridge"),
+                 "master_check_s": 0.2, **(ros1 or {})},
         "topics": topics, **extra,
     })
     assert not config.errors

@@ -1,0 +1,252 @@
+"""rf_bridge when things go wrong: master restart, killed peers, hostile or stuck peers."""
+
+from __future__ import annotations
+
+import json
+import socket
+import struct
+import threading
+from collections.abc import Iterator
+from typing import Any
+from xmlrpc.server import SimpleXMLRPCServer
+
+import pytest
+from sensor_msgs.msg import Image
+from std_msgs.msg import String
+
+from efficient_comm.testing import unique_topic
+from rf_bridge.adapters.ros1.tcpros import encode_header, read_header
+from rf_bridge.adapters.ros1.xmlrpc import call
+from rf_bridge.testing import Ros1System, wait_for
+
+from .test_rf_bridge_ros1 import NODE, bridge, read_line, spin_until
+
+
+@pytest.fixture
+def ros1() -> Iterator[Ros1System]:
+    with Ros1System() as system:
+        yield system
+
+
+def drops(b: Any, topic: str, direction: str) -> dict[str, int]:
+    snap = next(s for s in b.stats() if s.topic == topic and s.direction == direction)
+    return dict(snap.drops)
+
+
+def test_master_restart_reregisters_without_restarting_the_bridge(ros1: Ros1System) -> None:
+    out, inn = unique_topic("out"), unique_topic("in")
+    node, b = bridge(ros1, [
+        {"ros2": out, "type": "std_msgs/msg/String"},
+        {"ros2": inn, "type": "std_msgs/msg/String", "direction": "from_peer"},
+    ])
+    adapter: Any = b.adapters["ros1"]
+    try:
+        ros1.stop_master()
+        ros1.start_master()
+        assert wait_for(lambda: adapter.registrations >= 2, 20), "not registered again"
+        assert any("registering" in text for _, text in node.records)
+        listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[out].connections), 20)
+        node.inject(out, String(data="after restart"))
+        assert json.loads(read_line(listener))["data"] == "after restart"
+        ros1.python(NODE, "talk", inn, "std_msgs/String", "m.String(data='t%d' % i)", "3", log="t")
+        assert spin_until(node, lambda: len(node.published(inn)) >= 3)
+        assert [m.data for m in node.published(inn)] == ["t0", "t1", "t2"]
+    finally:
+        b.close()
+
+
+def test_killed_subscriber_undelivered_counted_then_new_one_served(ros1: Ros1System) -> None:
+    topic = unique_topic("out")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
+    adapter: Any = b.adapters["ros1"]
+    try:
+        first = ros1.python(NODE, "listen", topic, "std_msgs/String", log="l1")
+        assert read_line(first) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        node.inject(topic, String(data="seen"))
+        assert json.loads(read_line(first))["data"] == "seen"
+        Ros1System.kill(first)
+        for i in range(7):
+            node.inject(topic, String(data=f"lost {i}"))
+        assert sum(drops(b, topic, "to_ros1").values()) == 7
+        second = ros1.python(NODE, "listen", topic, "std_msgs/String", log="l2")
+        assert read_line(second) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        node.inject(topic, String(data="again"))
+        assert json.loads(read_line(second))["data"] == "again"
+    finally:
+        b.close()
+
+
+def test_killed_publisher_replaced_by_a_new_one(ros1: Ros1System) -> None:
+    topic = unique_topic("in")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String",
+                             "direction": "from_peer"}])
+    try:
+        first = ros1.python(NODE, "talk", topic, "std_msgs/String", "m.String(data='a%d' % i)",
+                            "2", log="t1")
+        assert spin_until(node, lambda: len(node.published(topic)) >= 2)
+        Ros1System.kill(first)
+        ros1.python(NODE, "talk", topic, "std_msgs/String", "m.String(data='b%d' % i)", "2",
+                    log="t2")
+        assert spin_until(node, lambda: len(node.published(topic)) >= 4)
+        assert [m.data for m in node.published(topic)] == ["a0", "a1", "b0", "b1"]
+    finally:
+        b.close()
+
+
+def tcpros_port(adapter: Any, topic: str) -> int:
+    value = call(adapter.uri, "requestTopic", "/test", topic, [["TCPROS"]])
+    return int(value[2])
+
+
+def test_bad_tcpros_headers_dropped_the_rest_keeps_serving(ros1: Ros1System) -> None:
+    topic = unique_topic("out")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
+    adapter: Any = b.adapters["ros1"]
+    try:
+        listener = ros1.python(NODE, "listen", topic, "std_msgs/String", log="l")
+        assert read_line(listener) == "ready"
+        port = tcpros_port(adapter, topic)
+        bad = [
+            struct.pack("<I", 0xFFFFFFF0),  # absurd header length
+            struct.pack("<I", 12) + struct.pack("<I", 8) + b"no_equal",  # field without '='
+            struct.pack("<I", 20) + struct.pack("<I", 100) + b"topic=x",  # field overruns
+        ]
+        for payload in bad:
+            with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+                s.sendall(payload)
+                s.shutdown(socket.SHUT_WR)
+                assert s.recv(100) == b""  # closed by the bridge without a reply
+        for fields, expect in [
+            ({"topic": "/nobody", "md5sum": "*", "callerid": "/x"}, "does not publish"),
+            ({"topic": topic, "md5sum": "0" * 32, "callerid": "/x"}, "md5sum mismatch"),
+        ]:
+            with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+                s.sendall(encode_header(fields))
+                assert expect in read_header(s)["error"]
+        logs = " ".join(text for _, text in node.records)
+        assert "malformed TCPROS header" in logs and "rejecting TCPROS subscriber" in logs
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        node.inject(topic, String(data="still serving"))
+        assert json.loads(read_line(listener))["data"] == "still serving"
+    finally:
+        b.close()
+
+
+def test_subscriber_that_stops_reading_is_dropped(ros1: Ros1System) -> None:
+    topic = unique_topic("image")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/Image"}],
+                     ros1={"send_timeout_s": 0.5, "queue_size": 50})
+    adapter: Any = b.adapters["ros1"]
+    try:
+        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: len(adapter._pubs[topic].connections) == 1, 20)
+        stuck = socket.create_connection(("127.0.0.1", tcpros_port(adapter, topic)), timeout=5)
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        stuck.sendall(encode_header({"topic": topic, "md5sum": "*", "callerid": "/stuck"}))
+        read_header(stuck)  # and then never reads again
+        assert wait_for(lambda: len(adapter._pubs[topic].connections) == 2, 10)
+        img = Image(height=256, width=1024, encoding="mono8", step=1024)
+        img.data = bytes(256 * 1024)
+        got = 0
+        for _ in range(20):
+            node.inject(topic, img)
+        assert wait_for(lambda: len(adapter._pubs[topic].connections) == 1, 10)
+        logs = " ".join(text for _, text in node.records)
+        assert "/stuck" in logs and "peer stopped reading" in logs
+        assert sum(drops(b, topic, "to_ros1").values()) > 0
+        node.inject(topic, Image(height=1, width=1, encoding="mono8", step=1, data=b"\x07"))
+        while True:  # the healthy listener got everything, ending with the last one
+            msg = json.loads(read_line(listener))
+            got += 1
+            if msg["height"] == 1:
+                break
+        assert got == 21
+        stuck.close()
+    finally:
+        b.close()
+
+
+class FakePublisher:
+    """A ROS 1 publisher that sends whatever the test wants after a header of its choice."""
+
+    def __init__(self, ros1: Ros1System, topic: str, header: dict[str, str], data: bytes) -> None:
+        self.tcp = socket.create_server(("127.0.0.1", 0))
+        port = self.tcp.getsockname()[1]
+        self.rpc = SimpleXMLRPCServer(("127.0.0.1", 0), logRequests=False)
+        self.rpc.register_function(
+            lambda caller, t, protocols: [1, "", ["TCPROS", "127.0.0.1", port]], "requestTopic")
+        self.uri = f"http://127.0.0.1:{self.rpc.server_address[1]}/"
+        self.conns: list[socket.socket] = []
+        threading.Thread(target=self.rpc.serve_forever, daemon=True).start()
+
+        def serve() -> None:
+            while True:
+                try:
+                    conn, _ = self.tcp.accept()
+                except OSError:
+                    return
+                self.conns.append(conn)
+                try:
+                    read_header(conn)
+                    conn.sendall(encode_header(header) + data)
+                except OSError:
+                    pass
+
+        threading.Thread(target=serve, daemon=True).start()
+        call(ros1.master_uri, "registerPublisher", "/fake" + topic.replace("/", "_"), topic,
+             header.get("type", "*"), self.uri)
+
+    def close(self) -> None:
+        self.rpc.shutdown()
+        self.rpc.server_close()
+        self.tcp.close()
+        for c in self.conns:
+            c.close()
+
+
+STRING_DEF = {"type": "std_msgs/String", "md5sum": "992ce8a1687cec8c8bd883ec73ca41d1",
+              "message_definition": "string data\n", "callerid": "/fake"}
+
+
+@pytest.mark.parametrize(("header", "data", "reason", "log"), [
+    (STRING_DEF, struct.pack("<II", 8, 1000) + b"abcd", "malformed", "truncated message"),
+    (STRING_DEF, struct.pack("<I", 5_000_000), "oversize", "exceeds the limit"),
+    ({"type": "nope/Nope", "md5sum": "1" * 32, "callerid": "/fake"}, b"", "unknown_type",
+     "cannot bridge 'nope/Nope'"),
+], ids=["malformed_frame", "oversize", "unknown_type"])
+def test_bad_publisher_dropped_the_rest_keeps_serving(
+    ros1: Ros1System, header: dict[str, str], data: bytes, reason: str, log: str
+) -> None:
+    bad, good = unique_topic("bad"), unique_topic("good")
+    node, b = bridge(ros1, [
+        {"ros2": bad, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        {"ros2": good, "type": "std_msgs/msg/String", "direction": "from_peer"},
+    ], ros1={"max_message_bytes": 1 << 20})
+    fake = FakePublisher(ros1, bad, header, data)
+    try:
+        assert wait_for(lambda: drops(b, bad, "from_ros1").get(reason, 0) >= 1, 20), drops(
+            b, bad, "from_ros1")
+        assert wait_for(lambda: any(log in text for _, text in node.records), 10), node.records
+        ros1.python(NODE, "talk", good, "std_msgs/String", "m.String(data='ok%d' % i)", "3",
+                    log="t")
+        assert spin_until(node, lambda: len(node.published(good)) >= 3)
+        assert node.published(bad) == []
+    finally:
+        fake.close()
+        b.close()
+
+
+def test_listeners_bind_loopback_by_default(ros1: Ros1System) -> None:
+    topic = unique_topic("out")
+    _, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
+    adapter: Any = b.adapters["ros1"]
+    try:
+        assert adapter._listener.getsockname()[0] == "127.0.0.1"
+        assert adapter._slave._server.server_address[0] == "127.0.0.1"
+    finally:
+        b.close()
