@@ -14,6 +14,7 @@ mid-chunk) are read up to their last complete record and reported as truncated.
 from __future__ import annotations
 
 import os
+import struct
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +31,8 @@ from .errors import LogFormatError
 __all__ = ["BagWriter", "LogReader", "message_definition"]
 
 _SEPARATOR = "=" * 80
+#: What the mcap readers raise on damaged or cut-off input (it uses struct and asserts too).
+_DAMAGED = (McapError, ValueError, EOFError, AssertionError, struct.error)
 
 
 def message_definition(type_name: str) -> str:
@@ -118,7 +121,7 @@ class LogReader:
                         for record in reader.iter_metadata():
                             yield record.name, dict(record.metadata)
                         continue
-                except McapError:
+                except _DAMAGED:
                     pass
                 yield from _scan_metadata(file)
 
@@ -128,18 +131,18 @@ class LogReader:
         try:
             reader = SeekingReader(stream, validate_crcs=True)
             header = reader.get_header()
-        except (McapError, ValueError, EOFError) as exc:
+        except _DAMAGED as exc:
             raise LogFormatError(f"{file} is not an MCAP file: {exc}") from exc
         if header.profile not in ("ros2", ""):
             raise LogFormatError(f"{file} has MCAP profile {header.profile!r}, not 'ros2'")
         try:
             summary = reader.get_summary()
-        except (McapError, ValueError, EOFError):
+        except _DAMAGED:
             summary = None
         if summary is not None:
             try:
                 yield from reader.iter_messages(topics=topics, log_time_order=True)
-            except (McapError, ValueError, EOFError) as exc:
+            except _DAMAGED as exc:
                 raise LogFormatError(f"{file} is damaged: {exc}") from exc
             return
         # No summary: the writer did not finish (killed). Read what is complete.
@@ -148,7 +151,7 @@ class LogReader:
             yield from NonSeekingReader(stream, validate_crcs=True).iter_messages(
                 topics=topics, log_time_order=False
             )
-        except (McapError, ValueError, EOFError, AssertionError):
+        except _DAMAGED:
             self.truncated.append(file)
 
 
@@ -161,7 +164,7 @@ def _scan_metadata(file: Path) -> Iterator[tuple[str, dict[str, str]]]:
             for record in StreamReader(stream, skip_magic=False).records:
                 if isinstance(record, Metadata):
                     yield record.name, dict(record.metadata)
-        except (McapError, ValueError, EOFError, AssertionError):
+        except _DAMAGED:
             return
 
 

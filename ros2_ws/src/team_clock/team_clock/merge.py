@@ -85,6 +85,8 @@ def merge(
     """Merge ``logs`` into ``output`` (a bag directory, or a file if it ends in ``.mcap``)."""
     if not logs:
         raise MergeError("nothing to merge: no logs given")
+    if Path(output).exists():
+        raise MergeError(f"{output} exists; refusing to overwrite it")
     reports: list[RobotReport] = []
     for log in logs:
         model = log.model or OffsetModel.from_mcap(log.path, robot=log.robot)

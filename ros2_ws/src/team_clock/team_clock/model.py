@@ -143,11 +143,18 @@ class OffsetModel:
     @classmethod
     def from_metadata(cls, records: Iterable[Mapping[str, str]], *,
                       robot: str | None = None) -> OffsetModel:
-        """From ``team_clock`` metadata records (see :func:`offset_metadata`)."""
+        """From ``team_clock`` metadata records (see :func:`offset_metadata`).
+
+        Also accepts the message flattened field by field (``stamp.sec``, ``stamp.nanosec``,
+        ``valid`` as ``True``/``False``), as a recorder that stores any message would.
+        """
         messages = []
         for values in records:
             try:
-                stamp = int(values["stamp_ns"])
+                if "stamp_ns" in values:
+                    stamp = int(values["stamp_ns"])
+                else:
+                    stamp = int(values["stamp.sec"]) * 1_000_000_000 + int(values["stamp.nanosec"])
                 messages.append(_Record(
                     robot=values.get("robot", ""), reference=values.get("reference", ""),
                     source=values.get("source", ""), sec=stamp // 1_000_000_000,
@@ -155,7 +162,7 @@ class OffsetModel:
                     drift_ppm=float(values.get("drift_ppm", "0")),
                     uncertainty_ns=int(values.get("uncertainty_ns", "0")),
                     hops=int(values.get("hops", "0")),
-                    valid=values.get("valid", "true").lower() == "true",
+                    valid=values.get("valid", "true").lower() in ("true", "1"),
                 ))
             except (KeyError, ValueError) as exc:
                 raise LogFormatError(f"malformed {METADATA_NAME} metadata {dict(values)}: "

@@ -1,0 +1,307 @@
+"""Merging robots' logs in team time: the skewed-clock team, read back by rosbags and mcap.
+
+Three robots run the clock-sync exchange over a simulated jittery, lossy network: the
+reference ``ref``, ``a`` (clock +250 ms, +50 ppm) linked to it, and ``b`` (-400 ms, -50 ppm)
+that only reaches the reference through ``a``. Each robot records its own log with its own
+clock: its ``/team_clock/offset`` estimates and "flash" events that all robots see at the same
+true instant. After merging, the events must line up within 1 ms.
+"""
+
+from __future__ import annotations
+
+import itertools
+import random
+import subprocess
+from collections.abc import Sequence
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import pytest
+from geometry_msgs.msg import PointStamped
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rclpy.serialization import serialize_message
+from rosbags.highlevel import AnyReader
+
+from efficient_comm import to_msg
+from efficient_comm.handle import Clock, NodeHandle
+from efficient_comm.testing import TestHandle
+from team_clock.bag import BagWriter
+from team_clock.cli import main as cli_main
+from team_clock.errors import LogFormatError, MergeError, NoEstimateError
+from team_clock.merge import RobotLog, merge
+from team_clock.model import Knot, OffsetModel, offset_metadata
+from team_clock.sync import OFFSET_QOS
+from team_clock.testing import SimDelay, SimTeam
+from team_clock_interfaces.msg import ClockOffset
+
+from ._ros import INSTALL
+
+MS = 1_000_000
+SKEWS = {"ref": (1000 * MS, 0.0), "a": (250 * MS, 50.0), "b": (-400 * MS, -50.0)}
+OFFSET_TYPE = "team_clock_interfaces/msg/ClockOffset"
+EVENT_TYPE = "geometry_msgs/msg/PointStamped"
+
+
+class _Recorder:
+    """What a robot's recorder does, on the robot's own (skewed) clock: log offsets, events."""
+
+    def __init__(self, node: NodeHandle, *, clock: Clock, robot: str, path: Path) -> None:
+        self._clock = clock
+        self.writer = BagWriter(path)
+        self._offsets = self.writer.add_topic("/team_clock/offset", OFFSET_TYPE)
+        self._events = self.writer.add_topic("/event", EVENT_TYPE)
+        node.create_subscription(ClockOffset, f"/{robot}/team_clock/offset", self._on_offset,
+                                 qos=OFFSET_QOS)
+        node.create_subscription(PointStamped, "/flash", self._on_flash)
+
+    def _on_offset(self, msg: ClockOffset) -> None:
+        self.writer.write(self._offsets, self._clock.now_ns(), serialize_message(msg))
+
+    def _on_flash(self, flash: PointStamped) -> None:
+        now = self._clock.now_ns()
+        event = PointStamped()
+        event.header.frame_id = flash.header.frame_id
+        event.header.stamp = to_msg(now)  # stamped with the robot's clock, like a sensor
+        event.point.x = flash.point.x
+        self.writer.write(self._events, now, serialize_message(event))
+
+
+def _record_team(tmp_path: Path, *, seed: int = 5, loss: float = 0.2,
+                 events: int = 60) -> tuple[dict[str, Path], dict[str, int]]:
+    """Run the team, flash ``events`` times after a warm-up; the logs and the true times."""
+    team = SimTeam(SKEWS, reference="ref", links=[("ref", "a"), ("a", "b")], loss=loss,
+                   seed=seed, delay=SimDelay(min_s=0.001, jitter_s=0.002))
+    paths = {robot: tmp_path / f"log_{robot}" for robot in SKEWS}
+    recorders = [
+        team.container.add(partial(_Recorder, clock=team.clocks[robot], robot=robot, path=path),
+                           name="recorder", namespace=f"/{robot}")
+        for robot, path in paths.items()
+    ]
+    flash = TestHandle("flash", container=team.container)
+    rng = random.Random(seed)
+    truth: dict[str, int] = {}
+    team.advance(10.0)  # warm-up: the first estimates
+    for k in range(events):
+        team.advance(0.3 + rng.random() * 0.4)
+        msg = PointStamped()
+        msg.header.frame_id = f"e{k}"
+        flash.inject("/flash", msg)  # every robot sees it now, at one true instant
+        truth[f"e{k}"] = team.reference_now()
+    team.advance(2.0)
+    for rec in recorders:
+        rec.writer.close()
+    return paths, truth
+
+
+def _events(path: Path) -> dict[str, dict[str, tuple[int, int]]]:
+    """``{namespace: {event id: (log time, header stamp)}}`` read back with rosbags."""
+    out: dict[str, dict[str, tuple[int, int]]] = {}
+    with AnyReader([path]) as reader:
+        conns = [c for c in reader.connections if c.topic.endswith("/event")]
+        for conn, log_time, raw in reader.messages(connections=conns):
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            out.setdefault(conn.topic.split("/")[1], {})[msg.header.frame_id] = (log_time, stamp)
+    return out
+
+
+@pytest.fixture(scope="module")
+def team_logs(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Path], dict[str, int]]:
+    return _record_team(tmp_path_factory.mktemp("team"))
+
+
+def test_unmerged_logs_disagree_by_the_skew(team_logs) -> None:
+    paths, truth = team_logs
+    with AnyReader([paths["a"]]) as reader:
+        times = [t for c, t, _ in reader.messages() if c.topic == "/event"]
+    with AnyReader([paths["ref"]]) as reader:
+        ref_times = [t for c, t, _ in reader.messages() if c.topic == "/event"]
+    assert len(times) == len(ref_times) == len(truth)
+    # a's clock is 750 ms behind the reference's (and drifting): unusable side by side.
+    assert all(abs((r - a) - 750 * MS) < 5 * MS for a, r in zip(times, ref_times, strict=True))
+
+
+@pytest.mark.parametrize("stamps", [False, True])
+def test_simultaneous_events_line_up_within_1ms_after_merging(team_logs, tmp_path, stamps):
+    paths, truth = team_logs
+    report = merge([RobotLog(p) for p in paths.values()], tmp_path / "merged", stamps=stamps)
+    assert {r.namespace for r in report.robots} == {"ref", "a", "b"}  # named by the estimates
+    events = _events(tmp_path / "merged")
+    assert set(events) == {"ref", "a", "b"}
+    worst_spread = worst_truth = 0
+    for event, true_ns in truth.items():
+        times = [events[robot][event][0] for robot in events]
+        worst_spread = max(worst_spread, max(times) - min(times))
+        worst_truth = max(worst_truth, *(abs(t - true_ns) for t in times))
+        stamp_times = [events[robot][event][1] for robot in events]
+        if stamps:
+            assert max(stamp_times) - min(stamp_times) <= 1 * MS, (event, stamp_times)
+        else:  # stamps untouched: still each robot's own clock
+            assert max(stamp_times) - min(stamp_times) > 600 * MS
+    assert worst_spread <= 1 * MS, worst_spread
+    assert worst_truth <= 1 * MS, worst_truth
+    for r in report.robots:
+        assert r.messages > len(truth) and not r.skipped and not r.truncated_files
+        if stamps:
+            assert r.stamps_moved == len(truth)  # ClockOffset has no Header: not touched
+    # The stated uncertainty of the applied offsets covers the error (b: through a relay).
+    by_ns = {r.namespace: r for r in report.robots}
+    assert by_ns["b"].max_uncertainty_ns > by_ns["a"].max_uncertainty_ns > 0
+
+
+def test_merged_bag_reads_back_with_mcap_and_equals_the_inputs(team_logs, tmp_path):
+    paths, _ = team_logs
+    out = tmp_path / "merged.mcap"
+    report = merge([RobotLog(p) for p in paths.values()], out)
+    decoders = DecoderFactory()
+    merged: dict[str, list[bytes]] = {}
+    with open(out, "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == "ros2"
+        last = 0
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            assert message.log_time >= last  # written in team-time order
+            last = message.log_time
+            assert channel.message_encoding == "cdr" and schema is not None
+            assert schema.encoding == "ros2msg"
+            decoder = decoders.decoder_for("cdr", schema)
+            assert decoder is not None
+            decoder(message.data)  # every message decodes by its recorded schema
+            merged.setdefault(channel.topic, []).append(message.data)
+    assert sum(len(v) for v in merged.values()) == report.messages
+    for robot, path in paths.items():
+        with AnyReader([path]) as bag:
+            originals: dict[str, list[bytes]] = {}
+            for conn, _, raw in bag.messages():
+                originals.setdefault(conn.topic, []).append(bytes(raw))
+        for topic, datas in originals.items():
+            assert merged[f"/{robot}{topic}"] == datas  # same bytes, same order
+
+
+def test_cli_merges_and_reports(team_logs, tmp_path, capsys):
+    paths, _ = team_logs
+    out = tmp_path / "cli_merged"
+    args = ["merge", "-o", str(out), "--stamps",
+            *(f"robot_{name}={path}" for name, path in paths.items())]
+    assert cli_main(args) == 0
+    printed = capsys.readouterr().out
+    assert "/robot_b:" in printed and "stamps moved" in printed
+    assert set(_events(out)) == {"robot_ref", "robot_a", "robot_b"}
+    assert cli_main(args) == 1  # the output exists now: refused, nothing overwritten
+    assert "exists" in capsys.readouterr().err
+    assert cli_main(["offsets", str(paths["b"])]) == 0
+    assert "hops 2 via a" in capsys.readouterr().out
+
+
+def test_console_script_runs(team_logs, tmp_path):
+    paths, _ = team_logs
+    exe = INSTALL / "team_clock" / "lib" / "team_clock" / "team_clock"
+    assert exe.exists()
+    done = subprocess.run([str(exe), "merge", "-o", str(tmp_path / "m"), str(paths["ref"]),
+                           str(paths["a"])], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert "merged" in done.stdout
+
+
+# -- offsets from recordings -----------------------------------------------------------------
+
+
+def _offset(robot: str, stamp_ns: int, offset_ns: int, *, drift_ppm: float = 0.0,
+            valid: bool = True) -> ClockOffset:
+    msg = ClockOffset(robot=robot, reference="ref", source="ref", offset_ns=offset_ns,
+                      drift_ppm=drift_ppm, uncertainty_ns=1000, hops=1, samples=5, valid=valid)
+    msg.stamp = to_msg(stamp_ns)
+    return msg
+
+
+def _log(path: Path, offsets: list[ClockOffset], *, metadata: Sequence[dict[str, str]] = (),
+         events: int = 3, chunk_size: int = 1 << 20) -> Path:
+    with BagWriter(path, chunk_size=chunk_size) as w:
+        ch = w.add_topic("/team_clock/offset", OFFSET_TYPE)
+        for msg in offsets:
+            w.write(ch, msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec, serialize_message(msg))
+        ev = w.add_topic("/event", EVENT_TYPE)
+        for k in range(events):
+            p = PointStamped()
+            p.header.frame_id = f"e{k}"
+            w.write(ev, 1_000_000_000 * (k + 1), serialize_message(p))
+        for values in metadata:
+            w.add_metadata("team_clock", values)
+    return path
+
+
+def test_model_interpolates_between_estimates_and_extrapolates_with_drift(tmp_path):
+    s = 1_000_000_000
+    path = _log(tmp_path / "log", [_offset("a", 10 * s, 100_000, drift_ppm=10.0),
+                                   _offset("a", 20 * s, 300_000, drift_ppm=10.0)])
+    for source in (path, path / "log_0.mcap"):  # bag directory or the file itself
+        model = OffsetModel.from_mcap(source)
+        assert model.robot == "a" and model.reference == "ref" and len(model.knots) == 2
+        assert model.to_reference(10 * s) == 10 * s + 100_000  # exact at the estimates
+        assert model.to_reference(20 * s) == 20 * s + 300_000
+        # before the first: its drift (10 ppm of 5 s = 50 µs); after the last: the last one's
+        assert model.to_reference(5 * s) == 5 * s + 100_000 - 50_000
+        assert model.to_reference(30 * s) == 30 * s + 300_000 + 100_000
+        mid = model.to_reference(15 * s) - 15 * s  # blended: between the two
+        assert 150_000 < mid < 250_000
+        steps = [model.to_reference(t) for t in range(10 * s, 20 * s, s // 10)]
+        assert all(b > a for a, b in itertools.pairwise(steps))  # monotonic
+
+
+def test_model_falls_back_to_metadata_in_both_layouts(tmp_path):
+    flat = {"robot": "a", "reference": "ref", "stamp.sec": "5", "stamp.nanosec": "0",
+            "offset_ns": "-2000", "drift_ppm": "0.0", "uncertainty_ns": "10", "hops": "1",
+            "valid": "True"}
+    path = _log(tmp_path / "flat", [], metadata=[flat])
+    assert OffsetModel.from_mcap(path).to_reference(5_000_000_000) == 5_000_000_000 - 2000
+    ours = offset_metadata(_offset("a", 5_000_000_000, 7000))
+    path = _log(tmp_path / "ours.mcap", [], metadata=[ours])
+    assert OffsetModel.from_mcap(path).to_reference(5_000_000_000) == 5_000_007_000
+
+
+def test_logs_without_a_usable_estimate_are_refused(tmp_path):
+    none = _log(tmp_path / "none", [])
+    invalid = _log(tmp_path / "invalid", [_offset("lone", 10, 0, valid=False)] * 3)
+    several = _log(tmp_path / "several", [_offset("a", 10, 5), _offset("b", 10, 7)])
+    with pytest.raises(NoEstimateError, match="no /team_clock/offset"):
+        OffsetModel.from_mcap(none)
+    with pytest.raises(NoEstimateError, match="never had a clock estimate"):
+        OffsetModel.from_mcap(invalid)
+    with pytest.raises(NoEstimateError, match="say which robot"):
+        OffsetModel.from_mcap(several)
+    assert OffsetModel.from_mcap(several, robot="b").to_reference(10) == 17
+    with pytest.raises(NoEstimateError):
+        merge([RobotLog(invalid)], tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    # Told explicitly that a log's clock is the reference, the merge goes ahead.
+    assert cli_main(["merge", "-o", str(tmp_path / "out2"), "--assume-synced", "r",
+                     f"r={none}"]) == 0
+
+
+def test_damaged_and_foreign_inputs(tmp_path):
+    s = 1_000_000_000
+    good = _log(tmp_path / "good.mcap", [_offset("a", s, 1000)], events=1000, chunk_size=2048)
+    data = good.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])  # a recorder killed mid-file
+    report = merge([RobotLog(cut)], tmp_path / "m1", compression="none")
+    assert report.robots[0].truncated_files == [cut]
+    assert 100 < report.messages < 1001  # everything up to the last complete chunk
+    foreign = tmp_path / "notes.mcap"
+    foreign.write_text("not a log")
+    with pytest.raises(LogFormatError):
+        merge([RobotLog(foreign, model=OffsetModel.identity())], tmp_path / "m2")
+    with pytest.raises(MergeError, match="two logs"):
+        merge([RobotLog(good, namespace="x"), RobotLog(good, namespace="x")], tmp_path / "m3")
+    with pytest.raises(MergeError, match="not a ROS name"):
+        merge([RobotLog(good, namespace="a/b")], tmp_path / "m4")
+
+
+def test_model_knots_are_sorted_and_uncertainty_grows_away_from_them():
+    model = OffsetModel([Knot(2_000, 10, 0.0, 100), Knot(1_000, 10, 0.0, 50)],
+                        holdover_ppm=1000.0)
+    assert [k.stamp_ns for k in model.knots] == [1_000, 2_000]
+    assert model.uncertainty_at(1_000) == 50
+    assert model.uncertainty_at(1_000_000) > 100
