@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Set up, then run the efficient_comm demo. Arguments go to the demo: scripts/demo.sh --help
+# Set up, then run the soccer demo (a simulated humanoid tracks a rolling ball). Arguments go to
+# the demo: scripts/demo.sh --help
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh >&2
 source scripts/env.sh
-exec python -m efficient_comm.examples.demo "$@"
+exec python -m humanoid_sim.demo "$@"

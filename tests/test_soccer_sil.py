@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import signal
 import subprocess
 import sys
 from collections.abc import Iterator, Mapping
@@ -22,7 +23,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 
 from efficient_comm import ComponentError, Container
-from efficient_comm.testing import TestHandle, test_container
+from efficient_comm.testing import TestHandle, isolated_domain_id, ros_env, test_container
 from humanoid_sim.driver import MISSING_AFTER
 from humanoid_sim.errors import HumanoidSimError, SimConfigError
 from humanoid_sim.mujoco_plant import JOINTS
@@ -176,3 +177,29 @@ def test_demo_runs_headless_and_leaves_a_report(tmp_path: Path) -> None:
     text = report.read_text()
     assert "tracking error" in text and "real-time factor" in text
     assert "| servos answering | 20 of 20" in text
+
+
+def test_real_time_demo_with_dds_stops_cleanly_on_ctrl_c(tmp_path: Path) -> None:
+    report = tmp_path / "report.md"
+    demo = subprocess.Popen(
+        [sys.executable, "-m", "humanoid_sim.demo", "--duration", "0", "--stats-period", "1",
+         "--report", str(report)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env=ros_env(isolated_domain_id()),
+    )
+    assert demo.stdout is not None
+    try:
+        live = 0
+        for line in demo.stdout:  # wait for two live lines: the loop is closed and running
+            words = line.split()
+            live += len(words) > 2 and words[-2] in ("tracking", "searching")
+            if live == 2:
+                break
+        demo.send_signal(signal.SIGINT)
+        rest, _ = demo.communicate(timeout=30)
+    finally:
+        demo.kill()
+    assert live == 2
+    assert demo.returncode == 0, rest
+    assert "interrupted" in rest
+    assert "real time" in report.read_text()
