@@ -27,8 +27,10 @@ def test_robots_in_separate_processes_estimate_their_skew(tmp_path: Path) -> Non
     robots = {"ref": (0, 0.0), "a": (250 * MS, 50.0), "b": (-400 * MS, -50.0)}
     latest: dict[str, ClockOffset] = {}
     with peer(domain) as p, ExitStack() as stack:
-        p.node.create_subscription(ClockOffset, OFFSET_TOPIC,
-                                   lambda m: latest.__setitem__(m.robot, m), OFFSET_QOS)
+        def on_offset(msg: ClockOffset) -> None:
+            latest[msg.robot] = msg
+
+        p.node.create_subscription(ClockOffset, OFFSET_TOPIC, on_offset, OFFSET_QOS)
         started = time.time_ns()
         for robot, (offset, drift) in robots.items():
             stack.enter_context(child(
