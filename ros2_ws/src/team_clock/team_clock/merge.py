@@ -15,6 +15,7 @@ Streaming: one message per log is held at a time, so logs larger than memory mer
 from __future__ import annotations
 
 import heapq
+import itertools
 import os
 import re
 import struct
@@ -105,6 +106,8 @@ def merge(
                in enumerate(zip(readers, reports, strict=True))]
     channels: dict[tuple[int, int], int] = {}
     has_header: dict[tuple[int, int], bool] = {}
+    first_seen: dict[int, int] = {}  # log index -> earliest / latest local log time
+    last_seen: dict[int, int] = {}
     with BagWriter(output, compression=compression) as writer:
         for report in reports:
             m = report.model
@@ -130,15 +133,28 @@ def merge(
             data = message.data
             if stamps and has_header[key]:
                 data = _move_stamp(data, message.log_time, report, stamp_window_ns)
-            model = report.model
+            publish_time = message.publish_time
             writer.write(out_id, ref_time, data, sequence=message.sequence,
-                         publish_time=model.to_reference(message.publish_time))
+                         publish_time=ref_time if publish_time == message.log_time
+                         else report.model.to_reference(publish_time))
             report.messages += 1
-            report.max_uncertainty_ns = max(report.max_uncertainty_ns,
-                                            model.uncertainty_at(message.log_time))
-    for reader, report in zip(readers, reports, strict=True):
+            first_seen[index] = min(first_seen.get(index, message.log_time), message.log_time)
+            last_seen[index] = max(last_seen.get(index, message.log_time), message.log_time)
+    for index, (reader, report) in enumerate(zip(readers, reports, strict=True)):
         report.truncated_files = list(reader.truncated)
+        if index in first_seen:
+            report.max_uncertainty_ns = _max_uncertainty(report.model, first_seen[index],
+                                                         last_seen[index])
     return MergeReport(Path(output), reports)
+
+
+def _max_uncertainty(model: OffsetModel, start: int, end: int) -> int:
+    """Largest error bound over ``[start, end]``: at the ends or at an estimate between."""
+    points = [start, end, *(k.stamp_ns for k in model.knots if start <= k.stamp_ns <= end)]
+    # Between two estimates the bound is largest half-way (holdover grows from both sides).
+    stamps = sorted(points)
+    points += [(a + b) // 2 for a, b in itertools.pairwise(stamps)]
+    return max(model.uncertainty_at(t) for t in points)
 
 
 def _aligned(

@@ -187,9 +187,8 @@ class OffsetModel:
                 robot = named.pop()
         messages = []
         decoders: dict[int, Any] = {}
-        for schema, channel, message in reader.messages():
-            if not (channel.topic == OFFSET_SUFFIX or channel.topic.endswith(OFFSET_SUFFIX)):
-                continue
+        topics = [t for t in reader.topics() if t == OFFSET_SUFFIX or t.endswith(OFFSET_SUFFIX)]
+        for schema, channel, message in reader.messages(topics=topics) if topics else ():
             decode = decoders.get(channel.id)
             if decode is None:
                 decode = decoders[channel.id] = _decoder(schema, path)
