@@ -272,6 +272,9 @@ def test_logs_without_a_usable_estimate_are_refused(tmp_path):
     with pytest.raises(NoEstimateError, match="say which robot"):
         OffsetModel.from_mcap(several)
     assert OffsetModel.from_mcap(several, robot="b").to_reference(10) == 17
+    # Merging, the namespace names the robot when the log recorded a shared domain.
+    report = merge([RobotLog(several, namespace="b")], tmp_path / "shared")
+    assert report.robots[0].model.robot == "b"
     with pytest.raises(NoEstimateError):
         merge([RobotLog(invalid)], tmp_path / "out")
     assert not (tmp_path / "out").exists()

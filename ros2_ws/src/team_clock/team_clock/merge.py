@@ -27,7 +27,7 @@ from pathlib import Path
 from mcap.records import Channel, Message, Schema
 
 from .bag import BagWriter, LogReader
-from .errors import MergeError
+from .errors import MergeError, NoEstimateError
 from .model import OffsetModel
 
 __all__ = ["MergeReport", "RobotLog", "RobotReport", "merge"]
@@ -41,7 +41,8 @@ class RobotLog:
     """One robot's log and how to align it.
 
     ``model`` None reads the offsets recorded in the log (``robot`` picks whose, when the
-    log holds several robots' estimates). ``namespace`` None uses the model's robot name.
+    log holds several robots' estimates; else the robot named like ``namespace``).
+    ``namespace`` None uses the model's robot name.
     """
 
     path: Path
@@ -90,7 +91,7 @@ def merge(
         raise MergeError(f"{output} exists; refusing to overwrite it")
     reports: list[RobotReport] = []
     for log in logs:
-        model = log.model or OffsetModel.from_mcap(log.path, robot=log.robot)
+        model = log.model or _model_of(log)
         namespace = log.namespace or model.robot or Path(log.path).stem
         if not _NAME.match(namespace):
             raise MergeError(f"namespace {namespace!r} of {log.path} is not a ROS name token")
@@ -146,6 +147,20 @@ def merge(
             report.max_uncertainty_ns = _max_uncertainty(report.model, first_seen[index],
                                                          last_seen[index])
     return MergeReport(Path(output), reports)
+
+
+def _model_of(log: RobotLog) -> OffsetModel:
+    """The log's recorded model; with several robots' estimates, the namespace's robot."""
+    try:
+        return OffsetModel.from_mcap(log.path, robot=log.robot)
+    except NoEstimateError:
+        if log.robot is not None or log.namespace is None:
+            raise
+        try:
+            return OffsetModel.from_mcap(log.path, robot=log.namespace)
+        except NoEstimateError:
+            pass
+        raise
 
 
 def _max_uncertainty(model: OffsetModel, start: int, end: int) -> int:

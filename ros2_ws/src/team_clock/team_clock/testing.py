@@ -18,6 +18,12 @@ other: a robot two links away from the reference must synchronise through the on
     container.advance(30.0)
 
 Delays need the container's executor to run timers, which a manual clock does exactly.
+:class:`SimTeam` wires all of this for a dict of robots and their clock skews::
+
+    team = SimTeam({"ref": (0, 0.0), "a": (250_000_000, 50.0)}, reference="ref",
+                   links=[("ref", "a")], loss=0.2)
+    team.advance(30.0)
+    assert abs(team.error_ns("a")) <= team.uncertainty_ns("a")
 """
 
 from __future__ import annotations
