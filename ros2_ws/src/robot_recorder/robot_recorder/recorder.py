@@ -13,13 +13,14 @@ Remote control (services, relative to the node: ``~/start``, ``~/stop``, ``~/spl
 from __future__ import annotations
 
 import datetime
+import sys
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from efficient_comm import to_msg
+from efficient_comm import ManualClock, to_msg
 from efficient_comm.handle import NodeHandle, Subscription
 from throttle_publisher import ThrottledSubscription
 
@@ -51,7 +52,10 @@ class Recorder:
     Parameters (ROS): ``topics`` (see :mod:`robot_recorder.selection`), ``output_dir``,
     ``autostart``, ``queue_depth``, ``chunk_interval_s``, ``chunk_bytes``,
     ``max_file_bytes``, ``max_file_duration_s``, ``min_free_bytes``, ``compression``,
-    ``snapshot_bytes``, ``snapshot_seconds``, ``status_period_s``, ``clock_topic``.
+    ``snapshot_bytes``, ``snapshot_seconds``, ``status_period_s``, ``clock_topic``,
+    ``gil_switch_interval_s`` (0 leaves the interpreter's setting alone),
+    ``pace_before_timers_s`` and ``pace_after_timers_s`` (the writer keeps off the GIL
+    around the container's timer deadlines; 0 and 0 turn that off).
     Keyword options override them from Python; ``fs`` is the file-system seam.
     """
 
@@ -81,6 +85,13 @@ class Recorder:
             "min_free_bytes": p("min_free_bytes", 64 << 20),
             "compression": p("compression", "zstd"),
         }
+        # The writer thread holds the GIL while it serializes; a thread waking up meanwhile
+        # (the control loop's timer) waits for it up to the switch interval, 5 ms by
+        # default. A shorter interval bounds that wait (see docs/RECORDER.md).
+        self._switch_interval = p("gil_switch_interval_s", 0.0002)
+        self._previous_interval = sys.getswitchinterval()
+        if 0 < self._switch_interval < self._previous_interval:
+            sys.setswitchinterval(self._switch_interval)
         selections = [s if isinstance(s, TopicSelection) else parse_selection(s)
                       for s in (topics if topics is not None else [n for n in names if n])]
         self._status_dirty = True
@@ -92,6 +103,8 @@ class Recorder:
             fs=fs,
             clock_topic=self._resolve(self.clock_topic) if self.clock_topic else "",
             on_state=self._mark_dirty,
+            pacer=_timer_pacer(node, p("pace_before_timers_s", 0.001),
+                               p("pace_after_timers_s", 0.0005)),
             name=node.name,
         )
         self._fs = fs or FileSystem()
@@ -146,6 +159,8 @@ class Recorder:
     def close(self) -> None:
         """Finish the recording (every queued message is written); called on unload."""
         self.writer.close()
+        if sys.getswitchinterval() == self._switch_interval:
+            sys.setswitchinterval(self._previous_interval)
 
     # -- subscriptions -------------------------------------------------------------------
 
@@ -246,8 +261,8 @@ class Recorder:
         return self._answer(response, self.stop, fill)
 
     def _srv_split(self, request: Any, response: Any) -> Any:
-        def fill(_closed: Path | None) -> None:
-            response.file = ""
+        def fill(closed: Path | None) -> None:
+            response.file = str(closed or "")
         return self._answer(response, self.split, fill)
 
     def _srv_snapshot(self, request: Any, response: Any) -> Any:
@@ -280,7 +295,7 @@ class Recorder:
         msg.stamp = to_msg(self._node.clock.now_ns())
         msg.state = w.state
         msg.bag = str(w.bag_path or "")
-        msg.file = ""
+        msg.file = str(w.current_file or "")
         msg.error = w.error
         topics = list(w.topics.values())
         msg.topics = [TopicStatus(name=t.name, type=t.type_name, messages=t.messages,
@@ -346,3 +361,41 @@ def _record_qos(node: NodeHandle, topic: str) -> QoSProfile:
         reliability = ReliabilityPolicy.BEST_EFFORT
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=reliability,
                       durability=DurabilityPolicy.VOLATILE)
+
+
+def _timer_pacer(node: NodeHandle, before_s: float, after_s: float
+                 ) -> Callable[[], float] | None:
+    """Keeps the writer thread off the GIL around the container's next timer deadline.
+
+    A timer callback that is due while the writer thread runs Python code waits for the
+    GIL (up to the switch interval, more on a loaded machine): that is the whole latency a
+    background writer adds to a timer-driven control loop. So the writer holds back from
+    ``before_s`` ahead of the next deadline until ``after_s`` after it (the callbacks of that
+    round run meanwhile). Only for composed components on a real clock; None otherwise.
+    """
+    container = getattr(node, "_container", None)
+    executor = getattr(container, "executor", None)
+    timers = getattr(executor, "_timers", None)
+    clock = getattr(executor, "clock", None)
+    if not isinstance(timers, list) or clock is None or isinstance(clock, ManualClock):
+        return None
+    if before_s <= 0 and after_s <= 0:
+        return None
+    before_ns, after_ns = int(before_s * 1e9), int(after_s * 1e9)
+    last_due = [0]
+
+    def pace() -> float:
+        now: int = clock.now_ns()
+        if now - last_due[0] < after_ns:  # a round of callbacks has just started
+            return (last_due[0] + after_ns - now) / 1e9
+        try:
+            due: int = timers[0][0]  # the heap's top, read outside the executor's thread
+        except IndexError:
+            return 0.0
+        ahead = due - now
+        if ahead > before_ns:
+            return 0.0
+        last_due[0] = due
+        return max(0.0, ahead + after_ns) / 1e9
+
+    return pace

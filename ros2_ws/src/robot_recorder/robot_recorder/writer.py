@@ -14,6 +14,7 @@ queue means the writer cannot keep up, and blocking the callback would stall the
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future
@@ -30,6 +31,8 @@ from .storage import BagWriter, FileSystem
 __all__ = ["RecordWriter", "TopicState", "message_fields"]
 
 IDLE, RECORDING, FAILED = 0, 1, 2
+# The longest the writer holds back for the executor before working regardless.
+_PACE_MAX_S = 0.005
 
 
 @dataclass(eq=False)
@@ -62,8 +65,12 @@ class RecordWriter:
         fs: FileSystem | None = None,
         clock_topic: str = "",
         on_state: Callable[[], None] | None = None,
+        pacer: Callable[[], float] | None = None,
         name: str = "recorder",
     ) -> None:
+        """``pacer()`` returns how long the writer should hold back before its next piece of
+        work (seconds; 0 = go): the recorder uses it to stay clear of the executor's timer
+        deadlines, so the control loop never waits for the GIL (see docs/RECORDER.md)."""
         if queue_depth < 1:
             raise RecorderConfigError(f"queue_depth must be >= 1, not {queue_depth}")
         if snapshot_bytes < 0 or snapshot_seconds < 0:
@@ -79,12 +86,15 @@ class RecordWriter:
         self._clock_topic = clock_topic
         self._clock_msg: Any = None
         self._on_state = on_state
+        self._pacer = pacer
+        self.paced_s = 0.0  # time spent holding back for the executor (measuring)
         self._bag: BagWriter | None = None
         self._wake = threading.Event()
         self._sleeping = False
         self._closing = False
         # Read by the callback on every message: a plain attribute, no lock.
         self.accepting = snapshot_bytes > 0
+        self.high_water = 0  # the longest the queue has been (how close to dropping)
         self.state = IDLE
         self.error = ""
         self.bag_path: Path | None = None
@@ -99,9 +109,12 @@ class RecordWriter:
         if not self.accepting:
             return
         queue = self._queue
-        if len(queue) >= self._depth:
+        length = len(queue)
+        if length >= self._depth:
             topic.drops += 1
             return
+        if length >= self.high_water:
+            self.high_water = length + 1
         queue.append((topic, msg, receive_ns))
         if self._sleeping:
             self._wake.set()
@@ -136,6 +149,11 @@ class RecordWriter:
 
     def queue_length(self) -> int:
         return len(self._queue)
+
+    @property
+    def current_file(self) -> Path | None:
+        bag = self._bag
+        return bag.current_file if bag is not None else None
 
     def close(self, timeout_s: float = 10.0) -> None:
         """Finish the recording (every queued message is written) and end the thread."""
@@ -172,6 +190,8 @@ class RecordWriter:
                 self._sleeping = False
                 self._tick()
                 continue
+            if self._pacer is not None and len(queue) < self._depth // 2:
+                self._pace()
             item = queue.popleft()
             if isinstance(item, _Command):
                 self._execute(item)
@@ -201,6 +221,18 @@ class RecordWriter:
                 topic.messages += 1
                 topic.bytes += len(data)
                 self._tick()
+
+    def _pace(self) -> None:
+        """Hold back while the pacer asks, at most ``_PACE_MAX_S`` in a row (no starvation)."""
+        assert self._pacer is not None
+        waited = 0.0
+        while waited < _PACE_MAX_S and not self._closing:
+            wait = min(self._pacer(), _PACE_MAX_S - waited)
+            if wait <= 0:
+                break
+            time.sleep(wait)
+            waited += wait
+        self.paced_s += waited
 
     def _tick(self) -> None:
         bag = self._bag

@@ -1,0 +1,38 @@
+"""The recorder benchmark runs end to end (a short run).
+
+It asserts what the benchmark exists to show, not timings: every published message is
+recorded by both recording paths, and the recorder drops none.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "bench" / "recorder_bench.py"
+
+
+@pytest.mark.timeout(180)
+def test_recorder_bench_smoke(tmp_path: Path) -> None:
+    out = tmp_path / "recorder.json"
+    result = subprocess.run(
+        [sys.executable, str(BENCH), "--seconds", "2", "--repeat", "1",
+         "--modes", "none,recorder,inline", "--out", str(out)],
+        capture_output=True, text=True, timeout=170,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    data = json.loads(out.read_text())
+    per = data["summary"]["per_mode"]
+    assert set(per) == {"none", "recorder", "inline"}
+    assert per["none"]["recorded"] == 0
+    # 3 cameras at 30 Hz, 3 x 100 Hz joint states, 100 Hz commands for ~2 s.
+    for mode in ("recorder", "inline"):
+        assert 0.8 * 2 * 490 <= per[mode]["recorded"] <= 1.2 * 2 * 490, per[mode]
+        assert per[mode]["bytes_on_disk"] > 0
+    assert per["recorder"]["drops"] == 0
+    assert per["none"]["loop_samples"] > 150
+    assert "recorder / inline" in result.stdout
