@@ -204,3 +204,20 @@ def test_a_better_source_wins() -> None:
 def test_clock_sync_needs_a_reference() -> None:
     with pytest.raises(ValueError, match="reference"):
         ClockSync(TestHandle("clock_sync"))
+
+
+def test_misconfigured_teams_are_reported() -> None:
+    """Two robots named alike, and a robot expecting another reference: counted, logged."""
+    team = SimTeam({"ref": (0, 0.0), "a": (5 * MS, 0.0)}, reference="ref",
+                   links=[("ref", "a")], delay=SimDelay(min_s=0.001, jitter_s=0.0))
+    twin = TestHandle("twin", container=team.container,
+                      remappings={"/team_clock/ping": "/sim_net/a/ping",
+                                  "/team_clock/pong": "/sim_net/a/pong",
+                                  "/team_clock/offset": "/twin/team_clock/offset"},
+                      parameters={"robot": "a", "reference": "other_ref"})
+    imposter = ClockSync(twin)
+    team.advance(5.0)
+    assert team.syncs["a"].counts["name_clash"] > 0
+    assert imposter.counts["other_reference"] > 0 and imposter.state is None
+    assert any("also calls itself" in text for _, text in _records(team, "a"))
+    assert any("synchronised to" in text for _, text in twin.records)

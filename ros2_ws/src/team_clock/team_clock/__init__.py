@@ -19,3 +19,4 @@ from .errors import TeamClockError as TeamClockError
 from .estimator import Estimate as Estimate
 from .estimator import OffsetEstimator as OffsetEstimator
 from .estimator import Sample as Sample
+from .model import OffsetModel as OffsetModel

@@ -192,7 +192,8 @@ class ClockSync:
         if pong.client != self.robot or self.is_reference:
             return
         if pong.reference != self.reference:
-            self.counts["other_reference"] += 1
+            self._misconfigured("other_reference", f"{pong.server} is synchronised to "
+                                f"{pong.reference!r}, this robot to {self.reference!r}")
             return
         path = tuple(pong.path)
         if self.robot in path:
@@ -240,11 +241,22 @@ class ClockSync:
         elif best is not None:
             self._lost_reported = False
 
+    def _misconfigured(self, what: str, message: str) -> None:
+        """Count a team configuration error; say it once (it repeats every period)."""
+        if not self.counts[what]:
+            self._node.logger.warning(f"{self.robot}: {message}")
+        self.counts[what] += 1
+
     # -- server side ----------------------------------------------------------------------
 
     def _on_ping(self, ping: TimeSyncPing) -> None:
         t2_local = self.local_clock.now_ns()
-        if ping.client == self.robot or ping.server not in ("", self.robot):
+        if ping.client == self.robot:
+            if self._outstanding.get(ping.seq) != ping.t1_ns and not self.is_reference:
+                self._misconfigured("name_clash", f"another robot also calls itself "
+                                    f"{self.robot!r}: its answers would be mixed with ours")
+            return
+        if ping.server not in ("", self.robot):
             return
         state = self.state
         if state is None:
