@@ -72,6 +72,7 @@ class TeamOptions:
     compression: Literal["zlib", "none"] = "zlib"
     prefix: str = "rf_team"
     multicast_scouting: bool = False
+    lease_s: float = 3.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -181,7 +182,7 @@ def _ros1(value: Any, where: str) -> Ros1Options:
 
 def _team(value: Any, where: str) -> TeamOptions:
     m = _mapping(value, where, {"robot_id", "listen", "connect", "compression", "prefix",
-                                "multicast_scouting"})
+                                "multicast_scouting", "lease_s"})
     robot_id = _typed(m.get("robot_id"), str, f"{where}.robot_id")
     compression = m.get("compression", "zlib")
     if compression not in ("zlib", "none"):
@@ -192,6 +193,7 @@ def _team(value: Any, where: str) -> TeamOptions:
         robot_id=robot_id, listen=listen, connect=connect, compression=compression,
         prefix=_typed(m.get("prefix", "rf_team"), str, f"{where}.prefix"),
         multicast_scouting=_typed(m.get("multicast_scouting", False), bool, f"{where}.multicast_scouting"),
+        lease_s=float(_typed(m.get("lease_s", 3.0), (int, float), f"{where}.lease_s")),
     )
 
 

@@ -9,6 +9,7 @@ executor queues such messages and runs subscribers in its own thread.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping
 from typing import Any
 
@@ -49,7 +50,9 @@ class BridgeNode:
         self.adapters: dict[str, ChannelAdapter] = dict(adapters or self._build_adapters(config))
         self._publishers: dict[int, Publisher] = {}
         self.routes: list[Route] = []
-        self.router = Router(self.adapters, publish=self._publish, now_ns=node.clock.now_ns)
+        # Throttling shapes traffic on real links, so it runs on the monotonic clock even
+        # when the node's clock is simulated or manual.
+        self.router = Router(self.adapters, publish=self._publish, now_ns=time.monotonic_ns)
         for spec in config.topics:
             try:
                 route = self._route(spec)
