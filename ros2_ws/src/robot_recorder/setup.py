@@ -19,9 +19,11 @@ setup(
     entry_points={
         "console_scripts": [
             "recorder = robot_recorder.cli:record_main",
+            "player = robot_recorder.cli:play_main",
         ],
         "efficient_comm.components": [
             "Recorder = robot_recorder.recorder:Recorder",
+            "Player = robot_recorder.player:Player",
         ],
     },
 )

@@ -18,6 +18,7 @@ from .errors import RecorderConfigError as RecorderConfigError
 from .errors import RecorderError as RecorderError
 from .errors import StorageError as StorageError
 from .errors import UnknownTypeError as UnknownTypeError
+from .player import Player as Player
 from .recorder import DEFAULT_CLOCK_TOPIC as DEFAULT_CLOCK_TOPIC
 from .recorder import Recorder as Recorder
 from .selection import TopicSelection as TopicSelection

@@ -14,3 +14,9 @@ def record_main() -> int:
     return run(lambda node: Recorder(node, autostart=True), name="recorder",
                args=sys.argv)
 
+
+def play_main() -> int:
+    """``player BAG [options] [--ros-args ...]``: see :func:`robot_recorder.player.main`."""
+    from .player import main
+
+    return main(sys.argv[1:])

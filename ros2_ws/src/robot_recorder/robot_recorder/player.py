@@ -1,0 +1,277 @@
+"""Publishing a bag into a running system: rate, pause, seek, step, loop, topic selection,
+remapping, and the header stamps as recorded, aligned to the team clock, or shifted to now.
+
+The player is a component like any other: composed next to live components, its messages
+reach them by reference, so a recorded camera stream can replace a live camera as the input
+of a live detector (remap the detector's input, or the player's output, to the same topic)
+while everything else runs as usual. Time comes from the node's clock, so under test a
+manual clock drives playback deterministically.
+
+The selected topics' messages are loaded into memory (serialized) when the player starts;
+select topics when playing a long bag.
+"""
+
+from __future__ import annotations
+
+import bisect
+import sys
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+from rclpy.serialization import deserialize_message
+
+from efficient_comm import from_msg, to_msg
+from efficient_comm.handle import NodeHandle
+
+from .bag import BagMessage, read_messages
+from .errors import PlaybackError, RecorderConfigError, UnknownTypeError
+from .msgdefs import import_type
+
+__all__ = ["STAMP_MODES", "OffsetModel", "Player", "main"]
+
+STAMP_MODES = ("original", "aligned", "shifted")
+
+
+class OffsetModel(Protocol):
+    """Maps a robot's local time to the team reference time (team_clock provides one)."""
+
+    def to_reference(self, local_ns: int, /) -> int: ...
+
+
+def parse_remaps(items: Iterable[str] | Mapping[str, str]) -> dict[str, str]:
+    """``["/from:=/to", ...]`` (or a mapping) as a dict; bad entries raise."""
+    if isinstance(items, Mapping):
+        return dict(items)
+    out: dict[str, str] = {}
+    for item in items:
+        source, sep, target = item.partition(":=")
+        if not sep or not source or not target:
+            raise RecorderConfigError(f"remapping must be FROM:=TO, not {item!r}")
+        out[source] = target
+    return out
+
+
+class Player:
+    """Plays ``bag`` on the node's clock; control it with the methods or ``~/control``.
+
+    Parameters (ROS): ``bag``, ``topics`` (empty: all), ``remappings`` (``FROM:=TO``),
+    ``rate``, ``loop``, ``start_paused``, ``stamps`` (original / aligned / shifted),
+    ``tick_s`` (how often due messages are published). Keyword options override them;
+    ``offset_model`` (anything with ``to_reference(int) -> int``) is needed for ``aligned``
+    unless team_clock can read one from the bag.
+    """
+
+    def __init__(
+        self,
+        node: NodeHandle,
+        *,
+        bag: str | Path | None = None,
+        topics: Sequence[str] | None = None,
+        remappings: Iterable[str] | Mapping[str, str] | None = None,
+        rate: float | None = None,
+        loop: bool | None = None,
+        start_paused: bool | None = None,
+        stamps: str | None = None,
+        offset_model: OffsetModel | None = None,
+    ) -> None:
+        p = node.declare_parameter
+        self._node = node
+        path = Path(bag if bag is not None else p("bag", ""))
+        if not str(path) or str(path) == ".":
+            raise RecorderConfigError("no bag given (parameter 'bag')")
+        wanted = list(topics if topics is not None else [t for t in p("topics", [""]) if t])
+        self._remap = parse_remaps(remappings if remappings is not None
+                                   else [r for r in p("remappings", [""]) if r])
+        self.rate = float(rate if rate is not None else p("rate", 1.0))
+        if not self.rate > 0:
+            raise RecorderConfigError(f"rate must be > 0, not {self.rate}")
+        self.loop = bool(loop if loop is not None else p("loop", False))
+        self.stamps = stamps if stamps is not None else p("stamps", "original")
+        if self.stamps not in STAMP_MODES:
+            raise RecorderConfigError(f"stamps must be one of {STAMP_MODES}, not {self.stamps!r}")
+        self._model = offset_model
+        if self.stamps == "aligned" and self._model is None:
+            self._model = _model_from_bag(path)
+        self.problems: list[str] = []
+        self._messages: list[BagMessage] = list(
+            read_messages(path, topics=wanted or None, problems=self.problems))
+        if not self._messages:
+            raise PlaybackError(f"{path}: no messages to play"
+                                + (f" on {wanted}" if wanted else ""))
+        self._times = [m.log_time_ns for m in self._messages]
+        self._publishers: dict[str, Any] = {}
+        self._types: dict[str, type] = {}
+        for m in self._messages:
+            if m.topic not in self._publishers:
+                try:
+                    msg_type = import_type(m.type)
+                except UnknownTypeError as exc:
+                    raise PlaybackError(f"{path}: cannot play {m.topic}: {exc}") from exc
+                self._types[m.topic] = msg_type
+                self._publishers[m.topic] = node.create_publisher(
+                    msg_type, self._remap.get(m.topic, m.topic), qos=10)
+        self.position = 0  # index of the next message
+        self.published = 0
+        self.finished = False
+        self.paused = bool(start_paused if start_paused is not None else p("start_paused", False))
+        self._anchor()
+        self._serve(node)
+        node.create_timer(p("tick_s", 0.001), self._on_timer)
+
+    # -- control ---------------------------------------------------------------------------
+
+    @property
+    def start_ns(self) -> int:
+        return self._times[0]
+
+    @property
+    def end_ns(self) -> int:
+        return self._times[-1]
+
+    def position_ns(self) -> int:
+        """Recording time of the next message (-1 at the end)."""
+        return self._times[self.position] if self.position < len(self._times) else -1
+
+    def pause(self) -> None:
+        self.paused = True
+
+    def resume(self) -> None:
+        self.paused = False
+        self._anchor()
+
+    def set_rate(self, rate: float) -> None:
+        if not rate > 0:
+            raise RecorderConfigError(f"rate must be > 0, not {rate}")
+        self.rate = rate
+        self._anchor()
+
+    def seek(self, time_ns: int) -> None:
+        """Continue from the first message recorded at or after ``time_ns`` (0: the start)."""
+        self.position = bisect.bisect_left(self._times, time_ns)
+        self.finished = self.position >= len(self._times) and not self.loop
+        if self.position >= len(self._times) and self.loop:
+            self.position = 0
+        self._anchor()
+
+    def step(self) -> bool:
+        """Publish the next message now (meant for paused playback); False at the end."""
+        if self.position >= len(self._messages):
+            if not self.loop:
+                return False
+            self.position = 0
+        self._publish(self._messages[self.position])
+        self.position += 1
+        self._anchor()
+        return True
+
+    # -- playing ---------------------------------------------------------------------------
+
+    def _anchor(self) -> None:
+        """Schedule from here: the next message is due now."""
+        self._anchor_clock = self._node.clock.now_ns()
+        self._anchor_log = self.position_ns() if self.position < len(self._times) else 0
+
+    def _on_timer(self) -> None:
+        if self.paused or self.finished:
+            return
+        now = self._node.clock.now_ns()
+        messages, times = self._messages, self._times
+        while True:
+            if self.position >= len(messages):
+                if not self.loop:
+                    self.finished = True
+                    return
+                self.position = 0
+                self._anchor()
+                now = self._anchor_clock
+            due = self._anchor_clock + int((times[self.position] - self._anchor_log) / self.rate)
+            if due > now:
+                return
+            self._publish(messages[self.position])
+            self.position += 1
+
+    def _publish(self, recorded: BagMessage) -> None:
+        msg = deserialize_message(recorded.data, self._types[recorded.topic])
+        if self.stamps != "original":
+            header: Any = getattr(msg, "header", None)
+            stamp = getattr(header, "stamp", None)
+            if stamp is not None and hasattr(stamp, "nanosec"):
+                ns = from_msg(stamp)
+                if self.stamps == "aligned":
+                    assert self._model is not None
+                    ns = self._model.to_reference(ns)
+                else:  # shifted: as old, relative to now, as it was when recorded
+                    ns += self._node.clock.now_ns() - recorded.log_time_ns
+                header.stamp = to_msg(ns)
+        self._publishers[recorded.topic].publish(msg)
+        self.published += 1
+
+    # -- remote control --------------------------------------------------------------------
+
+    def _serve(self, node: NodeHandle) -> None:
+        from robot_recorder_interfaces.srv import PlayerControl
+
+        node.create_service(PlayerControl, "~/control", self._srv_control)
+
+    def _srv_control(self, request: Any, response: Any) -> Any:
+        from robot_recorder_interfaces.srv import PlayerControl
+
+        try:
+            if request.command == PlayerControl.Request.PAUSE:
+                self.pause()
+            elif request.command == PlayerControl.Request.RESUME:
+                self.resume()
+            elif request.command == PlayerControl.Request.SEEK:
+                self.seek(request.time_ns or self.start_ns)
+            elif request.command == PlayerControl.Request.STEP:
+                if not self.step():
+                    raise PlaybackError("at the end of the bag")
+            elif request.command == PlayerControl.Request.SET_RATE:
+                self.set_rate(request.rate)
+            else:
+                raise RecorderConfigError(f"unknown command {request.command}")
+            response.success = True
+        except (PlaybackError, RecorderConfigError) as exc:
+            response.success, response.message = False, str(exc)
+        response.position_ns = self.position_ns()
+        response.paused = self.paused
+        return response
+
+
+def _model_from_bag(path: Path) -> OffsetModel:
+    try:
+        from team_clock.model import OffsetModel as TeamModel
+    except ImportError as exc:
+        raise RecorderConfigError(
+            "stamps='aligned' needs offset_model=..., or team_clock to read one from the bag"
+        ) from exc
+    model: OffsetModel = TeamModel.from_mcap(path)
+    return model
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``player BAG [--topics ...] [--remap FROM:=TO ...] [--rate R] [--loop] [--paused]
+    [--stamps original|aligned|shifted]`` as a standalone node (``--ros-args`` after)."""
+    import argparse
+
+    from efficient_comm.standalone import run
+
+    args_in = list(sys.argv[1:] if argv is None else argv)
+    ros_args: list[str] = []
+    if "--ros-args" in args_in:
+        i = args_in.index("--ros-args")
+        args_in, ros_args = args_in[:i], args_in[i:]
+    parser = argparse.ArgumentParser(prog="player", description=main.__doc__)
+    parser.add_argument("bag")
+    parser.add_argument("--topics", nargs="*", default=None)
+    parser.add_argument("--remap", nargs="*", default=[])
+    parser.add_argument("--rate", type=float, default=1.0)
+    parser.add_argument("--loop", action="store_true")
+    parser.add_argument("--paused", action="store_true")
+    parser.add_argument("--stamps", choices=STAMP_MODES, default="original")
+    ns = parser.parse_args(args_in)
+    return run(lambda node: Player(node, bag=ns.bag, topics=ns.topics, remappings=ns.remap,
+                                   rate=ns.rate, loop=ns.loop, start_paused=ns.paused,
+                                   stamps=ns.stamps),
+               name="player", args=["player", *ros_args])
