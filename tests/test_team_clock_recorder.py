@@ -18,6 +18,7 @@ from efficient_comm.testing import TestHandle, test_container
 from robot_recorder import Recorder
 from team_clock.bag import LogReader
 from team_clock.clocks import SkewedClock
+from team_clock.merge import RobotLog, merge
 from team_clock.model import METADATA_NAME, OffsetModel
 from team_clock.sync import OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC, ClockSync
 from team_clock.testing import SimDelay, SimNetwork, sim_remappings
@@ -74,3 +75,12 @@ def test_recorded_estimates_align_the_recorders_own_log_times(tmp_path: Path) ->
     t = next(iter(truth.values()))
     assert abs(alone.to_reference(t) - model.to_reference(t)) < 5 * MS
     assert OFFSET_TOPIC in LogReader(bag).topics()
+    # And the recorder's bag merges: its events land on the reference clock.
+    report = merge([RobotLog(bag)], tmp_path / "merged.mcap", stamps=True)
+    assert report.robots[0].namespace == "a" and not report.robots[0].skipped
+    with AnyReader([tmp_path / "merged.mcap"]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/a/event"]
+        merged = {reader.deserialize(raw, c.msgtype).header.frame_id: t  # type: ignore[attr-defined]
+                  for c, t, raw in reader.messages(connections=conns)}
+    assert merged.keys() == truth.keys()
+    assert all(abs(merged[e] - truth[e]) <= 1 * MS for e in truth)

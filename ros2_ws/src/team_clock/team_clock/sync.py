@@ -24,6 +24,7 @@ default, skewed by the ``sim_offset_ns`` / ``sim_drift_ppm`` parameters or repla
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import dataclass
 
@@ -115,6 +116,7 @@ class ClockSync:
                                           epoch_ns=local_clock.now_ns())
         self.local_clock = local_clock
         self._window_ns = round(window * 1e9)
+        self._window_samples = math.ceil(window / period) + 8  # one per period, and some slack
         self._started_ns = local_clock.now_ns()
 
         self.is_reference = self.robot == self.reference
@@ -209,7 +211,8 @@ class ClockSync:
         self._answered.add(key)
         source = self._sources.get(pong.server)
         if source is None:
-            source = _Source(OffsetEstimator(window_ns=self._window_ns))
+            source = _Source(OffsetEstimator(window_ns=self._window_ns,
+                                             max_samples=self._window_samples))
             self._sources[pong.server] = source
         source.path = path
         sample = Sample(pong.t1_ns, pong.t2_ns, pong.t3_ns, t4, max(0, pong.uncertainty_ns))
