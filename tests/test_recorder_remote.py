@@ -4,6 +4,8 @@ of its own process (by reference) and of other participants, reporting on its st
 
 from __future__ import annotations
 
+import os
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +21,7 @@ from robot_recorder_interfaces.msg import RecorderStatus, TopicSelection
 from robot_recorder_interfaces.srv import SetTopics, Snapshot, Split, Start, Stop
 
 from ._recording import read_rosbags
-from ._ros import Peer, peer
+from ._ros import Peer, child, executable, peer
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -98,3 +100,28 @@ def test_remote_control_local_and_remote_topics_and_status(tmp_path: Path) -> No
     assert [m.data for t, m in got if t == remote] == [f"remote {i}" for i in range(10)]
     assert len(list((tmp_path / "bag").glob("*.mcap"))) == 2
     assert len(read_rosbags(tmp_path / "event")) == 21
+
+
+def test_standalone_recorder_process_records_another_process_and_closes_on_sigint(
+        tmp_path: Path) -> None:
+    topic = unique_topic("chatter")
+    domain = isolated_domain_id()
+    args: list[str | Path] = [executable("robot_recorder", "recorder"), "--ros-args",
+            "-p", f"topics:=['{topic}']", "-p", f"output_dir:={tmp_path}",
+            "-p", "status_period_s:=0.2", "-p", "min_free_bytes:=0"]
+    with peer(domain, "talker") as talker, \
+            child(args, domain_id=domain, log=tmp_path / "recorder.log") as proc:
+        statuses: list[Any] = []
+        talker.node.create_subscription(RecorderStatus, "/recorder/status", statuses.append, 10)
+        pub = talker.node.create_publisher(String, topic, RELIABLE)
+        assert talker.wait_for(lambda: pub.get_subscription_count() == 1, timeout_s=30), (
+            tmp_path / "recorder.log").read_text()
+        for i in range(20):
+            pub.publish(String(data=f"m{i}"))
+        assert talker.wait_for(lambda: bool(statuses) and statuses[-1].messages == 20,
+                               timeout_s=30), statuses[-1:]
+        bag = Path(statuses[-1].bag)
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(20) == 0
+    assert (bag / "metadata.yaml").exists()  # closed properly on Ctrl-C
+    assert [m.data for _, m in read_rosbags(bag)] == [f"m{i}" for i in range(20)]
