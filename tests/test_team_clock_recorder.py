@@ -76,9 +76,9 @@ def test_recorded_estimates_align_the_recorders_own_log_times(tmp_path: Path) ->
     assert abs(alone.to_reference(t) - model.to_reference(t)) < 5 * MS
     assert OFFSET_TOPIC in LogReader(bag).topics()
     # And the recorder's bag merges: its events land on the reference clock.
-    report = merge([RobotLog(bag)], tmp_path / "merged.mcap", stamps=True)
+    report = merge([RobotLog(bag)], tmp_path / "merged", stamps=True)
     assert report.robots[0].namespace == "a" and not report.robots[0].skipped
-    with AnyReader([tmp_path / "merged.mcap"]) as reader:
+    with AnyReader([tmp_path / "merged"]) as reader:
         conns = [c for c in reader.connections if c.topic == "/a/event"]
         merged = {reader.deserialize(raw, c.msgtype).header.frame_id: t  # type: ignore[attr-defined]
                   for c, t, raw in reader.messages(connections=conns)}
