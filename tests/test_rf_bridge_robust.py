@@ -35,10 +35,13 @@ def drops(b: Any, topic: str, direction: str) -> dict[str, int]:
 
 def test_master_restart_reregisters_without_restarting_the_bridge(ros1: Ros1System) -> None:
     out, inn = unique_topic("out"), unique_topic("in")
-    node, b = bridge(ros1, [
-        {"ros2": out, "type": "std_msgs/msg/String"},
-        {"ros2": inn, "type": "std_msgs/msg/String", "direction": "from_peer"},
-    ])
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": out, "type": "std_msgs/msg/String"},
+            {"ros2": inn, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        ],
+    )
     adapter: Any = b.adapters["ros1"]
     try:
         ros1.stop_master()
@@ -82,15 +85,18 @@ def test_killed_subscriber_undelivered_counted_then_new_one_served(ros1: Ros1Sys
 
 def test_killed_publisher_replaced_by_a_new_one(ros1: Ros1System) -> None:
     topic = unique_topic("in")
-    node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String",
-                             "direction": "from_peer"}])
+    node, b = bridge(
+        ros1, [{"ros2": topic, "type": "std_msgs/msg/String", "direction": "from_peer"}]
+    )
     try:
-        first = ros1.python(NODE, "talk", topic, "std_msgs/String", "m.String(data='a%d' % i)",
-                            "2", log="t1")
+        first = ros1.python(
+            NODE, "talk", topic, "std_msgs/String", "m.String(data='a%d' % i)", "2", log="t1"
+        )
         assert spin_until(node, lambda: len(node.published(topic)) >= 2)
         Ros1System.kill(first)
-        ros1.python(NODE, "talk", topic, "std_msgs/String", "m.String(data='b%d' % i)", "2",
-                    log="t2")
+        ros1.python(
+            NODE, "talk", topic, "std_msgs/String", "m.String(data='b%d' % i)", "2", log="t2"
+        )
         assert spin_until(node, lambda: len(node.published(topic)) >= 4)
         assert [m.data for m in node.published(topic)] == ["a0", "a1", "b0", "b1"]
     finally:
@@ -138,8 +144,11 @@ def test_bad_tcpros_headers_dropped_the_rest_keeps_serving(ros1: Ros1System) -> 
 
 def test_subscriber_that_stops_reading_is_dropped(ros1: Ros1System) -> None:
     topic = unique_topic("image")
-    node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/Image"}],
-                     ros1={"send_timeout_s": 0.5, "queue_size": 50})
+    node, b = bridge(
+        ros1,
+        [{"ros2": topic, "type": "sensor_msgs/msg/Image"}],
+        ros1={"send_timeout_s": 0.5, "queue_size": 50},
+    )
     adapter: Any = b.adapters["ros1"]
     try:
         listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
@@ -179,7 +188,8 @@ class FakePublisher:
         port = self.tcp.getsockname()[1]
         self.rpc = SimpleXMLRPCServer(("127.0.0.1", 0), logRequests=False)
         self.rpc.register_function(
-            lambda caller, t, protocols: [1, "", ["TCPROS", "127.0.0.1", port]], "requestTopic")
+            lambda caller, t, protocols: [1, "", ["TCPROS", "127.0.0.1", port]], "requestTopic"
+        )
         self.uri = f"http://127.0.0.1:{self.rpc.server_address[1]}/"
         self.conns: list[socket.socket] = []
         threading.Thread(target=self.rpc.serve_forever, daemon=True).start()
@@ -198,8 +208,14 @@ class FakePublisher:
                     pass
 
         threading.Thread(target=serve, daemon=True).start()
-        call(ros1.master_uri, "registerPublisher", "/fake" + topic.replace("/", "_"), topic,
-             header.get("type", "*"), self.uri)
+        call(
+            ros1.master_uri,
+            "registerPublisher",
+            "/fake" + topic.replace("/", "_"),
+            topic,
+            header.get("type", "*"),
+            self.uri,
+        )
 
     def close(self) -> None:
         self.rpc.shutdown()
@@ -209,31 +225,49 @@ class FakePublisher:
             c.close()
 
 
-STRING_DEF = {"type": "std_msgs/String", "md5sum": "992ce8a1687cec8c8bd883ec73ca41d1",
-              "message_definition": "string data\n", "callerid": "/fake"}
+STRING_DEF = {
+    "type": "std_msgs/String",
+    "md5sum": "992ce8a1687cec8c8bd883ec73ca41d1",
+    "message_definition": "string data\n",
+    "callerid": "/fake",
+}
 
 
-@pytest.mark.parametrize(("header", "data", "reason", "log"), [
-    (STRING_DEF, struct.pack("<II", 8, 1000) + b"abcd", "malformed", "truncated message"),
-    (STRING_DEF, struct.pack("<I", 5_000_000), "oversize", "exceeds the limit"),
-    ({"type": "nope/Nope", "md5sum": "1" * 32, "callerid": "/fake"}, b"", "unknown_type",
-     "cannot bridge 'nope/Nope'"),
-], ids=["malformed_frame", "oversize", "unknown_type"])
+@pytest.mark.parametrize(
+    ("header", "data", "reason", "log"),
+    [
+        (STRING_DEF, struct.pack("<II", 8, 1000) + b"abcd", "malformed", "truncated message"),
+        (STRING_DEF, struct.pack("<I", 5_000_000), "oversize", "exceeds the limit"),
+        (
+            {"type": "nope/Nope", "md5sum": "1" * 32, "callerid": "/fake"},
+            b"",
+            "unknown_type",
+            "cannot bridge 'nope/Nope'",
+        ),
+    ],
+    ids=["malformed_frame", "oversize", "unknown_type"],
+)
 def test_bad_publisher_dropped_the_rest_keeps_serving(
     ros1: Ros1System, header: dict[str, str], data: bytes, reason: str, log: str
 ) -> None:
     bad, good = unique_topic("bad"), unique_topic("good")
-    node, b = bridge(ros1, [
-        {"ros2": bad, "type": "std_msgs/msg/String", "direction": "from_peer"},
-        {"ros2": good, "type": "std_msgs/msg/String", "direction": "from_peer"},
-    ], ros1={"max_message_bytes": 1 << 20})
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": bad, "type": "std_msgs/msg/String", "direction": "from_peer"},
+            {"ros2": good, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        ],
+        ros1={"max_message_bytes": 1 << 20},
+    )
     fake = FakePublisher(ros1, bad, header, data)
     try:
         assert wait_for(lambda: drops(b, bad, "from_ros1").get(reason, 0) >= 1, 20), drops(
-            b, bad, "from_ros1")
+            b, bad, "from_ros1"
+        )
         assert wait_for(lambda: any(log in text for _, text in node.records), 10), node.records
-        ros1.python(NODE, "talk", good, "std_msgs/String", "m.String(data='ok%d' % i)", "3",
-                    log="t")
+        ros1.python(
+            NODE, "talk", good, "std_msgs/String", "m.String(data='ok%d' % i)", "3", log="t"
+        )
         assert spin_until(node, lambda: len(node.published(good)) >= 3)
         assert node.published(bad) == []
     finally:

@@ -89,14 +89,24 @@ _readers: dict[int, LineReader] = {}
 
 
 def bridge(
-    system: Ros1System, topics: list[dict[str, Any]], *, ros1: dict[str, Any] | None = None,
+    system: Ros1System,
+    topics: list[dict[str, Any]],
+    *,
+    ros1: dict[str, Any] | None = None,
     **extra: Any,
 ) -> tuple[TestHandle, BridgeNode]:
-    config = parse_config({
-        "ros1": {"master_uri": system.master_uri, "node_name": unique_topic("rf_bridge"),
-                 "master_check_s": 0.2, **(ros1 or {})},
-        "topics": topics, **extra,
-    })
+    config = parse_config(
+        {
+            "ros1": {
+                "master_uri": system.master_uri,
+                "node_name": unique_topic("rf_bridge"),
+                "master_check_s": 0.2,
+                **(ros1 or {}),
+            },
+            "topics": topics,
+            **extra,
+        }
+    )
     assert not config.errors
     node = TestHandle("rf_bridge")
     b = BridgeNode(node, config=config)
@@ -115,10 +125,13 @@ def stat(b: BridgeNode, direction: str) -> Any:
 
 def test_ros2_to_ros1_string_and_pose(ros1: Ros1System) -> None:
     chatter, pose = unique_topic("chatter"), unique_topic("pose")
-    node, b = bridge(ros1, [
-        {"ros2": chatter, "type": "std_msgs/msg/String"},
-        {"ros2": pose, "type": "geometry_msgs/msg/PoseStamped"},
-    ])
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": chatter, "type": "std_msgs/msg/String"},
+            {"ros2": pose, "type": "geometry_msgs/msg/PoseStamped"},
+        ],
+    )
     try:
         l1 = ros1.python(NODE, "listen", chatter, "std_msgs/String", log="l1")
         l2 = ros1.python(NODE, "listen", pose, "geometry_msgs/PoseStamped", log="l2")
@@ -133,9 +146,15 @@ def test_ros2_to_ros1_string_and_pose(ros1: Ros1System) -> None:
         p.pose.position.x, p.pose.orientation.w = 1.5, 1.0
         node.inject(pose, p)
         assert [json.loads(read_line(l1))["data"] for _ in range(3)] == [
-            "hello 0", "hello 1", "hello 2"]
+            "hello 0",
+            "hello 1",
+            "hello 2",
+        ]
         got = json.loads(read_line(l2))
-        assert got["header"]["frame_id"] == "map" and got["header"]["stamp"] == {"secs": 12, "nsecs": 345}
+        assert got["header"]["frame_id"] == "map" and got["header"]["stamp"] == {
+            "secs": 12,
+            "nsecs": 345,
+        }
         assert got["pose"]["position"]["x"] == 1.5 and got["pose"]["orientation"]["w"] == 1.0
         assert stat(b, "to_ros1").messages >= 3
     finally:
@@ -144,25 +163,49 @@ def test_ros2_to_ros1_string_and_pose(ros1: Ros1System) -> None:
 
 def test_ros1_to_ros2_string_pose_image(ros1: Ros1System) -> None:
     chatter, pose, image = unique_topic("chatter"), unique_topic("pose"), unique_topic("image")
-    node, b = bridge(ros1, [
-        {"ros2": chatter, "type": "std_msgs/msg/String", "direction": "from_peer"},
-        {"ros2": pose, "type": "geometry_msgs/msg/PoseStamped", "direction": "from_peer"},
-        {"ros2": image, "type": "sensor_msgs/msg/Image", "direction": "from_peer"},
-    ])
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": chatter, "type": "std_msgs/msg/String", "direction": "from_peer"},
+            {"ros2": pose, "type": "geometry_msgs/msg/PoseStamped", "direction": "from_peer"},
+            {"ros2": image, "type": "sensor_msgs/msg/Image", "direction": "from_peer"},
+        ],
+    )
     try:
-        ros1.python(NODE, "talk", chatter, "std_msgs/String", "m.String(data='n%d' % i)", "5",
-                    log="t1")
-        ros1.python(NODE, "talk", pose, "geometry_msgs/PoseStamped",
-                    "m.PoseStamped(header=std.Header(frame_id='odom'), pose=m.Pose(position=m.Point(x=i, y=2.0)))", "2", log="t2")
-        ros1.python(NODE, "talk", image, "sensor_msgs/Image",
-                    "m.Image(height=512, width=512, encoding='rgb8', step=1536,"
-                    " data=bytes([i % 256]) * (512 * 1536))", "2", log="t3")
-        counts = lambda: [len(node.published(t)) for t in (chatter, pose, image)]  # noqa: E731
+        ros1.python(
+            NODE, "talk", chatter, "std_msgs/String", "m.String(data='n%d' % i)", "5", log="t1"
+        )
+        ros1.python(
+            NODE,
+            "talk",
+            pose,
+            "geometry_msgs/PoseStamped",
+            "m.PoseStamped(header=std.Header(frame_id='odom'),"
+            " pose=m.Pose(position=m.Point(x=i, y=2.0)))",
+            "2",
+            log="t2",
+        )
+        ros1.python(
+            NODE,
+            "talk",
+            image,
+            "sensor_msgs/Image",
+            "m.Image(height=512, width=512, encoding='rgb8', step=1536,"
+            " data=bytes([i % 256]) * (512 * 1536))",
+            "2",
+            log="t3",
+        )
+
+        def counts() -> list[int]:
+            return [len(node.published(t)) for t in (chatter, pose, image)]
+
         assert spin_until(node, lambda: counts() >= [5, 2, 2]), (counts(), ros1.log_text("t2"))
         assert [m.data for m in node.published(chatter)] == [f"n{i}" for i in range(5)]
         poses = node.published(pose)
         assert [(m.header.frame_id, m.pose.position.x, m.pose.position.y) for m in poses] == [
-            ("odom", 0.0, 2.0), ("odom", 1.0, 2.0)]
+            ("odom", 0.0, 2.0),
+            ("odom", 1.0, 2.0),
+        ]
         images = node.published(image)
         assert images[1].width == 512 and images[1].encoding == "rgb8"
         assert bytes(images[1].data) == bytes([1]) * (512 * 1536)
@@ -199,16 +242,32 @@ def test_type_learned_from_connection_with_yaml_rule(ros1: Ros1System) -> None:
     node, b = bridge(
         ros1,
         [{"ros2": topic, "peer_type": "lab_msgs/Sighting", "direction": "from_peer"}],
-        types=[{"ros1": "lab_msgs/Sighting", "ros2": "geometry_msgs/msg/Vector3",
-                "fields": {"x": "distance", "y": "bearing"}}],
+        types=[
+            {
+                "ros1": "lab_msgs/Sighting",
+                "ros2": "geometry_msgs/msg/Vector3",
+                "fields": {"x": "distance", "y": "bearing"},
+            }
+        ],
     )
     try:
         assert "lab_msgs/Sighting" not in b.translators.registry
-        ros1.python(NODE, "talk", topic, "lab_msgs/Sighting",
-                    "cls(label='ball', distance=2.5 + i, bearing=-0.25)", "3", SIGHTING, log="t")
+        ros1.python(
+            NODE,
+            "talk",
+            topic,
+            "lab_msgs/Sighting",
+            "cls(label='ball', distance=2.5 + i, bearing=-0.25)",
+            "3",
+            SIGHTING,
+            log="t",
+        )
         assert spin_until(node, lambda: len(node.published(topic)) >= 3)
         assert [(m.x, m.y, m.z) for m in node.published(topic)] == [
-            (2.5, -0.25, 0.0), (3.5, -0.25, 0.0), (4.5, -0.25, 0.0)]
+            (2.5, -0.25, 0.0),
+            (3.5, -0.25, 0.0),
+            (4.5, -0.25, 0.0),
+        ]
         assert "lab_msgs/Sighting" in b.translators.registry
     finally:
         b.close()
@@ -245,12 +304,19 @@ def test_rostopic_echo_hz_and_rosbag_record(ros1: Ros1System) -> None:
         assert echo.wait(timeout=20) == 0
         assert echo.stdout is not None
         out = echo.stdout.read().decode()
-        assert "data: \"m0\"" in out or "data: m0" in out or "data: \"m" in out
+        assert 'data: "m0"' in out or "data: m0" in out or 'data: "m' in out
         Ros1System.kill(rec, sig=2)  # SIGINT: rosbag closes the bag
-        script = ("import rosbag,sys\nb=rosbag.Bag(sys.argv[1])\n"
-                  "print(len([m.data for _,m,_ in b.read_messages()]))")
-        count = subprocess.run(["/usr/bin/python3", "-c", script, str(bag)], env=ros1.env,
-                               capture_output=True, timeout=60, check=True)
+        script = (
+            "import rosbag,sys\nb=rosbag.Bag(sys.argv[1])\n"
+            "print(len([m.data for _,m,_ in b.read_messages()]))"
+        )
+        count = subprocess.run(
+            ["/usr/bin/python3", "-c", script, str(bag)],
+            env=ros1.env,
+            capture_output=True,
+            timeout=60,
+            check=True,
+        )
         assert int(count.stdout) > 10
     finally:
         b.close()

@@ -9,6 +9,7 @@ counted, and the link must come back after the veth goes down and up.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import os
@@ -17,11 +18,12 @@ import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import pytest
 
 from efficient_comm.testing import isolated_domain_id, ros_env
-from rf_bridge.testing import LineReader, free_port, wait_for
+from rf_bridge.testing import LineReader, free_port
 
 ROBOT = r"""
 import json, sys, threading, time
@@ -33,7 +35,10 @@ args = json.loads(sys.argv[1])
 node = TestHandle("robot")
 bridge = BridgeNode(node, config=parse_config(args["config"]))
 commands = []
-threading.Thread(target=lambda: [commands.append(l.split()) for l in sys.stdin], daemon=True).start()
+def read_commands():
+    for line in sys.stdin:
+        commands.append(line.split())
+threading.Thread(target=read_commands, daemon=True).start()
 
 def stats():
     return {f"{s.topic} {s.direction}": [s.messages, s.drops] for s in bridge.stats()}
@@ -61,7 +66,8 @@ while True:
 
 FORWARDER = r"""
 import random, select, socket, sys
-listen_host, listen_port, target_port, loss = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4])
+listen_host, listen_port = sys.argv[1], int(sys.argv[2])
+target_port, loss = int(sys.argv[3]), float(sys.argv[4])
 rng = random.Random(7)
 outer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); outer.bind((listen_host, listen_port))
 inner = {}  # client address -> its own socket towards the target (as a NAT would)
@@ -115,9 +121,28 @@ def link() -> Iterator[Link]:
             lk.ip("-n", ns, "addr", "add", f"{addr}/24", "dev", dev)
             lk.ip("-n", ns, "link", "set", dev, "up")
             lk.ip("-n", ns, "link", "set", "lo", "up")
-            subprocess.run(["tc", "-n", ns, "qdisc", "add", "dev", dev, "root", "tbf", "rate",
-                            "2mbit", "burst", "16kb", "latency", "100ms"],
-                           check=True, capture_output=True, timeout=20)
+            subprocess.run(
+                [
+                    "tc",
+                    "-n",
+                    ns,
+                    "qdisc",
+                    "add",
+                    "dev",
+                    dev,
+                    "root",
+                    "tbf",
+                    "rate",
+                    "2mbit",
+                    "burst",
+                    "16kb",
+                    "latency",
+                    "100ms",
+                ],
+                check=True,
+                capture_output=True,
+                timeout=20,
+            )
     except (subprocess.CalledProcessError, FileNotFoundError) as exc:
         pytest.fail(f"cannot build the namespace link (ip netns, veth, tc tbf needed): {exc}")
     try:
@@ -125,19 +150,25 @@ def link() -> Iterator[Link]:
     finally:
         for ns in (lk.ns_a, lk.ns_b):
             subprocess.run(["ip", "netns", "pids", ns], capture_output=True, timeout=20)
-            pids = subprocess.run(["ip", "netns", "pids", ns], capture_output=True, text=True,
-                                  timeout=20).stdout.split()
+            pids = subprocess.run(
+                ["ip", "netns", "pids", ns], capture_output=True, text=True, timeout=20
+            ).stdout.split()
             for pid in pids:
-                try:
+                with contextlib.suppress(ProcessLookupError):
                     os.kill(int(pid), 9)
-                except ProcessLookupError:
-                    pass
             subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=20)
 
 
-def start(ns: str, args: list[str], env: dict[str, str]) -> tuple[subprocess.Popen[bytes], LineReader]:
-    proc = subprocess.Popen(["ip", "netns", "exec", ns, *args], env=env, stdin=subprocess.PIPE,
-                            stdout=subprocess.PIPE, start_new_session=True)
+def start(
+    ns: str, args: list[str], env: dict[str, str]
+) -> tuple[subprocess.Popen[bytes], LineReader]:
+    proc = subprocess.Popen(
+        ["ip", "netns", "exec", ns, *args],
+        env=env,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        start_new_session=True,
+    )
     reader = LineReader(proc)
     assert reader.next(60) == "ready"
     return proc, reader
@@ -163,24 +194,41 @@ def test_team_link_over_lossy_limited_link_recovers_after_outage(link: Link) -> 
     port_b, port_fwd = free_port(), 7447
     topic, slow = "/team/ball", "/team/map"
     robot = {"prefix": "rf_team"}
-    topics = [
+    topics: list[dict[str, Any]] = [
         {"ros2": topic, "type": "std_msgs/msg/String", "peer": "team"},
-        {"ros2": slow, "type": "std_msgs/msg/String", "peer": "team",
-         "throttle": {"max_rate_hz": 10.0}},
+        {
+            "ros2": slow,
+            "type": "std_msgs/msg/String",
+            "peer": "team",
+            "throttle": {"max_rate_hz": 10.0},
+        },
     ]
-    cfg_a = {"team": {**robot, "robot_id": "a", "connect": [f"udp/{link.addr_b}:{port_fwd}"]},
-             "topics": [{**t, "direction": "to_peer"} for t in topics]}
-    cfg_b = {"team": {**robot, "robot_id": "b", "listen": [f"udp/127.0.0.1:{port_b}"]},
-             "topics": [{k: v for k, v in t.items() if k != "throttle"} | {"direction": "from_peer"}
-                        for t in topics]}
+    cfg_a = {
+        "team": {**robot, "robot_id": "a", "connect": [f"udp/{link.addr_b}:{port_fwd}"]},
+        "topics": [{**t, "direction": "to_peer"} for t in topics],
+    }
+    cfg_b = {
+        "team": {**robot, "robot_id": "b", "listen": [f"udp/127.0.0.1:{port_b}"]},
+        "topics": [
+            {k: v for k, v in t.items() if k != "throttle"} | {"direction": "from_peer"}
+            for t in topics
+        ],
+    }
     procs = []
     try:
-        fwd, _ = start(link.ns_b, ["/usr/bin/python3", "-c", FORWARDER, link.addr_b,
-                                   str(port_fwd), str(port_b), "0.05"], env)
+        fwd, _ = start(
+            link.ns_b,
+            ["/usr/bin/python3", "-c", FORWARDER, link.addr_b, str(port_fwd), str(port_b), "0.05"],
+            env,
+        )
         procs.append(fwd)
-        b, out_b = start(link.ns_b, [sys.executable, "-c", ROBOT, json.dumps({"config": cfg_b})], env)
+        b, out_b = start(
+            link.ns_b, [sys.executable, "-c", ROBOT, json.dumps({"config": cfg_b})], env
+        )
         procs.append(b)
-        a, out_a = start(link.ns_a, [sys.executable, "-c", ROBOT, json.dumps({"config": cfg_a})], env)
+        a, out_a = start(
+            link.ns_a, [sys.executable, "-c", ROBOT, json.dumps({"config": cfg_a})], env
+        )
         procs.append(a)
 
         received: list[int] = []
@@ -248,10 +296,8 @@ def test_team_link_over_lossy_limited_link_recovers_after_outage(link: Link) -> 
         assert drops_b.get("lost", 0) >= lost + 30  # most of the 50 sent during the outage
     finally:
         for p in procs:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.killpg(p.pid, 9)
-            except ProcessLookupError:
-                pass
             p.wait(timeout=10)
             for pipe in (p.stdin, p.stdout):
                 if pipe is not None:

@@ -41,6 +41,7 @@ from typing import Any, Literal
 
 import yaml
 from rclpy.qos import QoSProfile
+
 from throttle_publisher import ThrottleOptions
 from throttle_publisher.errors import ThrottleError
 
@@ -138,7 +139,9 @@ def parse_config(data: Any, *, source: str = "<config>") -> BridgeConfig:
             topics.append(spec)
         except ConfigError as exc:
             errors.append(str(exc))
-    return BridgeConfig(topics=tuple(topics), rules=rules, ros1=ros1, team=team, errors=tuple(errors))
+    return BridgeConfig(
+        topics=tuple(topics), rules=rules, ros1=ros1, team=team, errors=tuple(errors)
+    )
 
 
 def _mapping(value: Any, where: str, allowed: set[str]) -> Mapping[str, Any]:
@@ -153,15 +156,26 @@ def _mapping(value: Any, where: str, allowed: set[str]) -> Mapping[str, Any]:
 
 
 def _typed(value: Any, kind: type | tuple[type, ...], where: str) -> Any:
-    if isinstance(value, bool) and kind is not bool or not isinstance(value, kind):
+    if (isinstance(value, bool) and kind is not bool) or not isinstance(value, kind):
         raise ConfigError(f"{where}: expected {kind}, not {value!r}")
     return value
 
 
 def _ros1(value: Any, where: str) -> Ros1Options:
-    m = _mapping(value, where, {"master_uri", "node_name", "bind", "advertise_host",
-                                "max_message_bytes", "send_timeout_s", "queue_size",
-                                "master_check_s"})
+    m = _mapping(
+        value,
+        where,
+        {
+            "master_uri",
+            "node_name",
+            "bind",
+            "advertise_host",
+            "max_message_bytes",
+            "send_timeout_s",
+            "queue_size",
+            "master_check_s",
+        },
+    )
     master = m.get("master_uri") or os.environ.get("ROS_MASTER_URI")
     if not master:
         raise ConfigError(f"{where}: no master_uri and no ROS_MASTER_URI in the environment")
@@ -173,16 +187,25 @@ def _ros1(value: Any, where: str) -> Ros1Options:
         node_name=node_name,
         bind=_typed(m.get("bind", "127.0.0.1"), str, f"{where}.bind"),
         advertise_host=m.get("advertise_host"),
-        max_message_bytes=_typed(m.get("max_message_bytes", 64 << 20), int, f"{where}.max_message_bytes"),
-        send_timeout_s=float(_typed(m.get("send_timeout_s", 2.0), (int, float), f"{where}.send_timeout_s")),
+        max_message_bytes=_typed(
+            m.get("max_message_bytes", 64 << 20), int, f"{where}.max_message_bytes"
+        ),
+        send_timeout_s=float(
+            _typed(m.get("send_timeout_s", 2.0), (int, float), f"{where}.send_timeout_s")
+        ),
         queue_size=_typed(m.get("queue_size", 100), int, f"{where}.queue_size"),
-        master_check_s=float(_typed(m.get("master_check_s", 0.5), (int, float), f"{where}.master_check_s")),
+        master_check_s=float(
+            _typed(m.get("master_check_s", 0.5), (int, float), f"{where}.master_check_s")
+        ),
     )
 
 
 def _team(value: Any, where: str) -> TeamOptions:
-    m = _mapping(value, where, {"robot_id", "listen", "connect", "compression", "prefix",
-                                "multicast_scouting", "lease_s"})
+    m = _mapping(
+        value,
+        where,
+        {"robot_id", "listen", "connect", "compression", "prefix", "multicast_scouting", "lease_s"},
+    )
     robot_id = _typed(m.get("robot_id"), str, f"{where}.robot_id")
     compression = m.get("compression", "zlib")
     if compression not in ("zlib", "none"):
@@ -190,9 +213,14 @@ def _team(value: Any, where: str) -> TeamOptions:
     listen = tuple(_typed(x, str, f"{where}.listen") for x in m.get("listen") or [])
     connect = tuple(_typed(x, str, f"{where}.connect") for x in m.get("connect") or [])
     return TeamOptions(
-        robot_id=robot_id, listen=listen, connect=connect, compression=compression,
+        robot_id=robot_id,
+        listen=listen,
+        connect=connect,
+        compression=compression,
         prefix=_typed(m.get("prefix", "rf_team"), str, f"{where}.prefix"),
-        multicast_scouting=_typed(m.get("multicast_scouting", False), bool, f"{where}.multicast_scouting"),
+        multicast_scouting=_typed(
+            m.get("multicast_scouting", False), bool, f"{where}.multicast_scouting"
+        ),
         lease_s=float(_typed(m.get("lease_s", 3.0), (int, float), f"{where}.lease_s")),
     )
 
@@ -209,8 +237,11 @@ def _rule(value: Any, where: str) -> TypeRule:
 
 
 def _topic(value: Any, where: str) -> TopicSpec:
-    m = _mapping(value, where, {"ros2", "type", "peer", "peer_topic", "peer_type", "direction",
-                                "qos", "throttle"})
+    m = _mapping(
+        value,
+        where,
+        {"ros2", "type", "peer", "peer_topic", "peer_type", "direction", "qos", "throttle"},
+    )
     ros2 = _typed(m.get("ros2"), str, f"{where}.ros2")
     peer = m.get("peer", "ros1")
     if peer not in PEERS:
@@ -223,13 +254,17 @@ def _topic(value: Any, where: str) -> TopicSpec:
     if ros2_type is None and peer_type is None:
         raise ConfigError(f"{where}: give 'type' (ROS 2) or 'peer_type'")
     throttle = None
-    mode = "local"
+    mode: Literal["local", "publisher"] = "local"
     if m.get("throttle") is not None:
-        t = dict(_mapping(m["throttle"], f"{where}.throttle",
-                          {"max_rate_hz", "every_nth", "paused", "mode"}))
-        mode = t.pop("mode", "local")
-        if mode not in ("local", "publisher"):
-            raise ConfigError(f"{where}.throttle.mode: local or publisher, not {mode!r}")
+        t = dict(
+            _mapping(
+                m["throttle"], f"{where}.throttle", {"max_rate_hz", "every_nth", "paused", "mode"}
+            )
+        )
+        mode_value = t.pop("mode", "local")
+        if mode_value not in ("local", "publisher"):
+            raise ConfigError(f"{where}.throttle.mode: local or publisher, not {mode_value!r}")
+        mode = "publisher" if mode_value == "publisher" else "local"
         try:
             throttle = ThrottleOptions(**t)
         except ThrottleError as exc:

@@ -7,6 +7,7 @@ Every process gets its own session and is killed with its group on close.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import shutil
@@ -70,7 +71,7 @@ class LineReader:
         return line
 
     def drain(self) -> list[str]:
-        out = []
+        out: list[str] = []
         while True:
             try:
                 line = self._lines.get_nowait()
@@ -130,8 +131,12 @@ class Ros1System:
         """Start a ROS 1 program in its own session (stderr to ``workdir/<log>.log``)."""
         err = open(self.workdir / f"{log}.log", "ab")  # noqa: SIM115 (closed with the process)
         proc = subprocess.Popen(
-            list(args), env=self.env, cwd=self.workdir, start_new_session=True,
-            stdout=subprocess.PIPE if stdout_pipe else err, stderr=err,
+            list(args),
+            env=self.env,
+            cwd=self.workdir,
+            start_new_session=True,
+            stdout=subprocess.PIPE if stdout_pipe else err,
+            stderr=err,
         )
         err.close()
         self._procs.append(proc)
@@ -148,10 +153,8 @@ class Ros1System:
     @staticmethod
     def kill(proc: subprocess.Popen[bytes], sig: int = signal.SIGKILL) -> None:
         if proc.poll() is None:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.killpg(proc.pid, sig)
-            except ProcessLookupError:
-                pass
         try:
             proc.wait(timeout=10)
         except subprocess.TimeoutExpired:

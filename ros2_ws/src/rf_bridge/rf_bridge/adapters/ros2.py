@@ -91,7 +91,8 @@ class BridgeNode:
         else:
             cls = self.translators.ros2_class_for(spec.peer_type)
         return Route(
-            spec=spec, ros2_cls=cls,
+            spec=spec,
+            ros2_cls=cls,
             stats_out=TopicStats(spec.ros2_topic, f"to_{spec.peer}"),
             stats_in=TopicStats(spec.ros2_topic, f"from_{spec.peer}"),
         )
@@ -103,18 +104,27 @@ class BridgeNode:
                 route.ros2_cls, spec.ros2_topic, qos=spec.qos
             )
         if spec.outbound:
+
             def callback(msg: Any, route: Route = route) -> None:
                 self.router.from_ros2(route, msg)
 
             if spec.throttle is not None and spec.throttle_mode == "publisher":
                 from throttle_publisher import ThrottledSubscription
 
-                self._throttled.append(ThrottledSubscription(
-                    self._node, route.ros2_cls, spec.ros2_topic, callback,
-                    options=spec.throttle, qos=spec.qos,
-                ))
+                self._throttled.append(
+                    ThrottledSubscription(
+                        self._node,
+                        route.ros2_cls,
+                        spec.ros2_topic,
+                        callback,
+                        options=spec.throttle,
+                        qos=spec.qos,
+                    )
+                )
             else:
-                self._node.create_subscription(route.ros2_cls, spec.ros2_topic, callback, qos=spec.qos)
+                self._node.create_subscription(
+                    route.ros2_cls, spec.ros2_topic, callback, qos=spec.qos
+                )
 
     def _publish(self, route: Route, msg: Any) -> None:
         self._publishers[id(route)].publish(msg)

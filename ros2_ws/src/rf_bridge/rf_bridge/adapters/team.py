@@ -57,8 +57,9 @@ class TeamAdapter:
         conf.insert_json5("mode", '"peer"')
         conf.insert_json5("listen/endpoints", json.dumps(list(self.options.listen)))
         conf.insert_json5("connect/endpoints", json.dumps(list(self.options.connect)))
-        conf.insert_json5("scouting/multicast/enabled",
-                          "true" if self.options.multicast_scouting else "false")
+        conf.insert_json5(
+            "scouting/multicast/enabled", "true" if self.options.multicast_scouting else "false"
+        )
         # A short lease: a dead link is noticed (and re-established) within seconds.
         conf.insert_json5("transport/link/tx/lease", str(int(self.options.lease_s * 1000)))
         try:
@@ -70,15 +71,19 @@ class TeamAdapter:
             reliable = route.spec.qos.reliability != ReliabilityPolicy.BEST_EFFORT
             if route.spec.outbound:
                 self._pubs[id(route)] = self._session.declare_publisher(
-                    key, congestion_control=zenoh.CongestionControl.DROP,
-                    reliability=zenoh.Reliability.RELIABLE if reliable
+                    key,
+                    congestion_control=zenoh.CongestionControl.DROP,
+                    reliability=zenoh.Reliability.RELIABLE
+                    if reliable
                     else zenoh.Reliability.BEST_EFFORT,
                 )
                 self._seq[id(route)] = 0
             if route.spec.inbound:
-                self._subs.append(self._session.declare_subscriber(
-                    key, lambda sample, route=route: self._on_sample(route, sample, deliver)
-                ))
+                self._subs.append(
+                    self._session.declare_subscriber(
+                        key, lambda sample, route=route: self._on_sample(route, sample, deliver)
+                    )
+                )
         self._log.info(f"team link up as {self.options.robot_id}: {len(routes)} topic(s)")
 
     def send(self, route: Route, msg: Any, received_ns: int) -> None:
@@ -107,7 +112,7 @@ class TeamAdapter:
         try:
             attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
             seq, flags = _ATTACHMENT.unpack_from(attachment)
-            origin = attachment[_ATTACHMENT.size:]
+            origin = attachment[_ATTACHMENT.size :]
         except (struct.error, AttributeError):
             route.stats_in.dropped("malformed")
             self._log.warning(f"team link: sample without a valid attachment on {route.peer_topic}")

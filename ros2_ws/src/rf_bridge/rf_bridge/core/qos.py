@@ -14,9 +14,13 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from ..errors import ConfigError
 
-_RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
+_RELIABILITY = {
+    "reliable": ReliabilityPolicy.RELIABLE,
+    "best_effort": ReliabilityPolicy.BEST_EFFORT,
+}
 _DURABILITY = {
-    "volatile": DurabilityPolicy.VOLATILE, "transient_local": DurabilityPolicy.TRANSIENT_LOCAL,
+    "volatile": DurabilityPolicy.VOLATILE,
+    "transient_local": DurabilityPolicy.TRANSIENT_LOCAL,
 }
 
 
@@ -54,6 +58,8 @@ def from_ros1_latch(profile: QoSProfile, latched: bool) -> QoSProfile:
     if not latched or profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
         return profile
     return QoSProfile(
-        history=profile.history, depth=profile.depth, reliability=profile.reliability,
+        history=profile.history,
+        depth=profile.depth,
+        reliability=profile.reliability,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )

@@ -55,7 +55,11 @@ class TopicStats:
         with self._lock:
             lat = sorted(self._latency_ns)
             return TopicStatsSnapshot(
-                self.topic, self.direction, self._messages, self._bytes, dict(self._drops),
+                self.topic,
+                self.direction,
+                self._messages,
+                self._bytes,
+                dict(self._drops),
                 statistics.median(lat) / 1e3 if lat else None,
                 lat[min(len(lat) - 1, int(len(lat) * 0.99))] / 1e3 if lat else None,
             )

@@ -11,8 +11,14 @@ from .ros1_types import TypeRegistry, derive_from_ros2, ros2_class, ros2_type_na
 from .translator import Translator, TypeRule
 
 __all__ = [
-    "Ros1Codec", "Translator", "TranslatorSet", "TypeRegistry", "TypeRule",
-    "derive_from_ros2", "ros2_class", "ros2_type_name",
+    "Ros1Codec",
+    "Translator",
+    "TranslatorSet",
+    "TypeRegistry",
+    "TypeRule",
+    "derive_from_ros2",
+    "ros2_class",
+    "ros2_type_name",
 ]
 
 

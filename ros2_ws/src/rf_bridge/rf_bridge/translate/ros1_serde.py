@@ -19,9 +19,19 @@ Decoder = Callable[[memoryview, int], tuple[Any, int]]
 Encoder = Callable[[Any, list[bytes]], None]
 
 _CODES = {
-    "bool": "?", "int8": "b", "uint8": "B", "byte": "b", "char": "B", "int16": "h",
-    "uint16": "H", "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q",
-    "float32": "f", "float64": "d",
+    "bool": "?",
+    "int8": "b",
+    "uint8": "B",
+    "byte": "b",
+    "char": "B",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+    "float32": "f",
+    "float64": "d",
 }
 _BYTES_TYPES = {"uint8", "int8", "byte", "char"}
 _U32 = struct.Struct("<I")
@@ -30,7 +40,9 @@ _TIME = {"time": struct.Struct("<II"), "duration": struct.Struct("<ii")}
 
 def _need(buf: memoryview, off: int, n: int) -> None:
     if n < 0 or off + n > len(buf):
-        raise ProtocolError(f"truncated message: need {n} bytes at offset {off}, have {len(buf) - off}")
+        raise ProtocolError(
+            f"truncated message: need {n} bytes at offset {off}, have {len(buf) - off}"
+        )
 
 
 def _read_len(buf: memoryview, off: int) -> tuple[int, int]:

@@ -11,17 +11,30 @@ from __future__ import annotations
 import hashlib
 import importlib
 import threading
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from ..errors import TranslationError, UnknownTypeError
 
 #: Built-in field types of ROS 1 and their wire size (0: variable length).
 PRIMITIVES: dict[str, int] = {
-    "bool": 1, "int8": 1, "uint8": 1, "byte": 1, "char": 1,
-    "int16": 2, "uint16": 2, "int32": 4, "uint32": 4, "int64": 8, "uint64": 8,
-    "float32": 4, "float64": 8, "string": 0, "time": 8, "duration": 8,
+    "bool": 1,
+    "int8": 1,
+    "uint8": 1,
+    "byte": 1,
+    "char": 1,
+    "int16": 2,
+    "uint16": 2,
+    "int32": 4,
+    "uint32": 4,
+    "int64": 8,
+    "uint64": 8,
+    "float32": 4,
+    "float64": 8,
+    "string": 0,
+    "time": 8,
+    "duration": 8,
 }
 _SEPARATOR = "=" * 80
 
@@ -188,10 +201,23 @@ class TypeRegistry:
 # --- deriving a ROS 1 definition from a ROS 2 type -------------------------------------
 
 _ROS2_PRIMITIVES = {
-    "boolean": "bool", "octet": "uint8", "char": "uint8", "byte": "uint8", "int8": "int8",
-    "uint8": "uint8", "int16": "int16", "uint16": "uint16", "int32": "int32",
-    "uint32": "uint32", "int64": "int64", "uint64": "uint64", "float": "float32",
-    "double": "float64", "float32": "float32", "float64": "float64", "string": "string",
+    "boolean": "bool",
+    "octet": "uint8",
+    "char": "uint8",
+    "byte": "uint8",
+    "int8": "int8",
+    "uint8": "uint8",
+    "int16": "int16",
+    "uint16": "uint16",
+    "int32": "int32",
+    "uint32": "uint32",
+    "int64": "int64",
+    "uint64": "uint64",
+    "float": "float32",
+    "double": "float64",
+    "float32": "float32",
+    "float64": "float64",
+    "string": "string",
     "wstring": "string",
 }
 _ROS2_SPECIAL = {"builtin_interfaces/Time": "time", "builtin_interfaces/Duration": "duration"}
@@ -240,7 +266,7 @@ def _ros2_field(name: str, ros2_type: str) -> tuple[Field, str | None]:
     array: int | None = None
     t = ros2_type
     if t.startswith("sequence<"):
-        t = t[len("sequence<"):-1].split(",")[0]
+        t = t[len("sequence<") : -1].split(",")[0]
         array = -1
     elif t.endswith("]"):
         t, _, size = t[:-1].partition("[")
@@ -270,7 +296,7 @@ def derive_from_ros2(registry: TypeRegistry, cls: type, *, ros1_name: str | None
         return name
     fields: list[Field] = []
     renames = _ROS1_FIELD_NAMES.get(name, {})
-    for field_name, ros2_type in cls.get_fields_and_field_types().items():
+    for field_name, ros2_type in cls.get_fields_and_field_types().items():  # type: ignore[attr-defined]
         field, nested = _ros2_field(renames.get(field_name, field_name), ros2_type)
         if nested is not None:
             nested_pkg, _, nested_name = nested.partition("/")
@@ -301,7 +327,9 @@ def _ros2_constants(cls: type, pkg: str, msg_name: str) -> tuple[Constant, ...]:
                 found.append(Constant(parts[0], cname.strip(), value.strip()))
         return tuple(found)
     return tuple(
-        Constant(_constant_type(value), cname, str(int(value) if isinstance(value, bool) else value))
+        Constant(
+            _constant_type(value), cname, str(int(value) if isinstance(value, bool) else value)
+        )
         for cname, value in ros2_constants(cls).items()
     )
 

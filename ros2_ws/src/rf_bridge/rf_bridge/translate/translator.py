@@ -20,9 +20,19 @@ from .ros1_types import _ROS2_PRIMITIVES, Field, TypeRegistry, ros2_class
 Convert = Callable[[Any], Any]
 
 _ARRAY_CODES = {
-    "boolean": None, "int8": "b", "uint8": "B", "int16": "h", "uint16": "H", "int32": "i",
-    "uint32": "I", "int64": "q", "uint64": "Q", "float": "f", "double": "d",
-    "float32": "f", "float64": "d",
+    "boolean": None,
+    "int8": "b",
+    "uint8": "B",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+    "float": "f",
+    "double": "d",
+    "float32": "f",
+    "float64": "d",
 }
 _TIME_TYPES = {"builtin_interfaces/Time": "time", "builtin_interfaces/Duration": "duration"}
 
@@ -44,7 +54,7 @@ class TypeRule:
 def _split(ros2_type: str) -> tuple[str, int | None]:
     """Element type and array kind (None scalar, -1 sequence, n fixed) of a ROS 2 type."""
     if ros2_type.startswith("sequence<"):
-        return ros2_type[len("sequence<"):-1].split(",")[0], -1
+        return ros2_type[len("sequence<") : -1].split(",")[0], -1
     if ros2_type.endswith("]"):
         base, _, size = ros2_type[:-1].partition("[")
         return base, int(size) if size.isdigit() else -1
@@ -59,7 +69,11 @@ class Translator:
     """Converts one ROS 1 type to one ROS 2 class and back."""
 
     def __init__(
-        self, registry: TypeRegistry, ros1_type: str, ros2_cls: type, *,
+        self,
+        registry: TypeRegistry,
+        ros1_type: str,
+        ros2_cls: type,
+        *,
         rules: Mapping[tuple[str, str], TypeRule] | None = None,
     ) -> None:
         self.ros1_type = ros1_type
@@ -137,11 +151,18 @@ class Translator:
         elem, arr = _split(ros2_type)
         elem = _base(elem)
         if (arr is None) != (f.array is None):
-            raise TranslationError(f"{where[:-1]}: array on one side only ({ros2_type} vs {f.spec_type()})")
+            raise TranslationError(
+                f"{where[:-1]}: array on one side only ({ros2_type} vs {f.spec_type()})"
+            )
         one = self._elem_to_ros2(elem, f, where)
         if arr is None:
             return one
-        if elem in ("uint8", "octet", "char", "byte") and f.type in ("uint8", "int8", "byte", "char"):
+        if elem in ("uint8", "octet", "char", "byte") and f.type in (
+            "uint8",
+            "int8",
+            "byte",
+            "char",
+        ):
             if elem == "octet" or elem == "byte":
                 return lambda v: [bytes((b,)) for b in v]
             return lambda v: v if arr == -1 else list(v)
@@ -177,7 +198,10 @@ class Translator:
 
     def _plan_to_ros1(self, ros1_type: str, ros2_cls: type, where: str) -> Convert:
         spec = self._registry.get(ros1_type)
-        pairs = {f.name: (name, ros2_type) for name, ros2_type, f in self._pairs(ros1_type, ros2_cls, where)}
+        pairs = {
+            f.name: (name, ros2_type)
+            for name, ros2_type, f in self._pairs(ros1_type, ros2_cls, where)
+        }
         steps: list[tuple[str, str | None, Any]] = []
         for f in spec.fields:
             if f.name in pairs:

@@ -8,6 +8,7 @@ everything again, so ROS 1 nodes started later find the bridged topics without a
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import threading
 import time
@@ -22,7 +23,7 @@ from ...core.qos import ros1_latch
 from ...errors import LinkError, ProtocolError, RfBridgeError, TranslationError
 from ...translate import Translator, TranslatorSet
 from .tcpros import InboundLink, OutboundConnection, encode_header, frame, read_header
-from .xmlrpc import MasterRefused, SlaveServer, call
+from .xmlrpc import MasterRefusedError, SlaveServer, call
 
 
 @dataclass(eq=False)
@@ -73,8 +74,11 @@ class Ros1Adapter:
         self._listener = socket.create_server((host, 0))
         self._tcp_port = self._listener.getsockname()[1]
         self._slave = SlaveServer(
-            host=host, advertise_host=advertise, master_uri=self._master,
-            on_publishers=self._on_publishers, on_request=self._on_request,
+            host=host,
+            advertise_host=advertise,
+            master_uri=self._master,
+            on_publishers=self._on_publishers,
+            on_request=self._on_request,
             publications=lambda: [[t, p.ros1_type] for t, p in self._pubs.items()],
             subscriptions=lambda: [[t, s.ros1_type] for t, s in self._subs.items()],
         )
@@ -113,10 +117,8 @@ class Ros1Adapter:
             self._slave.close()
 
     def _quietly(self, method: str, topic: str) -> None:
-        try:
+        with contextlib.suppress(LinkError):
             call(self._master, method, self._caller_id, topic, self.uri, timeout_s=0.5)
-        except LinkError:
-            pass
 
     # --- master --------------------------------------------------------------------------
 
@@ -124,7 +126,9 @@ class Ros1Adapter:
         ros1_type = self._translators.ros1_type_for(route.ros2_cls, route.spec.peer_type)
         registry = self._translators.registry
         pub = _Publication(
-            route=route, ros1_type=ros1_type, md5sum=registry.md5sum(ros1_type),
+            route=route,
+            ros1_type=ros1_type,
+            md5sum=registry.md5sum(ros1_type),
             definition=registry.full_definition(ros1_type),
             translator=self._translators.translator(ros1_type, route.ros2_cls),
             latch=ros1_latch(route.spec.qos),
@@ -141,8 +145,9 @@ class Ros1Adapter:
         for topic, pub in self._pubs.items():
             call(self._master, "registerPublisher", self._caller_id, topic, pub.ros1_type, self.uri)
         for topic, sub in self._subs.items():
-            uris = call(self._master, "registerSubscriber", self._caller_id, topic, sub.ros1_type,
-                        self.uri)
+            uris = call(
+                self._master, "registerSubscriber", self._caller_id, topic, sub.ros1_type, self.uri
+            )
             self._on_publishers(topic, list(uris))
         self.registrations += 1
         self._registered.set()
@@ -153,7 +158,7 @@ class Ros1Adapter:
             try:
                 try:
                     known = call(self._master, "lookupNode", self._caller_id, self._caller_id)
-                except MasterRefused:
+                except MasterRefusedError:
                     known = None
                 if known != self.uri:
                     if self.registrations:
@@ -225,19 +230,22 @@ class Ros1Adapter:
         if pub is None:
             error = f"the bridge does not publish {topic!r}"
         elif header.get("md5sum", "*") not in ("*", pub.md5sum):
-            error = (f"md5sum mismatch for {topic}: {pub.ros1_type} is {pub.md5sum}, "
-                     f"subscriber wants {header.get('md5sum')} ({header.get('type')})")
+            error = (
+                f"md5sum mismatch for {topic}: {pub.ros1_type} is {pub.md5sum}, "
+                f"subscriber wants {header.get('md5sum')} ({header.get('type')})"
+            )
         if error is not None or pub is None:
             self._log.warning(f"rejecting TCPROS subscriber {peer}: {error}")
-            try:
+            with contextlib.suppress(OSError):
                 sock.sendall(encode_header({"error": str(error)}))
-            except OSError:
-                pass
             sock.close()
             return
         reply = {
-            "callerid": self._caller_id, "topic": topic, "type": pub.ros1_type,
-            "md5sum": pub.md5sum, "message_definition": pub.definition,
+            "callerid": self._caller_id,
+            "topic": topic,
+            "type": pub.ros1_type,
+            "md5sum": pub.md5sum,
+            "message_definition": pub.definition,
             "latching": "1" if pub.latch else "0",
         }
         try:
@@ -252,9 +260,14 @@ class Ros1Adapter:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         stats = pub.route.stats_out
         conn = OutboundConnection(
-            sock, peer=peer, topic=topic, queue_size=self.options.queue_size,
-            send_timeout_s=self.options.send_timeout_s, on_undelivered=stats.dropped,
-            on_closed=lambda c: self._remove(pub, c), log=self._log,
+            sock,
+            peer=peer,
+            topic=topic,
+            queue_size=self.options.queue_size,
+            send_timeout_s=self.options.send_timeout_s,
+            on_undelivered=stats.dropped,
+            on_closed=lambda c: self._remove(pub, c),
+            log=self._log,
         )
         with self._lock:
             if pub.latch and pub.last is not None:
@@ -340,9 +353,19 @@ class Ros1Adapter:
             route.stats_in.dropped("oversize")
 
         return InboundLink(
-            publisher_uri=uri, topic=route.peer_topic, request=request,
-            header={"callerid": self._caller_id, "topic": route.peer_topic, "md5sum": "*",
-                    "type": sub.ros1_type, "tcp_nodelay": "1"},
-            max_bytes=self.options.max_message_bytes, on_header=on_header, on_frame=on_frame,
-            on_oversize=on_oversize, log=self._log,
+            publisher_uri=uri,
+            topic=route.peer_topic,
+            request=request,
+            header={
+                "callerid": self._caller_id,
+                "topic": route.peer_topic,
+                "md5sum": "*",
+                "type": sub.ros1_type,
+                "tcp_nodelay": "1",
+            },
+            max_bytes=self.options.max_message_bytes,
+            on_header=on_header,
+            on_frame=on_frame,
+            on_oversize=on_oversize,
+            log=self._log,
         )

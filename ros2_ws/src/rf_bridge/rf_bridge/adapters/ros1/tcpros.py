@@ -14,14 +14,15 @@ peer is checked against limits before anything is allocated for it.
 from __future__ import annotations
 
 import collections
+import contextlib
 import select
 import socket
 import struct
 import threading
 from collections.abc import Callable, Mapping
 
-from ...errors import LinkError, OversizeError, ProtocolError
 from ..._log import RateLimitedLog
+from ...errors import LinkError, OversizeError, ProtocolError
 
 MAX_HEADER_BYTES = 1 << 16
 _U32 = struct.Struct("<I")
@@ -120,7 +121,9 @@ class OutboundConnection:
         self._cond = threading.Condition()
         self._closed = False
         self.sent = 0
-        self._thread = threading.Thread(target=self._writer, name=f"tcpros-out {topic}", daemon=True)
+        self._thread = threading.Thread(
+            target=self._writer, name=f"tcpros-out {topic}", daemon=True
+        )
         self._thread.start()
 
     @property
@@ -169,7 +172,7 @@ class OutboundConnection:
             except (OSError, ValueError):
                 writable = []
             with self._cond:
-                if self._closed:
+                if self._is_closed():  # closed by send() or close() meanwhile
                     return
                 if not writable:
                     self._close_locked(
@@ -189,15 +192,16 @@ class OutboundConnection:
                 else:
                     self._queue[0] = head[n:]
 
+    def _is_closed(self) -> bool:
+        return self._closed
+
     def _close_locked(self, reason: str, *, pending: int) -> None:
         lost = pending + len(self._queue)
         self._queue.clear()
         self._closed = True
         self._cond.notify_all()
-        try:
+        with contextlib.suppress(OSError):
             self.sock.close()
-        except OSError:
-            pass
         if lost:
             self._undelivered("connection_dropped", lost)
         self._log.warning(
@@ -214,10 +218,8 @@ class OutboundConnection:
             self._queue.clear()
             self._closed = True
             self._cond.notify_all()
-            try:
+            with contextlib.suppress(OSError):
                 self.sock.close()
-            except OSError:
-                pass
             if lost:
                 self._undelivered("connection_closed", lost)
 
@@ -275,10 +277,8 @@ class InboundLink:
         self._stop.set()
         sock = self._sock
         if sock is not None:
-            try:
+            with contextlib.suppress(OSError):
                 sock.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
 
     def _run(self) -> None:
         while not self._stop.is_set():

@@ -18,7 +18,8 @@ from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
 from ...errors import LinkError
 
-class MasterRefused(LinkError):
+
+class MasterRefusedError(LinkError):
     """The remote end answered, but with an error code (e.g. it does not know us)."""
 
 
@@ -47,12 +48,12 @@ def call(uri: str, method: str, *args: Any, timeout_s: float = 2.0) -> Any:
     except (OSError, xmlrpc.client.Error, http.client.HTTPException, ValueError) as exc:
         raise LinkError(f"{method} on {uri}: {exc}") from None
     if code != 1:
-        raise MasterRefused(f"{method} on {uri} refused: {status}")
+        raise MasterRefusedError(f"{method} on {uri} refused: {status}")
     return value
 
 
 class _Quiet(SimpleXMLRPCRequestHandler):
-    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
+    def log_message(self, format: str, *args: Any) -> None:
         pass
 
 
@@ -75,7 +76,9 @@ class SlaveServer:
         publications: Callable[[], list[list[str]]],
         subscriptions: Callable[[], list[list[str]]],
     ) -> None:
-        self._server = _Server((host, 0), requestHandler=_Quiet, logRequests=False, allow_none=False)
+        self._server = _Server(
+            (host, 0), requestHandler=_Quiet, logRequests=False, allow_none=False
+        )
         port = self._server.server_address[1]
         self.uri = f"http://{advertise_host}:{port}/"
         self._master_uri = master_uri
@@ -93,16 +96,17 @@ class SlaveServer:
         s.register_function(lambda caller: [1, "", []], "getBusInfo")
         s.register_function(lambda caller: [1, "", [[], [], []]], "getBusStats")
         s.register_function(lambda caller, key, value: [1, "", 0], "paramUpdate")
-        s.register_function(lambda caller, msg="": [1, "ignored: the bridge stops with its host", 0],
-                            "shutdown")
+        s.register_function(
+            lambda caller, msg="": [1, "ignored: the bridge stops with its host", 0], "shutdown"
+        )
         self._thread = threading.Thread(target=s.serve_forever, name="ros1-slave", daemon=True)
         self._thread.start()
 
-    def publisherUpdate(self, caller_id: str, topic: str, publishers: list[str]) -> Reply:  # noqa: N802
+    def publisherUpdate(self, caller_id: Any, topic: Any, publishers: Any) -> Reply:  # noqa: N802
         self._on_publishers(topic, list(publishers))
         return [1, "", 0]
 
-    def requestTopic(self, caller_id: str, topic: str, protocols: list[list[Any]]) -> Reply:  # noqa: N802
+    def requestTopic(self, caller_id: Any, topic: Any, protocols: Any) -> Reply:  # noqa: N802
         try:
             return [1, "ready", self._on_request(topic, protocols)]
         except LookupError as exc:
