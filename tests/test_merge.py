@@ -292,6 +292,18 @@ def test_damaged_and_foreign_inputs(tmp_path):
     report = merge([RobotLog(cut)], tmp_path / "m1", compression="none")
     assert report.robots[0].truncated_files == [cut]
     assert 100 < report.messages < 1001  # everything up to the last complete chunk
+    with open(good, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunk = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[1]
+    flipped = bytearray(data)
+    # a bit error inside a chunk's records: its CRC (or its compression) no longer matches
+    flipped[chunk.chunk_start_offset + chunk.chunk_length // 2] ^= 0xFF
+    corrupt = tmp_path / "corrupt.mcap"
+    corrupt.write_bytes(bytes(flipped))
+    with pytest.raises(LogFormatError):
+        merge([RobotLog(corrupt, model=OffsetModel.identity(robot="a"))], tmp_path / "m5")
+    assert not (tmp_path / "m5").exists()  # no half-merged output left behind
     foreign = tmp_path / "notes.mcap"
     foreign.write_text("not a log")
     with pytest.raises(LogFormatError):

@@ -13,6 +13,7 @@ mid-chunk) are read up to their last complete record and reported as truncated.
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import os
 import struct
@@ -29,14 +30,17 @@ from mcap.records import Channel, Chunk, Message, Schema
 from mcap.stream_reader import breakup_chunk
 from mcap.summary import Summary
 from mcap.writer import CompressionType, Writer
+from zstandard import ZstdError
 
 from .errors import LogFormatError
 
 __all__ = ["BagWriter", "LogReader", "message_definition"]
 
 _SEPARATOR = "=" * 80
-#: What the mcap readers raise on damaged or cut-off input (it uses struct and asserts too).
-_DAMAGED = (McapError, ValueError, EOFError, AssertionError, struct.error)
+#: What the mcap readers raise on damaged or cut-off input (they use struct and asserts too;
+#: the decompressors raise their own errors, lz4 a RuntimeError).
+_DAMAGED = (McapError, ValueError, EOFError, AssertionError, struct.error, ZstdError,
+            RuntimeError)
 
 
 def message_definition(type_name: str) -> str:
@@ -349,6 +353,17 @@ class BagWriter:
 
     def add_metadata(self, name: str, values: Mapping[str, str]) -> None:
         self._writer.add_metadata(name, dict(values))
+
+    def abort(self) -> None:
+        """Stop and delete what was written (the file, or the bag directory)."""
+        if not self._closed:
+            self._closed = True
+            self._stream.close()
+        self.file.unlink(missing_ok=True)
+        if self.directory is not None:
+            (self.directory / "metadata.yaml").unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                self.directory.rmdir()
 
     def close(self) -> None:
         if self._closed:

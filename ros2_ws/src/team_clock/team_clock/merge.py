@@ -109,7 +109,11 @@ def merge(
     has_header: dict[tuple[int, int], bool] = {}
     first_seen: dict[int, int] = {}  # log index -> earliest / latest local log time
     last_seen: dict[int, int] = {}
-    with BagWriter(output, compression=compression) as writer:
+    try:
+        writer = BagWriter(output, compression=compression)
+    except OSError as exc:
+        raise MergeError(f"cannot create {output}: {exc}") from exc
+    try:
         for report in reports:
             m = report.model
             first = m.knots[0]
@@ -141,6 +145,11 @@ def merge(
             report.messages += 1
             first_seen[index] = min(first_seen.get(index, message.log_time), message.log_time)
             last_seen[index] = max(last_seen.get(index, message.log_time), message.log_time)
+        writer.close()
+    except BaseException:
+        # A half-merged file would look like a complete one: remove it, keep the inputs.
+        writer.abort()
+        raise
     for index, (reader, report) in enumerate(zip(readers, reports, strict=True)):
         report.truncated_files = list(reader.truncated)
         if index in first_seen:
