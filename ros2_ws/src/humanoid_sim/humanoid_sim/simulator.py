@@ -182,6 +182,8 @@ class Simulator:
         if self.kick_period_s > 0 and self.sim_time_s >= self._next_kick_s:
             self._next_kick_s += self.kick_period_s
             self._kick()
+        if self._lockstep and not self.pty.sync():  # the driver's last writes applied first
+            self.node.logger.error("servo bus emulator did not answer a sync within 5 s")
         with self.pty.lock:
             self.plant.step(step)
         self.steps += 1

@@ -98,6 +98,19 @@ def test_sync_write_goals_and_sync_read_positions(rig) -> None:
     assert [reader.getData(i, PRESENT, 4) for i in IDS] == [2148, 2248, 2348]
 
 
+def test_sync_waits_until_unanswered_writes_are_applied(rig) -> None:
+    pty, plant, port, ph = rig
+    for round_ in range(20):  # without sync, some rounds would read the previous goal
+        goals = GroupSyncWrite(port, ph, GOAL, 4)
+        for i in IDS:
+            goals.addParam(i, list((1000 + round_ + i).to_bytes(4, "little")))
+        assert goals.txPacket() == COMM_SUCCESS
+        assert pty.sync()
+        assert [pty.bus.servos[i].get("goal_position") for i in IDS] == [
+            1000 + round_ + i for i in IDS]
+    assert pty.bus.packets == 20  # the markers are the emulator's own, not bus traffic
+
+
 def test_bulk_read_different_fields(rig) -> None:
     _, _, port, ph = rig
     bulk = GroupBulkRead(port, ph)

@@ -4,10 +4,17 @@ The driver opens :attr:`PtyBus.port` (e.g. ``/dev/pts/5``) where it would open
 /dev/ttyUSB0; dynamixel-sdk's PortHandler runs unchanged. The emulator reads the master
 side in a thread of its own and answers like the servos on the bus; malformed bytes are
 skipped until the next header, and nothing a driver sends can stop the thread.
+
+A write the driver does not wait on (sync write has no reply) reaches the emulator some
+time later: the kernel moves pty data through a work queue. A lockstep simulation must not
+step physics before such a write is applied, so :meth:`PtyBus.sync` sends a marker through
+the same slave-to-master queue and waits until the emulator has reached it: everything
+written before it has then been handled, whatever the machine's load.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 import random
 import select
@@ -17,7 +24,11 @@ import tty
 from efficient_comm import Closing
 
 from .bus import Bus
-from .protocol import Parser
+from .protocol import BROADCAST_ID, Parser, encode
+
+#: Not a Protocol 2.0 instruction: the emulator's own in-band marker for :meth:`PtyBus.sync`
+#: (a real bus would ignore it: broadcast packets of unknown instructions get no status).
+SYNC_INSTRUCTION = 0x7F
 
 
 class PtyBus(Closing):
@@ -34,6 +45,9 @@ class PtyBus(Closing):
         self.port = os.ttyname(self._slave)
         self.errors: list[BaseException] = []
         self._lock = threading.Lock()
+        self._synced = threading.Condition()
+        self._sync_sent = itertools.count(1)
+        self._sync_seen = 0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, name="dynamixel-bus", daemon=True)
         self._thread.start()
@@ -54,6 +68,11 @@ class PtyBus(Closing):
             except OSError:
                 return
             for packet in parser.feed(data):
+                if packet.dxl_id == BROADCAST_ID and packet.instruction == SYNC_INSTRUCTION:
+                    with self._synced:
+                        self._sync_seen = int.from_bytes(packet.params, "little")
+                        self._synced.notify_all()
+                    continue
                 try:
                     with self._lock:
                         reply = self.bus.handle(packet)
@@ -66,6 +85,16 @@ class PtyBus(Closing):
                         noisy[self._rng.randrange(len(noisy))] ^= 1 << self._rng.randrange(8)
                         reply = bytes(noisy)
                     os.write(self._master, reply)
+
+    def sync(self, *, timeout_s: float = 5.0) -> bool:
+        """Wait until every byte written to the port before this call has been handled.
+
+        False if the emulator did not get there within ``timeout_s`` (it is stopped).
+        """
+        number = next(self._sync_sent)
+        os.write(self._slave, encode(BROADCAST_ID, SYNC_INSTRUCTION, number.to_bytes(8, "little")))
+        with self._synced:
+            return self._synced.wait_for(lambda: self._sync_seen >= number, timeout=timeout_s)
 
     def close(self) -> None:
         self._stop.set()
