@@ -13,7 +13,7 @@ import pytest
 
 from efficient_comm import from_msg
 from efficient_comm.testing import TestHandle
-from team_clock.estimator import OffsetEstimator, Sample
+from team_clock.estimator import OffsetEstimator, Sample, _feasible_range
 from team_clock.sync import OFFSET_QOS, ClockSync
 from team_clock.testing import SimDelay, SimTeam
 from team_clock_interfaces.msg import ClockOffset
@@ -95,6 +95,40 @@ def test_impossible_samples_are_refused_and_counted() -> None:
     assert est.add(Sample(t1=100, t2=1150, t3=1160, t4=210))
     e = est.estimate(210)
     assert e is not None and e.samples == 1
+
+
+def _steady(t: int, offset: int) -> Sample:
+    return Sample(t, t + offset + 100_000, t + offset + 100_000, t + 200_000)
+
+
+def test_a_clock_step_is_followed_once_confirmed() -> None:
+    """The reference's time jumps by 5 ms: one sample is not believed, four are."""
+    est = OffsetEstimator()
+    s = 1_000_000_000
+    for i in range(10):
+        est.add(_steady(i * s, 0))
+    est.add(_steady(10 * s, 5 * MS))  # a lone jump: held back
+    e = est.estimate(10 * s)
+    assert e is not None and abs(e.offset_ns) < 50_000
+    for i in range(11, 14):
+        est.add(_steady(i * s, 5 * MS))
+    assert _feasible_range(list(est._samples), 14 * s, 200.0) is None
+    e = est.estimate(14 * s)
+    assert e is not None
+    assert abs(e.offset_ns - 5 * MS) <= e.uncertainty_ns < 1 * MS
+    assert est.inconsistent > 0 and len(est) == 4  # the old clock is forgotten
+
+
+def test_feasible_range_holds_the_truth_and_is_tight() -> None:
+    rng = random.Random(3)
+    samples = [_exchange(rng, 2 * MS, 30e-6, i * 1_000_000_000, out_s=0.001,
+                         back_s=0.001 + rng.random() * 0.002) for i in range(30)]
+    at = 30_000_000_000
+    feasible = _feasible_range(samples, at, 200.0)
+    assert feasible is not None
+    low, high = feasible
+    assert low <= 2 * MS + 30e-6 * at <= high
+    assert high - low < 2 * max(s.bound_ns for s in samples)
 
 
 def test_old_samples_leave_the_window() -> None:

@@ -24,6 +24,8 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+import numpy as np
+
 __all__ = ["Estimate", "OffsetEstimator", "Sample"]
 
 
@@ -110,6 +112,8 @@ class OffsetEstimator:
         self._samples: deque[Sample] = deque(maxlen=max_samples)
         #: Samples refused by :meth:`add` (negative round trip, time running backwards).
         self.rejected = 0
+        #: Times the window held samples no straight line explains (see :meth:`_consistent`).
+        self.inconsistent = 0
 
     def __len__(self) -> int:
         return len(self._samples)
@@ -138,12 +142,42 @@ class OffsetEstimator:
             self._samples.popleft()
         if not self._samples:
             return None
-        by_delay = sorted(self._samples, key=lambda s: s.delay_ns)
+        window = self._consistent(list(self._samples), at_ns)
+        # shortest round trips first; of equal ones, the newest
+        by_delay = sorted(window, key=lambda s: (s.delay_ns, -s.local_ns))
         keep = max(min(self.min_fit, len(by_delay)), math.ceil(len(by_delay) * self.keep_fraction))
         used = by_delay[:keep]
         if len(used) < 2:
             return self._constant(used, at_ns)
-        return self._fit(used, at_ns)
+        return self._fit(used, window, at_ns)
+
+    def _consistent(self, window: list[Sample], at_ns: int) -> list[Sample]:
+        """The samples one straight line can explain, preferring the newest.
+
+        When no line fits the whole window, the clock stepped, its drift changed, or a
+        sample is wrong. If at least ``min_fit`` of the newest samples agree with each other,
+        that is the new state of the clock: older samples are forgotten. If fewer do, they
+        are held back until enough confirm them, so a single bad answer cannot move the
+        estimate.
+        """
+        if len(window) < 2 or _feasible_range(window, at_ns, self.max_drift_ppm) is not None:
+            return window
+        good, bad = 1, len(window)  # a suffix of `good` samples fits, one of `bad` does not
+        while bad - good > 1:
+            mid = (good + bad) // 2
+            if _feasible_range(window[-mid:], at_ns, self.max_drift_ppm) is None:
+                bad = mid
+            else:
+                good = mid
+        self.inconsistent += 1
+        if good >= self.min_fit:
+            for _ in range(len(window) - good):
+                self._samples.popleft()
+            return window[-good:]
+        older = window[:-good]
+        if _feasible_range(older, at_ns, self.max_drift_ppm) is not None:
+            return older
+        return window
 
     def _constant(self, used: list[Sample], at_ns: int) -> Estimate:
         """No drift measurable yet: the tightest sample, widened by the worst drift."""
@@ -158,7 +192,7 @@ class OffsetEstimator:
             holdover_ppm=self.max_drift_ppm,
         )
 
-    def _fit(self, used: list[Sample], at_ns: int) -> Estimate:
+    def _fit(self, used: list[Sample], window: list[Sample], at_ns: int) -> Estimate:
         samples = list(used)
         # Drop clear outliers (a sample further from the fit than its own bound plus the
         # typical bound), at most a quarter of them, one at a time.
@@ -175,13 +209,24 @@ class OffsetEstimator:
             0.0,
             max(abs(r) - s.bound_ns for s, r in zip(samples, fit.residuals, strict=True)),
         )
+        value, bound = fit.value, fit.bound + model_error
+        # Tighter, when the samples agree with a straight line: the exact range of lines
+        # that every sample of the window allows (dropped outliers excepted, if need be).
+        dropped = set(map(id, used)) - set(map(id, samples))
+        feasible = (_feasible_range(window, at_ns, self.max_drift_ppm)
+                    or _feasible_range([s for s in window if id(s) not in dropped], at_ns,
+                                       self.max_drift_ppm))
+        if feasible is not None:
+            low, high = feasible
+            value = min(max(value, low), high)  # the fit may stray outside what is possible
+            bound = min(bound, max(high - value, value - low))
         newest = max(s.local_ns for s in samples)
         holdover = self.holdover_ppm * 1e-6 * max(0, at_ns - newest)
         return Estimate(
             stamp_ns=at_ns,
-            offset_ns=round(fit.value),
+            offset_ns=round(value),
             drift_ppm=fit.slope * 1e6,
-            uncertainty_ns=math.ceil(fit.bound + model_error + holdover),
+            uncertainty_ns=math.ceil(bound + holdover),
             samples=len(samples),
             holdover_ppm=self.holdover_ppm,
         )
@@ -228,3 +273,34 @@ def _weighted_fit(samples: list[Sample], at_ns: int, max_drift_ppm: float) -> _F
     bound = sum(abs(c) * s.bound_ns for c, s in zip(coefficients, samples, strict=True)) + bias
     residuals = [y - (y_mean + slope * (x - x_mean)) for x, y in zip(xs, ys, strict=True)]
     return _Fit(value=value, slope=slope, bound=bound, residuals=residuals)
+
+
+_SLOPES = 801  # grid of drifts across +-max_drift: 0.5 ppm steps at 200 ppm
+
+
+def _feasible_range(samples: list[Sample], at_ns: int,
+                    max_drift_ppm: float) -> tuple[float, float] | None:
+    """Lowest and highest offset at ``at_ns`` of any line within every sample's bound.
+
+    Each sample confines the true line to ``offset_i +- bound_i`` at its time, and the drift
+    to ``+-max_drift_ppm``; the true offset at ``at_ns`` lies between these two values. For a
+    drift ``b`` the allowed offsets at ``at_ns`` are ``[max(lo_i - b*x_i), min(hi_i - b*x_i)]``;
+    the drifts are scanned on a grid, and the grid's blind spots (a line with a drift between
+    two grid points) are covered by widening the range by ``max|x| * step``. None when no
+    line fits every sample (a clock step, a drift that changed, a wrong server).
+    """
+    if len(samples) < 2:
+        return None
+    xs = np.array([float(s.local_ns - at_ns) for s in samples])
+    centre = np.array([s.offset_ns for s in samples])
+    bounds = np.array([s.bound_ns for s in samples])
+    limit = max_drift_ppm * 1e-6
+    slopes = np.linspace(-limit, limit, _SLOPES)
+    shift = np.outer(xs, slopes)  # b * x_i for every sample and drift
+    low = np.max((centre - bounds)[:, None] - shift, axis=0)
+    high = np.min((centre + bounds)[:, None] - shift, axis=0)
+    ok = low <= high
+    if not ok.any():
+        return None
+    slack = float(np.max(np.abs(xs))) * (slopes[1] - slopes[0])
+    return float(low[ok].min()) - slack, float(high[ok].max()) + slack
