@@ -43,8 +43,8 @@ src, dst, type_name = sys.argv[1:4]
 pkg, name = type_name.split("/")
 cls = getattr(importlib.import_module(pkg + ".msg"), name)
 rospy.init_node("relay", anonymous=True, disable_signals=True)
-pub = rospy.Publisher(dst, cls, queue_size=1000, tcp_nodelay=True)
-rospy.Subscriber(src, cls, pub.publish, queue_size=1000, tcp_nodelay=True)
+pub = rospy.Publisher(dst, cls, queue_size=100000, tcp_nodelay=True)
+rospy.Subscriber(src, cls, pub.publish, queue_size=None, tcp_nodelay=True)
 print("ready", flush=True)
 rospy.spin()
 """
@@ -66,7 +66,7 @@ def on_pong(m):
     count[0] += 1
     got.set()
 pub = rospy.Publisher(ping, cls, queue_size=1000, tcp_nodelay=True)
-rospy.Subscriber(pong, cls, on_pong, queue_size=1000, tcp_nodelay=True)
+rospy.Subscriber(pong, cls, on_pong, queue_size=None, tcp_nodelay=True)
 while pub.get_num_connections() == 0:
     time.sleep(0.01)
 # wait until the whole loop carries messages

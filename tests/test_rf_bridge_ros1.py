@@ -320,3 +320,47 @@ def test_rostopic_echo_hz_and_rosbag_record(ros1: Ros1System) -> None:
         assert int(count.stdout) > 10
     finally:
         b.close()
+
+
+def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any) -> None:
+    """The bridge as its own process (``ros2 run rf_bridge rf_bridge``): a ROS 2 peer over
+    DDS on one side, rospy on the other, both directions."""
+    import yaml
+
+    from efficient_comm.testing import isolated_domain_id
+
+    from ._ros import child, executable, peer
+
+    out, back = unique_topic("out"), unique_topic("back")
+    config = tmp_path / "bridge.yaml"
+    config.write_text(yaml.safe_dump({
+        "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge")},
+        "topics": [
+            {"ros2": out, "type": "std_msgs/msg/String"},
+            {"ros2": back, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        ],
+    }))
+    domain = isolated_domain_id()
+    program = executable("rf_bridge", "rf_bridge")
+    with child([program, "--ros-args", "-p", f"config:={config}"], domain_id=domain,
+               log=tmp_path / "bridge.log"), peer(domain) as p:
+        pub = p.node.create_publisher(String, out, 10)
+        got: list[str] = []
+        p.node.create_subscription(String, back, lambda m: got.append(m.data), 10)
+        listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
+        assert read_line(listener) == "ready"
+        assert p.wait_for(lambda: pub.get_subscription_count() > 0, 30)
+        seen: list[str] = []
+        reader = _readers[listener.pid]
+
+        def arrived() -> bool:
+            pub.publish(String(data="over dds"))
+            seen.extend(reader.drain())
+            return bool(seen)
+
+        assert p.wait_for(arrived, 30), (tmp_path / "bridge.log").read_text()
+        assert json.loads(seen[0])["data"] == "over dds"
+        ros1.python(NODE, "talk", back, "std_msgs/String", "m.String(data='r%d' % i)", "3",
+                    log="t")
+        assert p.wait_for(lambda: len(got) >= 3, 30)
+        assert got[:3] == ["r0", "r1", "r2"]
