@@ -346,7 +346,11 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
                log=tmp_path / "bridge.log"), peer(domain) as p:
         pub = p.node.create_publisher(String, out, 10)
         got: list[str] = []
-        p.node.create_subscription(String, back, lambda m: got.append(m.data), 10)
+
+        def on_back(msg: Any) -> None:
+            got.append(msg.data)
+
+        p.node.create_subscription(String, back, on_back, 10)
         listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
         assert read_line(listener) == "ready"
         assert p.wait_for(lambda: pub.get_subscription_count() > 0, 30)
