@@ -12,7 +12,7 @@ import random
 import pytest
 
 from efficient_comm import from_msg
-from efficient_comm.testing import TestHandle
+from efficient_comm.testing import TestHandle, test_container
 from team_clock.estimator import OffsetEstimator, Sample, _feasible_range
 from team_clock.sync import OFFSET_QOS, ClockSync
 from team_clock.testing import SimDelay, SimTeam
@@ -255,3 +255,27 @@ def test_misconfigured_teams_are_reported() -> None:
     assert imposter.counts["other_reference"] > 0 and imposter.state is None
     assert any("also calls itself" in text for _, text in _records(team, "a"))
     assert any("synchronised to" in text for _, text in twin.records)
+
+
+def test_loads_from_a_container_file_by_entry_point(tmp_path) -> None:
+    config = tmp_path / "robot.yaml"
+    config.write_text(
+        "components:\n"
+        "  - class: clock_sync\n"
+        "    name: clock_sync\n"
+        "    namespace: /robot_r\n"
+        "    parameters:\n"
+        "      /**:\n"
+        "        ros__parameters: {reference: robot_r, period_s: 0.5}\n"
+    )
+    container = test_container()
+    report = container.load_file(config)
+    assert not report.errors, report.errors
+    sync = report.loaded[0].instance
+    assert isinstance(sync, ClockSync)
+    assert sync.robot == "robot_r" and sync.is_reference  # named after its namespace
+    watcher = TestHandle("watcher", container=container)
+    got: list[ClockOffset] = []
+    watcher.create_subscription(ClockOffset, "/team_clock/offset", got.append, qos=OFFSET_QOS)
+    container.advance(1.0)
+    assert got and got[-1].valid and got[-1].robot == "robot_r" and got[-1].hops == 0
