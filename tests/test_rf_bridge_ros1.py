@@ -368,3 +368,24 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
                     log="t")
         assert p.wait_for(lambda: len(got) >= 3, 30)
         assert got[:3] == ["r0", "r1", "r2"]
+
+
+def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System) -> None:
+    """ROS 2's NavSatStatus gained a constant, so the twin derived from it has another md5sum
+    than ROS 1's; the bridge adopts the definition the rospy subscriber sends."""
+    from sensor_msgs.msg import NavSatStatus
+
+    topic = unique_topic("gps_status")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/NavSatStatus"}])
+    adapter: Any = b.adapters["ros1"]
+    try:
+        derived = adapter._pubs[topic].md5sum
+        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/NavSatStatus", log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        assert adapter._pubs[topic].md5sum != derived
+        node.inject(topic, NavSatStatus(status=NavSatStatus.STATUS_SBAS_FIX, service=5))
+        assert json.loads(read_line(listener)) == {"status": 1, "service": 5}
+        assert any("learned sensor_msgs/NavSatStatus" in t for _, t in node.records)
+    finally:
+        b.close()

@@ -1,7 +1,9 @@
 """QoS mapping between ROS 2 profiles and what other systems can express.
 
-ROS 1 has one knob that matters, latching, which is ROS 2's TRANSIENT_LOCAL durability with
-depth 1; everything else in ROS 1 is reliable TCP. The team link maps reliability onto the
+ROS 1 has one knob that matters, latching, which is ROS 2's TRANSIENT_LOCAL durability:
+a bridged publisher latches exactly when its ROS 2 side is TRANSIENT_LOCAL (configure that for
+ROS 1 topics that are latched, so late ROS 2 joiners get the last value too); everything else
+in ROS 1 is reliable TCP. The team link maps reliability onto the
 engine's (best-effort samples may be dropped under congestion, reliable ones are resent).
 """
 
@@ -51,15 +53,3 @@ def profile_from_config(spec: Mapping[str, Any] | int | None, *, where: str) -> 
 def ros1_latch(profile: QoSProfile) -> bool:
     """A ROS 1 publisher latches exactly when the ROS 2 side keeps history for late joiners."""
     return bool(profile.durability == DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-def from_ros1_latch(profile: QoSProfile, latched: bool) -> QoSProfile:
-    """The profile for republishing a ROS 1 topic: latched topics become TRANSIENT_LOCAL."""
-    if not latched or profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
-        return profile
-    return QoSProfile(
-        history=profile.history,
-        depth=profile.depth,
-        reliability=profile.reliability,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    )

@@ -66,7 +66,7 @@ class TranslatorSet:
         return found
 
     def forget(self, ros1_type: str) -> None:
-        """Drop cached translators of a type whose definition changed."""
+        """Drop cached translators and codecs of a type whose definition changed."""
         with self._lock:
-            for key in [k for k in self._cache if k[0] == ros1_type]:
-                del self._cache[key]
+            self._cache.clear()  # nested types are compiled into their parents' plans
+            self.codec.forget()

@@ -58,6 +58,11 @@ class Ros1Codec:
         self._decoders: dict[str, Decoder] = {}
         self._encoders: dict[str, Encoder] = {}
 
+    def forget(self) -> None:
+        """Recompile on next use (a definition changed)."""
+        self._decoders = {}
+        self._encoders = {}
+
     def decode(self, type_name: str, data: bytes | memoryview) -> dict[str, Any]:
         buf = memoryview(data)
         value, off = self._decoder(type_name)(buf, 0)

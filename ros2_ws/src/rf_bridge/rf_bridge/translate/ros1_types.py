@@ -181,11 +181,12 @@ class TypeRegistry:
         """The definition with every nested type appended, as ``message_definition``."""
         spec = self.get(name)
         out = [spec.text()]
-        for dep in self._dependencies(name):
+        for dep in self.dependencies(name):
             out.append(f"{_SEPARATOR}\nMSG: {dep}\n{self.get(dep).text()}")
         return "\n".join(out) + "\n"
 
-    def _dependencies(self, name: str) -> list[str]:
+    def dependencies(self, name: str) -> list[str]:
+        """Every message type ``name`` embeds, depth first."""
         seen: list[str] = []
 
         def visit(n: str) -> None:

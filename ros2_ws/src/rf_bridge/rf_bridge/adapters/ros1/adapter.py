@@ -229,7 +229,7 @@ class Ros1Adapter:
         error = None
         if pub is None:
             error = f"the bridge does not publish {topic!r}"
-        elif header.get("md5sum", "*") not in ("*", pub.md5sum):
+        elif header.get("md5sum", "*") not in ("*", pub.md5sum) and not self._learn(pub, header):
             error = (
                 f"md5sum mismatch for {topic}: {pub.ros1_type} is {pub.md5sum}, "
                 f"subscriber wants {header.get('md5sum')} ({header.get('type')})"
@@ -274,6 +274,35 @@ class Ros1Adapter:
                 conn.send(pub.last)
             pub.connections = [*pub.connections, conn]  # copy on write: send() iterates freely
         self._log.info(f"ROS 1 subscriber {peer} connected to {topic}")
+
+    def _learn(self, pub: _Publication, header: dict[str, str]) -> bool:
+        """Adopt a subscriber's own definition of the published type when ours (derived
+        from ROS 2) differs: ROS 1 defines the type, and rospy and roscpp send it."""
+        definition = header.get("message_definition")
+        if header.get("type") != pub.ros1_type or not definition:
+            return False
+        learned = TranslatorSet(self._translators.rules.values())
+        try:
+            learned.registry.add_full_definition(pub.ros1_type, definition)
+            if learned.registry.md5sum(pub.ros1_type) != header.get("md5sum"):
+                return False
+            for dep in [pub.ros1_type, *learned.registry.dependencies(pub.ros1_type)]:
+                self._translators.registry.add(learned.registry.get(dep))
+                self._translators.forget(dep)
+            translator = self._translators.translator(pub.ros1_type, pub.route.ros2_cls)
+        except TranslationError as exc:
+            self._log.warning(f"{pub.ros1_type} from a subscriber cannot be used: {exc}")
+            return False
+        with self._lock:
+            pub.translator = translator
+            pub.md5sum = self._translators.registry.md5sum(pub.ros1_type)
+            pub.definition = self._translators.registry.full_definition(pub.ros1_type)
+            pub.last = None
+        self._log.info(
+            f"learned {pub.ros1_type} ({pub.md5sum}) from a subscriber of {pub.route.peer_topic}; "
+            f"not translated: {', '.join(translator.unmatched) or 'nothing'}"
+        )
+        return True
 
     def _remove(self, pub: _Publication, conn: OutboundConnection) -> None:
         with self._lock:
