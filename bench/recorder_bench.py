@@ -61,7 +61,7 @@ def _frames(seed: int) -> list[bytes]:
     return frames
 
 
-def robot(mode: str, seconds: float, bag_dir: Path) -> dict[str, Any]:
+def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> dict[str, Any]:
     import numpy as np
     from sensor_msgs.msg import Image, JointState
     from std_msgs.msg import Float64MultiArray
@@ -165,6 +165,7 @@ def robot(mode: str, seconds: float, bag_dir: Path) -> dict[str, Any]:
             recorder_params: dict[str, Any] = (
                 {"pace_before_timers_s": 0.0, "pace_after_timers_s": 0.0}
                 if mode == "unpaced" else {})
+            recorder_params = {**params, **recorder_params}
             recorder = container.add(
                 lambda n: Recorder(n, topics=[t for t, _ in topics], output_dir=bag_dir),
                 name="recorder", parameters={"min_free_bytes": 0, **recorder_params})
@@ -216,14 +217,14 @@ def _pct(values: list[int], p: float) -> float:
 # -- the driver --------------------------------------------------------------------------------
 
 
-def run_once(mode: str, seconds: float, *, rt: bool) -> dict[str, Any]:
+def run_once(mode: str, seconds: float, *, rt: bool, params: list[str]) -> dict[str, Any]:
     # --rt: the robot process runs SCHED_FIFO (as control loops on robots do), so other
     # processes on the machine do not blur the comparison; both modes alike.
     prefix = ["chrt", "-f", "10"] if rt else []
     with tempfile.TemporaryDirectory(prefix="recbench") as tmp:
         out = subprocess.run(
             [*prefix, sys.executable, __file__, "--role", mode, "--seconds", str(seconds),
-             "--bag", tmp],
+             "--bag", tmp, *(f"--param={p}" for p in params)],
             capture_output=True, text=True, timeout=seconds * 4 + 120,
         )
     if out.returncode:
@@ -252,6 +253,11 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
         m = per[mode]
         n = max(1.0, m["recorded"])
         m["p99_ratio_vs_none"] = m["loop_p99_us"] / base["loop_p99_us"]
+        # The same ratio taken run by run (each run's "none" is its neighbour in time).
+        base_by_run = {r["run"]: r["loop_p99_us"] for r in runs if r["mode"] == "none"}
+        m["p99_ratio_paired_median"] = statistics.median(
+            r["loop_p99_us"] / base_by_run[r["run"]] for r in runs
+            if r["mode"] == mode and r["run"] in base_by_run)
         m["p50_ratio_vs_none"] = m["loop_p50_us"] / base["loop_p50_us"]
         # Extra CPU over the baseline, per recorded message (same wall time per run).
         scale = m["seconds"] / base["seconds"]
@@ -272,11 +278,14 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
 
 def report(summary: dict[str, Any]) -> None:
     per = summary["per_mode"]
-    print(f"{'mode':10} {'p50 µs':>8} {'p99 µs':>8} {'p99/none':>9} {'recorded':>9} {'drops':>6} "
-          f"{'queue max':>9} {'CPU µs/msg':>10} {'executor µs/msg':>15}")
+    print(f"{'mode':10} {'p50 µs':>8} {'p99 µs':>8} {'p99/none':>9} {'paired':>7} "
+          f"{'recorded':>9} {'drops':>6} {'queue max':>9} {'CPU µs/msg':>10} "
+          f"{'executor µs/msg':>15}")
     for mode, m in per.items():
         print(f"{mode:10} {m['loop_p50_us']:8.0f} {m['loop_p99_us']:8.0f} "
-              f"{m.get('p99_ratio_vs_none', 1.0):9.2f} {m['recorded']:9.0f} {m['drops']:6.0f} "
+              f"{m.get('p99_ratio_vs_none', 1.0):9.2f} "
+              f"{m.get('p99_ratio_paired_median', 1.0):7.2f} {m['recorded']:9.0f} "
+              f"{m['drops']:6.0f} "
               f"{m['queue_high_water']:9.0f} {m.get('cpu_us_per_msg', float('nan')):10.0f} "
               f"{m.get('executor_cpu_us_per_msg', float('nan')):15.1f}")
     if "recorder_vs_inline" in summary:
@@ -294,11 +303,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     parser.add_argument("--rt", action="store_true",
                         help="run the robot process SCHED_FIFO (needs root or CAP_SYS_NICE)")
+    parser.add_argument("--param", action="append", default=[], metavar="NAME=JSON",
+                        help="a recorder parameter, e.g. pace_before_timers_s=0.002")
     parser.add_argument("--role", choices=MODES, help=argparse.SUPPRESS)
     parser.add_argument("--bag", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.role:
-        print(json.dumps(robot(args.role, args.seconds, args.bag)))
+        params = {k: json.loads(v) for k, _, v in (p.partition("=") for p in args.param)}
+        print(json.dumps(robot(args.role, args.seconds, args.bag, params)))
         return 0
     modes = [m for m in args.modes.split(",") if m]
     if "none" not in modes:
@@ -306,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
     runs = []
     for i in range(args.repeat):
         for mode in modes:
-            result = run_once(mode, args.seconds, rt=args.rt)
+            result = run_once(mode, args.seconds, rt=args.rt, params=args.param)
             result["run"] = i
             runs.append(result)
             print(f"run {i} {mode:9} p99 {result['loop_p99_us']:7.0f} µs (wake-up "
@@ -317,6 +329,7 @@ def main(argv: list[str] | None = None) -> int:
     report(summary)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"runs": runs, "summary": summary, "rt": args.rt,
+                                    "params": args.param,
                                     "seconds": args.seconds, "repeat": args.repeat}, indent=1))
     return 0
 

@@ -103,8 +103,8 @@ class Recorder:
             fs=fs,
             clock_topic=self._resolve(self.clock_topic) if self.clock_topic else "",
             on_state=self._mark_dirty,
-            pacer=_timer_pacer(node, p("pace_before_timers_s", 0.001),
-                               p("pace_after_timers_s", 0.0005)),
+            pacer=_timer_pacer(node, p("pace_before_timers_s", 0.002),
+                               p("pace_after_timers_s", 0.001)),
             name=node.name,
         )
         self._fs = fs or FileSystem()
