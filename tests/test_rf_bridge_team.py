@@ -23,7 +23,7 @@ from typing import Any
 import pytest
 
 from efficient_comm.testing import isolated_domain_id, ros_env
-from rf_bridge.testing import LineReader, free_port
+from rf_bridge.testing import LineReader, free_port, wait_for
 
 ROBOT = r"""
 import json, sys, threading, time
@@ -302,3 +302,49 @@ def test_team_link_over_lossy_limited_link_recovers_after_outage(link: Link) -> 
             for pipe in (p.stdin, p.stdout):
                 if pipe is not None:
                     pipe.close()
+
+
+def test_team_link_both_ways_without_loops_and_across_a_restart() -> None:
+    """Two robots in one process on loopback: a ``both`` topic crosses once each way and
+    never comes back; a robot that restarts (sequence from 1 again) is heard at once."""
+    from std_msgs.msg import String
+
+    from efficient_comm.testing import TestHandle, unique_topic
+    from rf_bridge import BridgeNode, parse_config
+
+    port = free_port()
+    topic = unique_topic("team")
+    route = {"ros2": topic, "type": "std_msgs/msg/String", "peer": "team", "direction": "both"}
+
+    def robot(rid: str, **link: list[str]) -> tuple[TestHandle, BridgeNode]:
+        node = TestHandle(f"robot_{rid}")
+        cfg = parse_config({"team": {"robot_id": rid, "prefix": topic.strip("/"), **link},
+                            "topics": [route]})
+        return node, BridgeNode(node, config=cfg)
+
+    a, bridge_a = robot("a", listen=[f"tcp/127.0.0.1:{port}"])
+    b, bridge_b = robot("b", connect=[f"tcp/127.0.0.1:{port}"])
+    spin = a.container.executor.spin_until
+    try:
+        def crossed(node: TestHandle, sender: TestHandle, text: str) -> bool:
+            sender.inject(topic, String(data=text))
+            return node.container.executor.spin_until(
+                lambda: any(m.data == text for m in node.published(topic)), timeout_s=0.2)
+
+        assert wait_for(lambda: crossed(b, a, "probe"), 20), "a -> b never connected"
+        before = len(a.published(topic))
+        b.inject(topic, String(data="from b"))
+        assert spin(lambda: any(m.data == "from b" for m in a.published(topic)), timeout_s=10)
+        assert len(a.published(topic)) == before + 1
+        b.container.executor.spin_for(0.3)
+        # b's own sample did not come back to b's ROS 2 side, a did not send it back
+        assert [m.data for m in b.published(topic)].count("from b") == 1  # the injected one
+        assert bridge_a.router.loops_suppressed >= 1
+        bridge_a.close()
+        a, bridge_a = robot("a", listen=[f"tcp/127.0.0.1:{port}"])
+        assert wait_for(lambda: crossed(b, a, "after restart"), 20)
+        stats_b = {s.direction: s for s in bridge_b.stats()}
+        assert "out_of_order" not in stats_b["from_team"].drops
+    finally:
+        bridge_a.close()
+        bridge_b.close()

@@ -12,6 +12,7 @@ sent. Publishers never block the executor: congestion drops, and is counted by t
 from __future__ import annotations
 
 import json
+import os
 import struct
 import threading
 import time
@@ -27,7 +28,7 @@ from ..config import TeamOptions
 from ..core.adapter import Deliver, Route
 from ..errors import LinkError
 
-_ATTACHMENT = struct.Struct("<QB")  # sequence number, flags; then the origin id
+_ATTACHMENT = struct.Struct("<QBI")  # sequence number, flags, boot id; then the robot id
 _ZLIB = 1
 _COMPRESS_MIN = 64  # smaller payloads are sent as they are
 
@@ -43,11 +44,14 @@ class TeamAdapter:
         self.options = options
         self._log = RateLimitedLog(logger)
         self._origin = options.robot_id.encode()
+        # A robot that restarts counts from 1 again: the boot id keeps its new sequence
+        # apart from the old one at the receivers.
+        self._boot = int.from_bytes(os.urandom(4), "little")
         self._session: Any = None
         self._pubs: dict[int, Any] = {}
         self._subs: list[Any] = []
         self._seq: dict[int, int] = {}
-        self._last_seen: dict[tuple[int, bytes], int] = {}
+        self._last_seen: dict[tuple[int, bytes, int], int] = {}
         self._lock = threading.Lock()
 
     def start(self, routes: Sequence[Route], deliver: Deliver) -> None:
@@ -100,7 +104,7 @@ class TeamAdapter:
         with self._lock:
             seq = self._seq[id(route)] = self._seq[id(route)] + 1
         try:
-            pub.put(payload, attachment=_ATTACHMENT.pack(seq, flags) + self._origin)
+            pub.put(payload, attachment=_ATTACHMENT.pack(seq, flags, self._boot) + self._origin)
         except Exception as exc:
             route.stats_out.dropped("send_failed")
             self._log.warning(f"team link: cannot send on {route.peer_topic}: {exc}")
@@ -111,7 +115,7 @@ class TeamAdapter:
         received = time.perf_counter_ns()
         try:
             attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
-            seq, flags = _ATTACHMENT.unpack_from(attachment)
+            seq, flags, boot = _ATTACHMENT.unpack_from(attachment)
             origin = attachment[_ATTACHMENT.size :]
         except (struct.error, AttributeError):
             route.stats_in.dropped("malformed")
@@ -119,7 +123,7 @@ class TeamAdapter:
             return
         if origin == self._origin:
             return  # our own sample: never bridged back
-        key = (id(route), origin)
+        key = (id(route), origin, boot)
         with self._lock:
             last = self._last_seen.get(key)
             self._last_seen[key] = max(seq, last or 0)
