@@ -94,7 +94,6 @@ class Recorder:
             sys.setswitchinterval(self._switch_interval)
         selections = [s if isinstance(s, TopicSelection) else parse_selection(s)
                       for s in (topics if topics is not None else [n for n in names if n])]
-        self._status_dirty = True
         self.writer = RecordWriter(
             queue_depth=p("queue_depth", 1000),
             snapshot_bytes=p("snapshot_bytes", 0),
@@ -102,7 +101,7 @@ class Recorder:
             bag_options=bag_options,
             fs=fs,
             clock_topic=self._resolve(self.clock_topic) if self.clock_topic else "",
-            on_state=self._mark_dirty,
+            on_state=self._state_changed,
             pacer=_timer_pacer(node, p("pace_before_timers_s", 0.002),
                                p("pace_after_timers_s", 0.001)),
             name=node.name,
@@ -214,7 +213,6 @@ class Recorder:
         else:
             endpoint = self._node.create_subscription(msg_type, name, on_message, qos=qos)
         self._active[name] = _Active(selection, state, endpoint)
-        self._mark_dirty()
 
     def _unsubscribe(self, name: str) -> None:
         active = self._active.pop(name)
@@ -246,7 +244,7 @@ class Recorder:
         except (RecorderError, OSError, TimeoutError) as exc:
             response.success = False
             response.message = str(exc) or type(exc).__name__
-        self._mark_dirty()
+        self.publish_status()
         return response
 
     def _srv_start(self, request: Any, response: Any) -> Any:
@@ -279,8 +277,13 @@ class Recorder:
             ])
         return self._answer(response, call, lambda _: None)
 
-    def _mark_dirty(self) -> None:
-        self._status_dirty = True
+    def _state_changed(self) -> None:
+        """The writer thread started, stopped, split or failed: tell ``~/status`` at once
+        (publishing from another thread is allowed on every backend)."""
+        try:
+            self.publish_status()
+        except Exception as exc:  # unloading: the publisher is gone; nothing to tell
+            self._node.logger.debug(f"status not published: {exc!r}")
 
     def _on_timer(self) -> None:
         self._subscribe_known()
@@ -315,7 +318,6 @@ class Recorder:
         return msg
 
     def publish_status(self) -> None:
-        self._status_dirty = False
         if self._status_pub is not None:
             self._status_pub.publish(self.status())
 

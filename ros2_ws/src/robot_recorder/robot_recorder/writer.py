@@ -127,6 +127,10 @@ class RecordWriter:
         Call it from the thread that runs the subscription callbacks (or before they run):
         it resets the drop counters those callbacks increment.
         """
+        if self.state == RECORDING:
+            raise RecorderError(f"already recording into {self.bag_path}")
+        if bag.exists():
+            raise RecorderConfigError(f"bag directory {bag} exists already")
         for topic in self.topics.values():
             topic.drops = 0
         self.accepting = True
@@ -278,13 +282,13 @@ class RecordWriter:
     def _start(self, bag: Path) -> Path:
         if self._bag is not None:
             raise RecorderError(f"already recording into {self._bag.path}")
-        for topic in self.topics.values():
-            topic.messages = topic.bytes = 0
         try:
             self._bag = self._new_bag(bag)
         except RecorderError:
             self.accepting = self._snapshot_bytes > 0
             raise
+        for topic in self.topics.values():
+            topic.messages = topic.bytes = 0
         self.bag_path = bag
         self.state, self.error = RECORDING, ""
         self.accepting = True
