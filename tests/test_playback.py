@@ -250,3 +250,35 @@ def test_player_program_runs(tmp_path: Path) -> None:
     result = subprocess.run([str(executable("robot_recorder", "player")), "--help"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0 and "--stamps" in result.stdout
+
+
+def test_aligned_stamps_from_the_clock_estimate_recorded_in_the_bag(tmp_path: Path) -> None:
+    clock_msgs = pytest.importorskip("team_clock_interfaces.msg")
+    pytest.importorskip("team_clock.model")
+    point = unique_topic("point")
+    container = test_container()
+    talker = TestHandle("talker", container=container)
+    pub_clock = talker.create_publisher(clock_msgs.ClockOffset, "/team_clock/offset")
+    pub_point = talker.create_publisher(PointStamped, point)
+    recorder = Recorder(TestHandle("recorder", container=container), topics=[point],
+                        output_dir=tmp_path)  # the clock topic is recorded unasked
+    container.advance(1.0)
+    bag = recorder.start(tmp_path / "bag").result(10)
+    estimate = clock_msgs.ClockOffset(robot="r1", reference="r0", source="r0",
+                                      offset_ns=-400 * MS, drift_ppm=0.0, uncertainty_ns=MS,
+                                      hops=1, samples=8, valid=True)
+    estimate.stamp = to_msg(talker.now_ns())
+    pub_clock.publish(estimate)
+    sent = []
+    for _ in range(3):
+        msg = PointStamped()
+        msg.header.stamp = to_msg(talker.now_ns())
+        sent.append(talker.now_ns())
+        pub_point.publish(msg)
+        container.advance(0.01)
+    recorder.close()
+    # No offset_model given: the player asks team_clock for the one recorded in the bag.
+    container2, _ = _player(bag, topics=[point], stamps="aligned")
+    sink = Sink(TestHandle("sink", container=container2), point, PointStamped)
+    _run(container2, 0.05)
+    assert [from_msg(m.header.stamp) for _, m in sink.got] == [t - 400 * MS for t in sent]
