@@ -11,8 +11,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PointStamped, Pose, PoseArray
 from sensor_msgs.msg import Image, JointState
-from std_msgs.msg import String
+from std_msgs.msg import Empty, String
 
 from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import TestHandle, test_container, unique_topic
@@ -231,3 +233,24 @@ def test_full_definition_has_every_dependency_once() -> None:
     names = [line for line in text.splitlines() if line.startswith("MSG: ")]
     assert names == ["MSG: std_msgs/msg/Header", "MSG: builtin_interfaces/msg/Time"]
     assert text.count("=" * 80) == 2
+
+
+@pytest.mark.parametrize("msg", [
+    JointState(), JointState(name=["a", "bb"], position=[1.0], velocity=[1.0, 2.0]),
+    Image(height=2, width=3, step=9, encoding="rgb8", data=bytes(18)),
+    String(data="héllo"), PointStamped(), PoseArray(poses=[Pose(), Pose()]), Empty(),
+    DiagnosticArray(status=[DiagnosticStatus(name="x", values=[KeyValue(key="k", value="v")])]),
+], ids=lambda m: type(m).__name__)
+def test_serialized_length_is_exact(msg: Any) -> None:
+    """serialize_message returns rmw's size estimate; the recorder cuts at the real end,
+    which is where rosbags' own serializer ends too."""
+    from rclpy.serialization import serialize_message
+    from rosbags.typesys import Stores, get_typestore
+
+    from robot_recorder.cdr import trim
+    from robot_recorder.msgdefs import type_name
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    data = trim(msg, serialize_message(msg))
+    name = type_name(type(msg))
+    assert len(store.serialize_cdr(store.deserialize_cdr(data, name), name)) == len(data)
