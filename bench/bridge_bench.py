@@ -7,7 +7,9 @@ Python), so the relay's cost is common to both and the ratio compares hops:
   two rospy -> rospy hops;
 * ``bridge``: a ROS 2 pinger component composed with the bridge in one container (the ROS 2
   side passes references), the bridge's own TCPROS to the relay and back: two hops through
-  the bridge.
+  the bridge;
+* ``bridge_dds``: the bridge as its own process (``ros2 run rf_bridge rf_bridge``) and a plain
+  rclpy pinger in this one: each way adds a DDS hop (Fast DDS, loopback) to the bridge hop.
 
 For a small message (std_msgs/String, 16 characters) and a 1 MiB sensor_msgs/Image: median
 round-trip latency with one message in flight, and throughput of a burst. Each figure is the
@@ -36,6 +38,8 @@ from rf_bridge.testing import LineReader, Ros1System, wait_for
 ROS1_TYPES = {"small": "std_msgs/String", "image": "sensor_msgs/Image"}
 ROS2_TYPES = {"small": "std_msgs/msg/String", "image": "sensor_msgs/msg/Image"}
 IMAGE_SIDE = 1024  # mono8: 1 MiB
+ROOT = Path(__file__).resolve().parents[1]
+PATHS = ("direct", "bridge", "bridge_dds")
 
 RELAY = r"""
 import importlib, sys, rospy
@@ -100,20 +104,22 @@ class Pinger:
 
     def __init__(self, node: NodeHandle, *, kind: str, ping: str, pong: str) -> None:
         cls = String if kind == "small" else Image
-        self.msg: Any
-        if kind == "small":
-            self.msg = String(data="x" * 16)
-        else:
-            self.msg = Image(
-                height=IMAGE_SIDE, width=IMAGE_SIDE, encoding="mono8", step=IMAGE_SIDE,
-                data=bytes(IMAGE_SIDE * IMAGE_SIDE),
-            )
+        self.msg = self.make(kind)
         self.pub = node.create_publisher(cls, ping, qos=1000)
         node.create_subscription(cls, pong, self.on_pong, qos=1000)
         self.count = 0
         self.sent_ns = 0
         self.rtts: list[int] = []
         self.remaining = 0
+
+    @staticmethod
+    def make(kind: str) -> Any:
+        if kind == "small":
+            return String(data="x" * 16)
+        return Image(
+            height=IMAGE_SIDE, width=IMAGE_SIDE, encoding="mono8", step=IMAGE_SIDE,
+            data=bytes(IMAGE_SIDE * IMAGE_SIDE),
+        )
 
     def ping(self) -> None:
         self.sent_ns = time.perf_counter_ns()
@@ -191,6 +197,91 @@ def run_bridge(ros1: Ros1System, kind: str, n_lat: int, n_burst: int, tag: str) 
             "burst_received": pinger.count - start_count, "burst_s": elapsed, "drops": drops}
 
 
+def run_bridge_dds(
+    ros1: Ros1System, kind: str, n_lat: int, n_burst: int, tag: str
+) -> dict[str, Any]:
+    import os
+    import subprocess
+    import tempfile
+
+    import rclpy
+    import yaml
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from efficient_comm.testing import isolated_domain_id, ros_env
+
+    ping, pong = f"/dds_{tag}_ping", f"/dds_{tag}_pong"
+    relay = ros1.python(RELAY, ping, pong, ROS1_TYPES[kind], log=f"relay_{tag}")
+    assert LineReader(relay).next(30) == "ready"
+    depth = max(n_burst, 10)
+    config = Path(tempfile.mkdtemp()) / "bridge.yaml"
+    config.write_text(yaml.safe_dump({
+        "ros1": {"master_uri": ros1.master_uri, "node_name": f"/rf_bridge_{tag}",
+                 "queue_size": depth},
+        "topics": [
+            {"ros2": ping, "type": ROS2_TYPES[kind], "qos": depth},
+            {"ros2": pong, "type": ROS2_TYPES[kind], "direction": "from_peer", "qos": depth},
+        ],
+    }))
+    domain = isolated_domain_id()
+    program = ROOT / "ros2_ws" / "install" / "rf_bridge" / "lib" / "rf_bridge" / "rf_bridge"
+    bridge = subprocess.Popen([str(program), "--ros-args", "-p", f"config:={config}"],
+                              env=ros_env(domain), start_new_session=True,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    node = Node(f"pinger_{tag}", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    cls = String if kind == "small" else Image
+    msg: Any = Pinger.make(kind)
+    count = [0]
+    pub = node.create_publisher(cls, ping, depth)
+
+    def on_pong(_: Any) -> None:
+        count[0] += 1
+
+    node.create_subscription(cls, pong, on_pong, depth)
+
+    def spin_until(pred: Any, timeout_s: float) -> bool:
+        end = time.monotonic() + timeout_s
+        while not pred() and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.01)
+        return bool(pred())
+
+    try:
+        deadline = time.monotonic() + 60
+        while count[0] == 0 and time.monotonic() < deadline:
+            pub.publish(msg)
+            spin_until(lambda: count[0] > 0, 0.3)
+        spin_until(lambda: False, 0.2)
+        rtts = []
+        for _ in range(n_lat):
+            before = count[0]
+            t = time.perf_counter_ns()
+            pub.publish(msg)
+            if spin_until(lambda b=before: count[0] > b, 5):
+                rtts.append(time.perf_counter_ns() - t)
+        spin_until(lambda: False, 0.2)
+        start_count = count[0]
+        t = time.perf_counter_ns()
+        for _ in range(n_burst):
+            pub.publish(msg)
+        spin_until(lambda: count[0] - start_count >= n_burst, 30)
+        elapsed = (time.perf_counter_ns() - t) / 1e9
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        context.try_shutdown()
+        os.killpg(bridge.pid, 9)
+        bridge.wait()
+        Ros1System.kill(relay)
+    return {"rtt_us": statistics.median(rtts) / 1e3, "lat_n": len(rtts),
+            "burst_received": count[0] - start_count, "burst_s": elapsed}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -205,7 +296,8 @@ def main() -> int:
     with Ros1System() as ros1:
         for rep in range(args.repeat):
             for kind, (n_lat, n_burst) in plan.items():
-                for path, fn in (("direct", run_direct), ("bridge", run_bridge)):
+                for path, fn in (("direct", run_direct), ("bridge", run_bridge),
+                                 ("bridge_dds", run_bridge_dds)):
                     r = fn(ros1, kind, n_lat, n_burst, f"{kind}{rep}")
                     r.update(kind=kind, path=path, rep=rep,
                              rate_hz=r["burst_received"] / r["burst_s"], burst_n=n_burst)
@@ -214,24 +306,25 @@ def main() -> int:
                           f"burst {r['burst_received']}/{n_burst} at {r['rate_hz']:8.1f} msg/s"
                           + (f"  drops {r['drops']}" if r.get("drops") else ""),
                           file=sys.stderr)
-    print(f"rf_bridge vs direct rospy, median of {args.repeat} run(s)")
-    print(f"{'message':8s} {'direct rtt us':>14s} {'bridge rtt us':>14s} {'ratio':>6s} "
-          f"{'direct msg/s':>13s} {'bridge msg/s':>13s} {'ratio':>6s}")
-    summary = {}
+    print(f"rf_bridge vs direct rospy, median of {args.repeat} run(s); ratio = path / direct")
+    print(f"{'message':8s} {'path':11s} {'rtt us':>10s} {'ratio':>6s} {'msg/s':>9s} {'ratio':>6s}")
+    summary: dict[str, Any] = {}
     for kind in plan:
         med = {}
-        for path in ("direct", "bridge"):
+        for path in PATHS:
             sel = [r for r in runs if r["kind"] == kind and r["path"] == path]
             med[path] = (statistics.median(r["rtt_us"] for r in sel),
                          statistics.median(r["rate_hz"] for r in sel))
-        lat_ratio = med["bridge"][0] / med["direct"][0]
-        rate_ratio = med["bridge"][1] / med["direct"][1]
-        summary[kind] = {"direct": med["direct"], "bridge": med["bridge"],
-                         "latency_ratio": lat_ratio, "throughput_ratio": rate_ratio}
-        print(f"{kind:8s} {med['direct'][0]:14.1f} {med['bridge'][0]:14.1f} {lat_ratio:6.2f} "
-              f"{med['direct'][1]:13.1f} {med['bridge'][1]:13.1f} {rate_ratio:6.2f}")
-    target = summary["small"]["latency_ratio"]
-    print(f"target: bridge round trip <= 2x the direct one for small messages: "
+        summary[kind] = {}
+        for path in PATHS:
+            lat_ratio = med[path][0] / med["direct"][0]
+            rate_ratio = med[path][1] / med["direct"][1]
+            summary[kind][path] = {"rtt_us": med[path][0], "rate_hz": med[path][1],
+                                   "latency_ratio": lat_ratio, "throughput_ratio": rate_ratio}
+            print(f"{kind:8s} {path:11s} {med[path][0]:10.1f} {lat_ratio:6.2f} "
+                  f"{med[path][1]:9.1f} {rate_ratio:6.2f}")
+    target = summary["small"]["bridge"]["latency_ratio"]
+    print(f"target: composed bridge round trip <= 2x the direct one for small messages: "
           f"{target:.2f}x -> {'met' if target <= 2.0 else 'MISSED'}")
     if args.out is not None:
         args.out.write_text(json.dumps({"runs": runs, "summary": summary}, indent=1))

@@ -27,10 +27,10 @@ def test_bridge_bench_smoke(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stdout + result.stderr
     data = json.loads(out.read_text())
     assert {(r["kind"], r["path"]) for r in data["runs"]} == {
-        (k, p) for k in ("small", "image") for p in ("direct", "bridge")}
+        (k, p) for k in ("small", "image") for p in ("direct", "bridge", "bridge_dds")}
     for r in data["runs"]:
         assert r["burst_received"] == r["burst_n"], r
         assert r["lat_n"] > 0 and r["rtt_us"] > 0
     for kind in ("small", "image"):
-        assert data["summary"][kind]["latency_ratio"] > 0
+        assert data["summary"][kind]["bridge"]["latency_ratio"] > 0
     assert "target:" in result.stdout
