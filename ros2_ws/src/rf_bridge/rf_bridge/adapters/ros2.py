@@ -15,7 +15,7 @@ from typing import Any
 
 from efficient_comm.handle import NodeHandle, Publisher
 
-from ..config import BridgeConfig, load_config
+from ..config import BridgeConfig, TopicSpec, load_config
 from ..core.adapter import ChannelAdapter, Route
 from ..core.router import Router
 from ..core.stats import TopicStats, TopicStatsSnapshot
@@ -83,13 +83,15 @@ class BridgeNode:
             out["team"] = TeamAdapter(config.team, self._node.logger)
         return out
 
-    def _route(self, spec: Any) -> Route:
+    def _route(self, spec: TopicSpec) -> Route:
         if spec.peer not in self.adapters:
             raise ConfigError(f"no adapter for peer {spec.peer!r}")
         if spec.ros2_type is not None:
             cls = ros2_class(spec.ros2_type)
-        else:
+        elif spec.peer_type is not None:
             cls = self.translators.ros2_class_for(spec.peer_type)
+        else:  # config.py requires one of them
+            raise ConfigError(f"{spec.ros2_topic}: no type")
         return Route(
             spec=spec,
             ros2_cls=cls,
