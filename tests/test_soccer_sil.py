@@ -84,7 +84,8 @@ def test_head_keeps_a_rolling_ball_near_the_image_centre() -> None:
 
 
 def test_head_searches_for_a_ball_out_of_sight_and_finds_it() -> None:
-    with robot({"ball_position": [0.3, 1.6]}, guard=False) as (container, bot):  # far left
+    # Far right: the search sweep looks left first, so the ball is not seen at once.
+    with robot({"ball_position": [0.3, -1.6]}, guard=False) as (container, bot):
         container.advance(0.5)
         assert bot.behaviour.state == "searching"
         assert bot.monitor.totals().detections == 0

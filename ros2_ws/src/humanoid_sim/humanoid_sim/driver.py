@@ -22,6 +22,7 @@ from dynamixel_sdk import (
     GroupSyncWrite,
     PacketHandler,
     PortHandler,
+    port_handler,
 )
 from sensor_msgs.msg import JointState
 
@@ -30,6 +31,7 @@ from efficient_comm.handle import NodeHandle
 from efficient_comm.standalone import standalone_main
 
 from .dynamixel import control_table as ct
+from .errors import SimConfigError
 
 ADDR_TORQUE = ct.BY_NAME["torque_enable"].address
 ADDR_GOAL = ct.BY_NAME["goal_position"].address
@@ -54,8 +56,14 @@ class ServoDriver:
         names = node.declare_parameter("joint_names", [""])
         self.names = names if names != [""] else [f"joint_{i}" for i in self.ids]
         if len(self.names) != len(self.ids):
-            raise ValueError(f"{len(self.ids)} ids but {len(self.names)} joint_names")
+            raise SimConfigError(f"{len(self.ids)} ids but {len(self.names)} joint_names")
         rate = node.declare_parameter("rate_hz", 100.0)
+        # The SDK derives its reply timeouts from the USB-serial adapter's latency timer
+        # (16 ms on a stock FTDI adapter, 1 ms when tuned); it is one setting per process.
+        latency = node.declare_parameter("latency_timer_ms", float(port_handler.LATENCY_TIMER))
+        if latency <= 0:
+            raise SimConfigError(f"latency_timer_ms must be > 0, got {latency}")
+        port_handler.LATENCY_TIMER = latency
         self.state_pub = node.create_publisher(JointState, "joint_states", qos=10)
         self.diag_pub = node.create_publisher(DiagnosticArray, "/diagnostics", qos=10)
         node.create_subscription(JointState, "joint_commands", self._on_command, qos=10)

@@ -99,7 +99,7 @@ def test_sync_write_goals_and_sync_read_positions(rig) -> None:
 
 
 def test_sync_waits_until_unanswered_writes_are_applied(rig) -> None:
-    pty, plant, port, ph = rig
+    pty, _, port, ph = rig
     for round_ in range(20):  # without sync, some rounds would read the previous goal
         goals = GroupSyncWrite(port, ph, GOAL, 4)
         for i in IDS:

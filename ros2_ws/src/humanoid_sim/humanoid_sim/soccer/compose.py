@@ -22,6 +22,8 @@ from .motion import Motion
 from .vision import BallDetector
 from .world_model import BallModel
 
+LOCKSTEP_LATENCY_TIMER_MS = 250.0
+
 
 @dataclass(frozen=True)
 class SoccerRobot:
@@ -44,11 +46,18 @@ def compose(container: Container, *, namespace: str = "/robot",
     Order matters on a shared timer deadline: the simulator steps (and renders, and the
     pipeline reacts to the image in the same pass) before the driver reads and writes the
     servos, as on a robot whose camera and servo bus are sampled each cycle.
+
+    On a manual clock (lockstep) the driver's reply timeouts, which dynamixel-sdk measures
+    in wall time, are relaxed to :data:`LOCKSTEP_LATENCY_TIMER_MS`: a loaded machine must
+    not turn a slow emulator thread into a missing servo and change the run.
     """
     sim: Simulator = container.add(Simulator, name="simulator", namespace=namespace,
                                    parameters=dict(simulator or {}))
-    driver_parameters = {"port": sim.port, "ids": list(JOINTS),
-                         "joint_names": list(JOINTS.values()), **(driver or {})}
+    driver_parameters: dict[str, Any] = {"port": sim.port, "ids": list(JOINTS),
+                                         "joint_names": list(JOINTS.values())}
+    if getattr(container.executor.clock, "is_manual", False):
+        driver_parameters["latency_timer_ms"] = LOCKSTEP_LATENCY_TIMER_MS
+    driver_parameters.update(driver or {})
     robot = SoccerRobot(
         simulator=sim,
         driver=container.add(ServoDriver, name="servo_driver", namespace=namespace,
