@@ -131,6 +131,28 @@ def test_feasible_range_holds_the_truth_and_is_tight() -> None:
     assert high - low < 2 * max(s.bound_ns for s in samples)
 
 
+@pytest.mark.parametrize("drift_ppm", [50.0, 50.1, 50.25, -12.3])
+@pytest.mark.parametrize("one_way_ns", [2_000, 5_000])
+def test_a_fast_link_with_any_drift_is_consistent(drift_ppm: float, one_way_ns: int) -> None:
+    """Round trips of microseconds allow drifts narrower than the scan's grid step.
+
+    Whatever the drift (on a grid point or between two), one line explains every sample:
+    nothing is taken for a clock step, no sample is forgotten, the bound holds.
+    """
+    est = OffsetEstimator()
+    drift = drift_ppm * 1e-6
+    for i in range(60):
+        t1 = i * 1_000_000_000
+        t2 = round(t1 + one_way_ns + 5 * MS + drift * (t1 + one_way_ns))
+        t4 = t1 + 2 * one_way_ns + 1_000
+        est.add(Sample(t1, t2, t2 + 1_000, t4))
+        e = est.estimate(t4)
+        assert e is not None
+        assert abs(e.offset_ns - (5 * MS + drift * t4)) <= e.uncertainty_ns, (i, e)
+    assert est.inconsistent == 0 and len(est) == 60
+    assert e.uncertainty_ns < 2 * one_way_ns + 1_000  # a tight bound on a tight link
+
+
 def test_old_samples_leave_the_window() -> None:
     est = OffsetEstimator(window_ns=10_000_000_000)
     est.add(Sample(0, 5_000, 5_000, 10_000))

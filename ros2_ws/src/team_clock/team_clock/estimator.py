@@ -284,23 +284,26 @@ def _feasible_range(samples: list[Sample], at_ns: int,
 
     Each sample confines the true line to ``offset_i +- bound_i`` at its time, and the drift
     to ``+-max_drift_ppm``; the true offset at ``at_ns`` lies between these two values. For a
-    drift ``b`` the allowed offsets at ``at_ns`` are ``[max(lo_i - b*x_i), min(hi_i - b*x_i)]``;
-    the drifts are scanned on a grid, and the grid's blind spots (a line with a drift between
-    two grid points) are covered by widening the range by ``max|x| * step``. None when no
-    line fits every sample (a clock step, a drift that changed, a wrong server).
+    drift ``b`` the allowed offsets at ``at_ns`` are ``[max(lo_i - b*x_i), min(hi_i - b*x_i)]``.
+    The drifts are scanned on a grid. A true drift between two grid points is within half a
+    step of one of them, which moves the line by at most ``step/2 * |x_i|`` at sample ``i``:
+    widening each sample's interval by that much makes the nearest grid drift admit the
+    true line. Without the widening a link so good that the allowed drifts span less than a
+    step (a few microseconds of round trip over a minute) would fall between grid points and
+    look like a clock step. None when no line fits every sample (a clock step, a drift that
+    changed, a wrong server).
     """
     if len(samples) < 2:
         return None
     xs = np.array([float(s.local_ns - at_ns) for s in samples])
     centre = np.array([s.offset_ns for s in samples])
-    bounds = np.array([s.bound_ns for s in samples])
     limit = max_drift_ppm * 1e-6
     slopes = np.linspace(-limit, limit, _SLOPES)
+    bounds = np.array([s.bound_ns for s in samples]) + np.abs(xs) * (slopes[1] - slopes[0]) / 2
     shift = np.outer(xs, slopes)  # b * x_i for every sample and drift
     low = np.max((centre - bounds)[:, None] - shift, axis=0)
     high = np.min((centre + bounds)[:, None] - shift, axis=0)
     ok = low <= high
     if not ok.any():
         return None
-    slack = float(np.max(np.abs(xs))) * (slopes[1] - slopes[0])
-    return float(low[ok].min()) - slack, float(high[ok].max()) + slack
+    return float(low[ok].min()), float(high[ok].max())
