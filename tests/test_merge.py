@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from geometry_msgs.msg import PointStamped
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -146,9 +147,39 @@ def test_simultaneous_events_line_up_within_1ms_after_merging(team_logs, tmp_pat
         assert r.messages > len(truth) and not r.skipped and not r.truncated_files
         if stamps:
             assert r.stamps_moved == len(truth)  # ClockOffset has no Header: not touched
-    # The stated uncertainty of the applied offsets covers the error (b: through a relay).
+    # The stated uncertainty of the applied offsets covers each event's error, and is
+    # larger for b, which is synchronised through a relay.
     by_ns = {r.namespace: r for r in report.robots}
+    for robot, path in paths.items():
+        local = _events(path)["event"]
+        model = by_ns[robot].model
+        for event, true_ns in truth.items():
+            error = abs(events[robot][event][0] - true_ns)
+            assert error <= model.uncertainty_at(local[event][0]), (robot, event, error)
     assert by_ns["b"].max_uncertainty_ns > by_ns["a"].max_uncertainty_ns > 0
+    _assert_metadata_matches_mcap(tmp_path / "merged")
+
+
+def _assert_metadata_matches_mcap(bag: Path) -> None:
+    """metadata.yaml says what the MCAP file holds: files, topics, types, counts, times."""
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert (info["version"], info["storage_identifier"]) == (9, "mcap")
+    (name,) = info["relative_file_paths"]
+    with open(bag / name, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None
+    stats = summary.statistics
+    listed = {t["topic_metadata"]["name"]: (t["topic_metadata"]["type"], t["message_count"])
+              for t in info["topics_with_message_count"]}
+    held = {ch.topic: (summary.schemas[ch.schema_id].name, stats.channel_message_counts[cid])
+            for cid, ch in summary.channels.items()}
+    assert listed == held
+    assert info["message_count"] == stats.message_count == sum(n for _, n in held.values())
+    assert info["starting_time"]["nanoseconds_since_epoch"] == stats.message_start_time
+    assert info["duration"]["nanoseconds"] == stats.message_end_time - stats.message_start_time
+    assert info["files"] == [{"path": name, "starting_time": info["starting_time"],
+                              "duration": info["duration"],
+                              "message_count": info["message_count"]}]
 
 
 def test_merged_bag_reads_back_with_mcap_and_equals_the_inputs(team_logs, tmp_path):
@@ -320,3 +351,70 @@ def test_model_knots_are_sorted_and_uncertainty_grows_away_from_them():
     assert [k.stamp_ns for k in model.knots] == [1_000, 2_000]
     assert model.uncertainty_at(1_000) == 50
     assert model.uncertainty_at(1_000_000) > 100
+
+
+def test_model_bound_covers_a_blend_of_a_loose_and_a_tight_estimate():
+    """The first estimate is 100 µs off (and says so), the second exact: between them the
+    blend carries part of the first one's error, and the stated bound must too."""
+    s = 1_000_000_000
+    model = OffsetModel([Knot(0, 100_000, 0.0, 100_000), Knot(10 * s, 0, 0.0, 1_000)])
+    for t in range(0, 10 * s + 1, s // 4):
+        assert abs(model.to_reference(t) - t) <= model.uncertainty_at(t), t
+    # The largest bound over a span is found without sampling it.
+    span = range(-2 * s, 12 * s + 1, s // 1000)
+    worst = max(model.uncertainty_at(t) for t in span)
+    assert worst <= model.max_uncertainty(span.start, span.stop - 1) <= worst + 1
+    # Alike estimates far apart: the bound peaks between them (holdover from both sides).
+    apart = OffsetModel([Knot(0, 0, 0.0, 1_000), Knot(100 * s, 0, 0.0, 3_000)])
+    inner = range(40 * s, 60 * s + 1, s // 100)
+    peak = max(apart.uncertainty_at(t) for t in inner)
+    assert peak > apart.uncertainty_at(inner.start) and peak > apart.uncertainty_at(60 * s)
+    assert peak <= apart.max_uncertainty(inner.start, inner.stop - 1) <= peak + 1
+
+
+def test_split_bag_with_renumbered_channels_merges_each_topic_whole(tmp_path):
+    """Each file of a split bag numbers its channels afresh: topics are matched by name.
+
+    Also: log and publish times both move by the model (publish time 5 ms earlier here).
+    """
+    from std_msgs.msg import Int32, String
+
+    bag = tmp_path / "split"
+    bag.mkdir()
+    s = 1_000_000_000
+    order = (("/text", "std_msgs/msg/String"), ("/count", "std_msgs/msg/Int32"))
+    for part, topics in enumerate((order, order[::-1])):  # ids swap in the second file
+        with BagWriter(bag / f"split_{part}.mcap") as w:
+            ids = {topic: w.add_topic(topic, type_name) for topic, type_name in topics}
+            t = (part + 1) * s
+            w.write(ids["/text"], t, serialize_message(String(data=f"t{part}")),
+                    publish_time=t - 5 * MS)
+            w.write(ids["/count"], t + 1, serialize_message(Int32(data=part)),
+                    publish_time=t + 1 - 5 * MS)
+    model = OffsetModel.constant(-300 * MS, drift_ppm=50.0, robot="r")
+    out = tmp_path / "merged.mcap"
+    report = merge([RobotLog(bag, namespace="r", model=model)], out)
+    assert report.messages == 4
+    got: dict[str, list[tuple[Any, int, int]]] = {}
+    with open(out, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            assert schema is not None
+            decoded = DecoderFactory().decoder_for("cdr", schema)(message.data)  # type: ignore[misc]
+            got.setdefault(channel.topic, []).append(
+                (decoded.data, message.log_time, message.publish_time))
+    assert [d for d, _, _ in got["/r/text"]] == ["t0", "t1"]
+    assert [d for d, _, _ in got["/r/count"]] == [0, 1]
+    for part, (_, log_time, publish_time) in enumerate(got["/r/text"]):
+        t = (part + 1) * s
+        assert log_time == model.to_reference(t)
+        assert publish_time == model.to_reference(t - 5 * MS)
+    # One topic with another type in a later file: refused, no output left behind.
+    clash = tmp_path / "clash"
+    clash.mkdir()
+    for part, (msg_type, msg) in enumerate((("String", String(data="a")),
+                                            ("Int32", Int32(data=1)))):
+        with BagWriter(clash / f"clash_{part}.mcap") as w:
+            w.write(w.add_topic("/x", f"std_msgs/msg/{msg_type}"), s, serialize_message(msg))
+    with pytest.raises(MergeError, match="two types"):
+        merge([RobotLog(clash, namespace="r", model=model)], tmp_path / "clash_merged")
+    assert not (tmp_path / "clash_merged").exists()

@@ -150,7 +150,7 @@ def test_a_fast_link_with_any_drift_is_consistent(drift_ppm: float, one_way_ns: 
         assert e is not None
         assert abs(e.offset_ns - (5 * MS + drift * t4)) <= e.uncertainty_ns, (i, e)
     assert est.inconsistent == 0 and len(est) == 60
-    assert e.uncertainty_ns < 2 * one_way_ns + 1_000  # a tight bound on a tight link
+    assert e is not None and e.uncertainty_ns < 2 * one_way_ns + 1_000  # tight link, tight bound
 
 
 def test_old_samples_leave_the_window() -> None:

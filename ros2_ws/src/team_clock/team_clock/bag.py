@@ -32,7 +32,7 @@ from mcap.summary import Summary
 from mcap.writer import CompressionType, Writer
 from zstandard import ZstdError
 
-from .errors import LogFormatError
+from .errors import LogFormatError, MergeError
 
 __all__ = ["BagWriter", "LogReader", "message_definition"]
 
@@ -286,6 +286,10 @@ class BagWriter:
     def __init__(self, path: str | os.PathLike[str], *, compression: str = "zstd",
                  chunk_size: int = 1 << 20) -> None:
         self.path = Path(path)
+        kinds = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                 "none": CompressionType.NONE}
+        if compression not in kinds:  # before anything is created
+            raise MergeError(f"compression must be one of {sorted(kinds)}, got {compression!r}")
         if self.path.exists():
             raise FileExistsError(f"{self.path} exists; refusing to overwrite it")
         if self.path.suffix == ".mcap":
@@ -295,11 +299,6 @@ class BagWriter:
             self.directory = self.path
             self.path.mkdir(parents=True)
             self.file = self.path / f"{self.path.name}_0.mcap"
-        kinds = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
-                 "none": CompressionType.NONE}
-        if compression not in kinds:
-            raise ValueError(f"compression must be one of {sorted(kinds)}, got {compression!r}")
-        self._compression = "" if compression == "none" else compression
         self._stream = open(self.file, "wb")  # noqa: SIM115 - closed in close()
         self._writer = Writer(self._stream, chunk_size=chunk_size, compression=kinds[compression])
         self._writer.start(profile="ros2", library="team_clock")
@@ -316,7 +315,7 @@ class BagWriter:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def add_schema(self, name: str, encoding: str, data: bytes) -> int:
+    def _schema(self, name: str, encoding: str, data: bytes) -> int:
         key = (name, encoding, data)
         if key not in self._schemas:
             self._schemas[key] = self._writer.register_schema(name, encoding, data)
@@ -329,12 +328,13 @@ class BagWriter:
         if topic in self._topics:
             existing = self._topics[topic]
             if existing.type_name != type_name:
-                raise ValueError(f"{topic} is already {existing.type_name}, not {type_name}")
+                raise MergeError(f"{topic} is already {existing.type_name}, not {type_name}: "
+                                 "one topic cannot hold two types in one bag")
             return existing.channel_id
         if definition is None:
             definition = message_definition(type_name)
         data = definition.encode() if isinstance(definition, str) else definition
-        schema_id = self.add_schema(type_name, schema_encoding, data)
+        schema_id = self._schema(type_name, schema_encoding, data)
         meta = dict(metadata or {})
         meta.setdefault("offered_qos_profiles", "")
         channel_id = self._writer.register_channel(topic, "cdr", schema_id, meta)

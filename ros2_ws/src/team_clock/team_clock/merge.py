@@ -15,7 +15,6 @@ Streaming: one message per log is held at a time, so logs larger than memory mer
 from __future__ import annotations
 
 import heapq
-import itertools
 import os
 import re
 import struct
@@ -105,8 +104,10 @@ def merge(
     readers = [LogReader(r.path) for r in reports]
     streams = [_aligned(i, reader, report) for i, (reader, report)
                in enumerate(zip(readers, reports, strict=True))]
-    channels: dict[tuple[int, int], int] = {}
-    has_header: dict[tuple[int, int], bool] = {}
+    # Keyed by topic and type, not channel id: each file of a split bag numbers its
+    # channels afresh, so one id can stand for different topics in one log.
+    channels: dict[tuple[int, str, str], int] = {}
+    has_header: dict[tuple[int, str, str], bool] = {}
     first_seen: dict[int, int] = {}  # log index -> earliest / latest local log time
     last_seen: dict[int, int] = {}
     try:
@@ -124,10 +125,10 @@ def merge(
             })
         for ref_time, _, index, schema, channel, message in heapq.merge(*streams):
             report = reports[index]
-            key = (index, channel.id)
+            assert schema is not None  # schemaless channels are skipped in _aligned
+            key = (index, channel.topic, schema.name)
             out_id = channels.get(key)
             if out_id is None:
-                assert schema is not None  # schemaless channels are skipped in _aligned
                 out_id = writer.add_topic(
                     f"/{report.namespace}{_absolute(channel.topic)}", schema.name,
                     definition=schema.data, schema_encoding=schema.encoding,
@@ -153,8 +154,8 @@ def merge(
     for index, (reader, report) in enumerate(zip(readers, reports, strict=True)):
         report.truncated_files = list(reader.truncated)
         if index in first_seen:
-            report.max_uncertainty_ns = _max_uncertainty(report.model, first_seen[index],
-                                                         last_seen[index])
+            report.max_uncertainty_ns = report.model.max_uncertainty(first_seen[index],
+                                                                     last_seen[index])
     return MergeReport(Path(output), reports)
 
 
@@ -170,15 +171,6 @@ def _model_of(log: RobotLog) -> OffsetModel:
         except NoEstimateError:
             pass
         raise
-
-
-def _max_uncertainty(model: OffsetModel, start: int, end: int) -> int:
-    """Largest error bound over ``[start, end]``: at the ends or at an estimate between."""
-    points = [start, end, *(k.stamp_ns for k in model.knots if start <= k.stamp_ns <= end)]
-    # Between two estimates the bound is largest half-way (holdover grows from both sides).
-    stamps = sorted(points)
-    points += [(a + b) // 2 for a, b in itertools.pairwise(stamps)]
-    return max(model.uncertainty_at(t) for t in points)
 
 
 def _aligned(

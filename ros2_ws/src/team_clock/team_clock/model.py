@@ -12,6 +12,7 @@ moves or switches source; before the first and after the last it extrapolates wi
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 import os
 from collections.abc import Iterable, Mapping
@@ -96,6 +97,7 @@ class OffsetModel:
         return local_ns + round(self.offset_at(local_ns))
 
     def offset_at(self, local_ns: int) -> float:
+        """Reference minus local time at ``local_ns`` (the blend of the two nearest lines)."""
         i = bisect.bisect_right(self._stamps, local_ns)
         if i == 0:
             return self.knots[0].offset_at(local_ns)
@@ -106,11 +108,42 @@ class OffsetModel:
         return (1.0 - w) * before.offset_at(local_ns) + w * after.offset_at(local_ns)
 
     def uncertainty_at(self, local_ns: int) -> int:
-        """Error bound of :meth:`to_reference`: the nearer estimate's, grown by holdover."""
-        i = bisect.bisect_right(self._stamps, local_ns)
+        """Error bound of :meth:`to_reference` at ``local_ns``.
+
+        Each estimate's line is within its own bound, grown by holdover away from its
+        stamp; a blend of two lines is within the same blend of their bounds (not within
+        the smaller one: the looser estimate still weighs in).
+        """
         rate = self.holdover_ppm * 1e-6
-        return min(k.uncertainty_ns + math.ceil(rate * abs(local_ns - k.stamp_ns))
-                   for k in self.knots[max(0, i - 1): i + 1])
+
+        def bound(knot: Knot) -> float:
+            return knot.uncertainty_ns + rate * abs(local_ns - knot.stamp_ns)
+
+        i = bisect.bisect_right(self._stamps, local_ns)
+        if i == 0:
+            return math.ceil(bound(self.knots[0]))
+        if i == len(self.knots):
+            return math.ceil(bound(self.knots[-1]))
+        before, after = self.knots[i - 1], self.knots[i]
+        w = (local_ns - before.stamp_ns) / (after.stamp_ns - before.stamp_ns)
+        return math.ceil((1.0 - w) * bound(before) + w * bound(after))
+
+    def max_uncertainty(self, start_ns: int, end_ns: int) -> int:
+        """Largest :meth:`uncertainty_at` over ``[start_ns, end_ns]`` (local times).
+
+        Outside the estimates the bound grows away from them, so only the ends count.
+        Between two estimates ``d`` apart, at fraction ``w``, it is ``(1-w)·u₀ + w·u₁ +
+        2·rate·d·w(1-w)``: concave, largest at ``w = 1/2 + (u₁-u₀)/(4·rate·d)``.
+        """
+        points = {start_ns, end_ns}
+        rate = self.holdover_ppm * 1e-6
+        for before, after in itertools.pairwise(self.knots):
+            span = after.stamp_ns - before.stamp_ns
+            points.update((before.stamp_ns, after.stamp_ns))
+            if span > 0 and rate > 0:
+                w = 0.5 + (after.uncertainty_ns - before.uncertainty_ns) / (4 * rate * span)
+                points.add(before.stamp_ns + round(min(max(w, 0.0), 1.0) * span))
+        return max(self.uncertainty_at(min(max(t, start_ns), end_ns)) for t in points)
 
     # -- from recordings ------------------------------------------------------------------
 
