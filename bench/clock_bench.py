@@ -23,12 +23,10 @@ import argparse
 import json
 import os
 import platform
-import random
 import statistics
 import sys
 import tempfile
 import time
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -37,15 +35,10 @@ from mcap.reader import make_reader
 from mcap.writer import Writer
 from rclpy.serialization import serialize_message
 
-import team_clock.sync as sync_module
 from efficient_comm import to_msg
-from efficient_comm.handle import Clock, NodeHandle
-from efficient_comm.testing import TestHandle
-from team_clock.bag import BagWriter, LogReader
-from team_clock.estimator import OffsetEstimator, Sample
+from team_clock.bag import BagWriter
 from team_clock.merge import RobotLog, merge
-from team_clock.sync import OFFSET_QOS
-from team_clock.testing import SimDelay, SimTeam
+from team_clock.testing import SimDelay, SimTeam, flash_times
 from team_clock_interfaces.msg import ClockOffset
 
 MS = 1_000_000
@@ -55,49 +48,35 @@ NETWORKS = {"lan": SimDelay(min_s=0.0002, jitter_s=0.0002),
             "wifi": SimDelay(min_s=0.001, jitter_s=0.002)}
 
 
-class _RecordingEstimator(OffsetEstimator):
-    """Keeps the latest sample, for the Cristian baseline."""
-
-    def add(self, sample: Sample) -> bool:
-        ok = super().add(sample)
-        if ok:
-            self.last: Sample | None = sample
-        return ok
-
-
 def _percentile(values: list[float], q: float) -> float:
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
 
 
 def accuracy(network: str, seed: int, seconds: float) -> dict[str, Any]:
-    sync_module.__dict__["OffsetEstimator"] = _RecordingEstimator
-    try:
-        team = SimTeam(SKEWS, reference="ref", links=LINKS, delay=NETWORKS[network], loss=0.2,
-                       seed=seed)
-        team.advance(10.0)
-        ours: dict[str, list[float]] = {"a": [], "b": []}
-        cristian: dict[str, list[float]] = {"a": [], "b": []}
-        uncertainty: dict[str, list[float]] = {"a": [], "b": []}
-        covered = total = 0
-        for _ in range(round((seconds - 10.0) / 0.25)):
-            team.advance(0.25)
-            for robot in ours:
-                err, unc = team.error_ns(robot), team.uncertainty_ns(robot)
-                state = team.syncs[robot].state
-                if err is None or unc is None or state is None:
-                    continue
-                total += 1
-                covered += abs(err) <= unc
-                ours[robot].append(abs(err))
-                uncertainty[robot].append(unc)
-                source = team.syncs[robot]._sources[state.source]
-                last = getattr(source.estimator, "last", None)
-                if last is not None:
-                    local = team.clocks[robot].now_ns()
-                    cristian[robot].append(abs(local + last.offset_ns - team.reference_now()))
-    finally:
-        sync_module.__dict__["OffsetEstimator"] = OffsetEstimator
+    team = SimTeam(SKEWS, reference="ref", links=LINKS, delay=NETWORKS[network], loss=0.2,
+                   seed=seed)
+    team.advance(10.0)
+    ours: dict[str, list[float]] = {"a": [], "b": []}
+    cristian: dict[str, list[float]] = {"a": [], "b": []}
+    uncertainty: dict[str, list[float]] = {"a": [], "b": []}
+    covered = total = 0
+    for _ in range(round((seconds - 10.0) / 0.25)):
+        team.advance(0.25)
+        for robot in ours:
+            err, unc = team.error_ns(robot), team.uncertainty_ns(robot)
+            state = team.syncs[robot].state
+            if err is None or unc is None or state is None:
+                continue
+            total += 1
+            covered += abs(err) <= unc
+            ours[robot].append(abs(err))
+            uncertainty[robot].append(unc)
+            # Cristian: the latest round trip of the same source, taken as it is.
+            last = team.syncs[robot].estimators[state.source].newest
+            if last is not None:
+                local = team.clocks[robot].now_ns()
+                cristian[robot].append(abs(local + last.offset_ns - team.reference_now()))
     out: dict[str, Any] = {"kind": "accuracy", "network": network, "seed": seed,
                            "covered": covered / max(total, 1)}
     for robot in ours:
@@ -111,70 +90,21 @@ def accuracy(network: str, seed: int, seconds: float) -> dict[str, Any]:
     return out
 
 
-class _Recorder:
-    def __init__(self, node: NodeHandle, *, clock: Clock, robot: str, path: Path) -> None:
-        self._clock = clock
-        self.writer = BagWriter(path)
-        self._offsets = self.writer.add_topic("/team_clock/offset",
-                                              "team_clock_interfaces/msg/ClockOffset")
-        self._events = self.writer.add_topic("/event", "geometry_msgs/msg/PointStamped")
-        node.create_subscription(ClockOffset, f"/{robot}/team_clock/offset", self._on_offset,
-                                 qos=OFFSET_QOS)
-        node.create_subscription(PointStamped, "/flash", self._on_flash)
-
-    def _on_offset(self, msg: ClockOffset) -> None:
-        self.writer.write(self._offsets, self._clock.now_ns(), serialize_message(msg))
-
-    def _on_flash(self, flash: PointStamped) -> None:
-        now = self._clock.now_ns()
-        event = PointStamped()
-        event.header.frame_id = flash.header.frame_id
-        event.header.stamp = to_msg(now)
-        self.writer.write(self._events, now, serialize_message(event))
-
-
-def _event_times(path: Path) -> dict[str, dict[str, int]]:
-    out: dict[str, dict[str, int]] = {}
-    for schema, channel, message in LogReader(path).messages():
-        if channel.topic.endswith("/event"):
-            del schema
-            key = channel.topic.rsplit("/event", 1)[0] or "/"
-            # frame_id is the last field: CDR string after the 8-byte stamp.
-            size = int.from_bytes(message.data[12:16], "little")
-            event = message.data[16:16 + size - 1].decode()
-            out.setdefault(key, {})[event] = message.log_time
-    return out
-
-
 def alignment(network: str, seed: int, seconds: float, tmp: Path) -> dict[str, Any]:
     team = SimTeam(SKEWS, reference="ref", links=LINKS, delay=NETWORKS[network], loss=0.2,
                    seed=seed)
-    paths = {robot: tmp / f"{network}_{seed}_{robot}" for robot in SKEWS}
-    recorders = [team.container.add(partial(_Recorder, clock=team.clocks[r], robot=r, path=p),
-                                    name="recorder", namespace=f"/{r}")
-                 for r, p in paths.items()]
-    flash = TestHandle("flash", container=team.container)
-    rng = random.Random(seed)
-    team.advance(10.0)
-    for k in range(round((seconds - 10.0) * 2)):
-        team.advance(0.3 + rng.random() * 0.4)
-        msg = PointStamped()
-        msg.header.frame_id = f"e{k}"
-        flash.inject("/flash", msg)
-    team.advance(2.0)
-    for rec in recorders:
-        rec.writer.close()
-    merged = tmp / f"{network}_{seed}_merged"
+    directory = tmp / f"{network}_{seed}"
+    paths, _ = team.record_flashes(directory, events=round((seconds - 10.0) * 2), seed=seed)
+    merged = directory / "merged"
     merge([RobotLog(p) for p in paths.values()], merged, stamps=True)
 
-    def spreads(by_robot: dict[str, dict[str, int]]) -> list[float]:
-        events = set.intersection(*(set(v) for v in by_robot.values()))
-        return [max(v[e] for v in by_robot.values()) - min(v[e] for v in by_robot.values())
+    def spreads(by_robot: list[dict[str, tuple[int, int]]]) -> list[float]:
+        events = set.intersection(*(set(v) for v in by_robot))
+        return [max(v[e][0] for v in by_robot) - min(v[e][0] for v in by_robot)
                 for e in events]
 
-    raw = {r: _event_times(p)["/"] for r, p in paths.items()}
-    after = spreads(_event_times(merged))
-    before = spreads(raw)
+    after = spreads(list(flash_times(merged).values()))
+    before = spreads([flash_times(p)[""] for p in paths.values()])
     return {"kind": "alignment", "network": network, "seed": seed, "events": len(after),
             "max_spread_us": max(after) / 1e3, "median_spread_us": statistics.median(after) / 1e3,
             "unmerged_median_spread_us": statistics.median(before) / 1e3}

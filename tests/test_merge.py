@@ -10,10 +10,8 @@ true instant. After merging, the events must line up within 1 ms.
 from __future__ import annotations
 
 import itertools
-import random
 import subprocess
 from collections.abc import Sequence
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -26,14 +24,11 @@ from rclpy.serialization import serialize_message
 from rosbags.highlevel import AnyReader
 
 from efficient_comm import to_msg
-from efficient_comm.handle import Clock, NodeHandle
-from efficient_comm.testing import TestHandle
 from team_clock.bag import BagWriter
 from team_clock.cli import main as cli_main
 from team_clock.errors import LogFormatError, MergeError, NoEstimateError
 from team_clock.merge import RobotLog, merge
 from team_clock.model import Knot, OffsetModel, offset_metadata
-from team_clock.sync import OFFSET_QOS
 from team_clock.testing import SimDelay, SimTeam
 from team_clock_interfaces.msg import ClockOffset
 
@@ -45,55 +40,12 @@ OFFSET_TYPE = "team_clock_interfaces/msg/ClockOffset"
 EVENT_TYPE = "geometry_msgs/msg/PointStamped"
 
 
-class _Recorder:
-    """What a robot's recorder does, on the robot's own (skewed) clock: log offsets, events."""
-
-    def __init__(self, node: NodeHandle, *, clock: Clock, robot: str, path: Path) -> None:
-        self._clock = clock
-        self.writer = BagWriter(path)
-        self._offsets = self.writer.add_topic("/team_clock/offset", OFFSET_TYPE)
-        self._events = self.writer.add_topic("/event", EVENT_TYPE)
-        node.create_subscription(ClockOffset, f"/{robot}/team_clock/offset", self._on_offset,
-                                 qos=OFFSET_QOS)
-        node.create_subscription(PointStamped, "/flash", self._on_flash)
-
-    def _on_offset(self, msg: ClockOffset) -> None:
-        self.writer.write(self._offsets, self._clock.now_ns(), serialize_message(msg))
-
-    def _on_flash(self, flash: PointStamped) -> None:
-        now = self._clock.now_ns()
-        event = PointStamped()
-        event.header.frame_id = flash.header.frame_id
-        event.header.stamp = to_msg(now)  # stamped with the robot's clock, like a sensor
-        event.point.x = flash.point.x
-        self.writer.write(self._events, now, serialize_message(event))
-
-
 def _record_team(tmp_path: Path, *, seed: int = 5, loss: float = 0.2,
                  events: int = 60) -> tuple[dict[str, Path], dict[str, int]]:
     """Run the team, flash ``events`` times after a warm-up; the logs and the true times."""
     team = SimTeam(SKEWS, reference="ref", links=[("ref", "a"), ("a", "b")], loss=loss,
                    seed=seed, delay=SimDelay(min_s=0.001, jitter_s=0.002))
-    paths = {robot: tmp_path / f"log_{robot}" for robot in SKEWS}
-    recorders = [
-        team.container.add(partial(_Recorder, clock=team.clocks[robot], robot=robot, path=path),
-                           name="recorder", namespace=f"/{robot}")
-        for robot, path in paths.items()
-    ]
-    flash = TestHandle("flash", container=team.container)
-    rng = random.Random(seed)
-    truth: dict[str, int] = {}
-    team.advance(10.0)  # warm-up: the first estimates
-    for k in range(events):
-        team.advance(0.3 + rng.random() * 0.4)
-        msg = PointStamped()
-        msg.header.frame_id = f"e{k}"
-        flash.inject("/flash", msg)  # every robot sees it now, at one true instant
-        truth[f"e{k}"] = team.reference_now()
-    team.advance(2.0)
-    for rec in recorders:
-        rec.writer.close()
-    return paths, truth
+    return team.record_flashes(tmp_path, events=events, seed=seed)
 
 
 def _events(path: Path) -> dict[str, dict[str, tuple[int, int]]]:

@@ -119,9 +119,9 @@ class OffsetEstimator:
         return len(self._samples)
 
     @property
-    def newest_ns(self) -> int | None:
-        """Local time of the newest sample, or None before the first one."""
-        return self._samples[-1].local_ns if self._samples else None
+    def newest(self) -> Sample | None:
+        """The newest sample kept, or None before the first one (staleness, diagnostics)."""
+        return self._samples[-1] if self._samples else None
 
     def clear(self) -> None:
         self._samples.clear()

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -147,6 +148,11 @@ class ClockSync:
             return SyncState(Estimate(now, 0, 0.0, 0, 0), self.robot, (self.robot,))
         return self._state
 
+    @property
+    def estimators(self) -> Mapping[str, OffsetEstimator]:
+        """One estimator per robot that answered: its samples and refusals, for diagnostics."""
+        return {name: source.estimator for name, source in self._sources.items()}
+
     def to_reference(self, local_ns: int) -> int | None:
         """Reference time at local time ``local_ns``; None without an estimate."""
         state = self.state
@@ -226,8 +232,8 @@ class ClockSync:
         """Follow the fresh source with the lowest uncertainty."""
         best: SyncState | None = None
         for name, source in self._sources.items():
-            newest = source.estimator.newest_ns
-            if newest is None or now - newest > self._stale_ns:
+            newest = source.estimator.newest
+            if newest is None or now - newest.local_ns > self._stale_ns:
                 continue
             est = source.estimator.estimate(now)
             if est is None:

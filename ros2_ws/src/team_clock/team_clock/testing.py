@@ -24,6 +24,10 @@ Delays need the container's executor to run timers, which a manual clock does ex
                    links=[("ref", "a")], loss=0.2)
     team.advance(30.0)
     assert abs(team.error_ns("a")) <= team.uncertainty_ns("a")
+
+To test alignment end to end, :meth:`SimTeam.record_flashes` has every robot log, on its
+own clock, its clock estimates and "flash" events that all robots see at one true instant
+(:class:`SimLogger`); :func:`flash_times` reads the events back from a log or merged log.
 """
 
 from __future__ import annotations
@@ -33,17 +37,28 @@ from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import partial
+from pathlib import Path
 from typing import Any
 
-from efficient_comm import Container, ManualClock
-from efficient_comm.handle import NodeHandle, Timer
-from efficient_comm.testing import test_container
-from team_clock_interfaces.msg import TimeSyncPing, TimeSyncPong
+from geometry_msgs.msg import PointStamped
+from rclpy.serialization import deserialize_message, serialize_message
 
+from efficient_comm import Container, ManualClock, to_msg
+from efficient_comm.handle import Clock, NodeHandle, Timer
+from efficient_comm.testing import TestHandle, test_container
+from team_clock_interfaces.msg import ClockOffset, TimeSyncPing, TimeSyncPong
+
+from .bag import BagWriter, LogReader
 from .clocks import SkewedClock
-from .sync import EXCHANGE_QOS, OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC, ClockSync
+from .sync import EXCHANGE_QOS, OFFSET_QOS, OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC, ClockSync
 
-__all__ = ["SimDelay", "SimNetwork", "SimTeam", "sim_remappings"]
+__all__ = ["FLASH_TOPIC", "SimDelay", "SimLogger", "SimNetwork", "SimTeam", "flash_times",
+           "sim_remappings"]
+
+#: Where the simulated "flashes" (events every robot sees at once) are published.
+FLASH_TOPIC = "/flash"
+#: The topic a :class:`SimLogger` logs each flash under, stamped with its robot's clock.
+EVENT_TOPIC = "/event"
 
 
 def sim_remappings(robot: str) -> dict[str, str]:
@@ -193,3 +208,72 @@ class SimTeam:
         if state is None:
             return None
         return state.estimate.uncertainty_at(self.clocks[robot].now_ns())
+
+    def record_flashes(self, directory: Path, *, events: int, seed: int = 0,
+                       warm_up_s: float = 10.0) -> tuple[dict[str, Path], dict[str, int]]:
+        """Every robot logs to ``directory/log_<robot>`` while ``events`` flashes happen.
+
+        After ``warm_up_s`` (the first estimates), a flash every 0.3-0.7 s; returns the
+        logs and each flash's true team time (the reference's clock at that instant).
+        """
+        paths = {robot: Path(directory) / f"log_{robot}" for robot in self.clocks}
+        loggers: list[SimLogger] = [
+            self.container.add(partial(SimLogger, clock=self.clocks[robot], robot=robot,
+                                       path=path), name="logger", namespace=f"/{robot}")
+            for robot, path in paths.items()
+        ]
+        flash = TestHandle("flash", container=self.container)
+        rng = random.Random(seed)
+        truth: dict[str, int] = {}
+        self.advance(warm_up_s)
+        for k in range(events):
+            self.advance(0.3 + rng.random() * 0.4)
+            msg = PointStamped()
+            msg.header.frame_id = f"e{k}"
+            flash.inject(FLASH_TOPIC, msg)  # every robot sees it now, at one true instant
+            truth[msg.header.frame_id] = self.reference_now()
+        self.advance(2.0)
+        for logger in loggers:
+            logger.writer.close()
+        return paths, truth
+
+
+class SimLogger:
+    """What a robot's recorder does, on the robot's own clock: log estimates and flashes.
+
+    The estimates go to ``/team_clock/offset`` (read from the robot's remapped offset
+    topic), each flash to ``/event`` as a ``PointStamped`` whose ``frame_id`` names it and
+    whose stamp is the robot's clock, as a sensor would stamp it.
+    """
+
+    def __init__(self, node: NodeHandle, *, clock: Clock, robot: str, path: Path) -> None:
+        self._clock = clock
+        self.writer = BagWriter(path)
+        self._offsets = self.writer.add_topic(OFFSET_TOPIC,
+                                              "team_clock_interfaces/msg/ClockOffset")
+        self._events = self.writer.add_topic(EVENT_TOPIC, "geometry_msgs/msg/PointStamped")
+        node.create_subscription(ClockOffset, f"/{robot}{OFFSET_TOPIC}", self._on_offset,
+                                 qos=OFFSET_QOS)
+        node.create_subscription(PointStamped, FLASH_TOPIC, self._on_flash)
+
+    def _on_offset(self, msg: ClockOffset) -> None:
+        self.writer.write(self._offsets, self._clock.now_ns(), serialize_message(msg))
+
+    def _on_flash(self, flash: PointStamped) -> None:
+        now = self._clock.now_ns()
+        event = PointStamped()
+        event.header.frame_id = flash.header.frame_id
+        event.header.stamp = to_msg(now)
+        self.writer.write(self._events, now, serialize_message(event))
+
+
+def flash_times(path: Path) -> dict[str, dict[str, tuple[int, int]]]:
+    """``{namespace: {flash: (log time, header stamp)}}`` of a log ("" for a robot's own)."""
+    out: dict[str, dict[str, tuple[int, int]]] = {}
+    for _, channel, message in LogReader(Path(path)).messages():
+        if channel.topic.endswith(EVENT_TOPIC):
+            event = deserialize_message(message.data, PointStamped)
+            stamp = event.header.stamp.sec * 1_000_000_000 + event.header.stamp.nanosec
+            namespace = channel.topic.removesuffix(EVENT_TOPIC).strip("/")
+            out.setdefault(namespace, {})[event.header.frame_id] = (message.log_time, stamp)
+    return out
