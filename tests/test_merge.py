@@ -244,7 +244,7 @@ def test_model_falls_back_to_metadata_in_both_layouts(tmp_path):
     assert OffsetModel.from_mcap(path).to_reference(5_000_000_000) == 5_000_007_000
 
 
-def test_logs_without_a_usable_estimate_are_refused(tmp_path):
+def test_logs_without_a_usable_estimate_are_refused(tmp_path, capsys):
     none = _log(tmp_path / "none", [])
     invalid = _log(tmp_path / "invalid", [_offset("lone", 10, 0, valid=False)] * 3)
     several = _log(tmp_path / "several", [_offset("a", 10, 5), _offset("b", 10, 7)])
@@ -264,6 +264,15 @@ def test_logs_without_a_usable_estimate_are_refused(tmp_path):
     # Told explicitly that a log's clock is the reference, the merge goes ahead.
     assert cli_main(["merge", "-o", str(tmp_path / "out2"), "--assume-synced", "r",
                      f"r={none}"]) == 0
+    # Also beside robots aligned to a named reference (the claim is not held against it).
+    assert cli_main(["merge", "-o", str(tmp_path / "out3"), "--assume-synced", "laptop",
+                     f"laptop={none}", f"b={several}"]) == 0
+    capsys.readouterr()
+    # A name that matches no NAMESPACE=LOG is an error, not silently ignored.
+    assert cli_main(["merge", "-o", str(tmp_path / "out4"), "--assume-synced", "typo",
+                     f"r={none}"]) == 1
+    assert "--assume-synced typo" in capsys.readouterr().err
+    assert not (tmp_path / "out4").exists()
 
 
 def test_damaged_and_foreign_inputs(tmp_path):

@@ -9,6 +9,10 @@ Where things live (docs/TEAM_CLOCK.md explains the method):
 * ``model``     ``OffsetModel``: a recorded robot's local time -> team reference time;
 * ``bag``       reading and writing MCAP in the rosbag2 layout; ``merge`` aligning logs;
 * ``testing``   a simulated lossy, delayed team network for tests.
+
+Public here: the estimator, ``OffsetModel``, ``merge`` and its report, the errors. The
+component is ``team_clock.sync.ClockSync`` (entry point ``clock_sync``), kept out of this
+root so that reading and merging logs do not load the generated message modules.
 """
 
 from .clocks import SkewedClock as SkewedClock
@@ -19,4 +23,8 @@ from .errors import TeamClockError as TeamClockError
 from .estimator import Estimate as Estimate
 from .estimator import OffsetEstimator as OffsetEstimator
 from .estimator import Sample as Sample
+from .merge import MergeReport as MergeReport
+from .merge import RobotLog as RobotLog
+from .merge import RobotReport as RobotReport
+from .merge import merge as merge
 from .model import OffsetModel as OffsetModel

@@ -11,7 +11,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from .errors import TeamClockError
+from .errors import MergeError, TeamClockError
 from .merge import RobotLog, merge
 from .model import OffsetModel
 
@@ -50,13 +50,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                       f"{k.drift_ppm:+.3f} ppm  ±{k.uncertainty_ns} ns  hops {k.hops} "
                       f"via {k.source}")
             return 0
-        logs = []
-        for log in args.logs:
-            log = _log_arg(log)
-            if log.namespace is not None and log.namespace in args.assume_synced:
-                log = RobotLog(log.path, namespace=log.namespace,
-                               model=OffsetModel.identity(robot=log.namespace))
-            logs.append(log)
+        logs = [_log_arg(text) for text in args.logs]
+        named = {log.namespace for log in logs}
+        if unknown := sorted(set(args.assume_synced) - named):
+            raise MergeError(f"--assume-synced {', '.join(unknown)}: no log given as "
+                             "NAMESPACE=LOG under that name")
+        logs = [RobotLog(log.path, namespace=log.namespace,
+                         model=OffsetModel.identity(robot=log.namespace or ""))
+                if log.namespace in args.assume_synced else log for log in logs]
         report = merge(logs, args.output, stamps=args.stamps, compression=args.compression)
     except (TeamClockError, OSError) as exc:
         print(f"team_clock: error: {exc}", file=sys.stderr)

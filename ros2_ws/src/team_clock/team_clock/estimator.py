@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
@@ -37,6 +37,7 @@ class Sample:
     t2: int
     t3: int
     t4: int
+    _: KW_ONLY
     #: The server's own uncertainty about reference time (0 for the reference itself).
     server_uncertainty_ns: int = 0
 
@@ -65,6 +66,7 @@ class Sample:
 class Estimate:
     """``reference = local + offset_ns + drift_ppm * 1e-6 * (local - stamp_ns)``."""
 
+    _: KW_ONLY
     stamp_ns: int
     offset_ns: int
     drift_ppm: float

@@ -83,8 +83,12 @@ class OffsetModel:
 
     @classmethod
     def identity(cls, *, robot: str = "") -> OffsetModel:
-        """For a log whose clock is the reference (or assumed to be)."""
-        return cls([Knot(0, 0, 0.0, 0)], robot=robot, reference=robot)
+        """For a log whose clock is the reference, or is said to be on reference time.
+
+        The reference robot is left unnamed: the claim is the caller's (a log synchronised
+        by other means), so a merge cannot hold it against the other logs' reference.
+        """
+        return cls([Knot(0, 0, 0.0, 0)], robot=robot)
 
     @classmethod
     def constant(cls, offset_ns: int, *, drift_ppm: float = 0.0, stamp_ns: int = 0,

@@ -145,7 +145,9 @@ class ClockSync:
         """The current estimate (None: no path to the reference, or not yet)."""
         if self.is_reference:
             now = self.local_clock.now_ns()
-            return SyncState(Estimate(now, 0, 0.0, 0, 0), self.robot, (self.robot,))
+            exact = Estimate(stamp_ns=now, offset_ns=0, drift_ppm=0.0, uncertainty_ns=0,
+                             samples=0)
+            return SyncState(exact, self.robot, (self.robot,))
         return self._state
 
     @property
@@ -221,7 +223,8 @@ class ClockSync:
                                              max_samples=self._window_samples))
             self._sources[pong.server] = source
         source.path = path
-        sample = Sample(pong.t1_ns, pong.t2_ns, pong.t3_ns, t4, max(0, pong.uncertainty_ns))
+        sample = Sample(pong.t1_ns, pong.t2_ns, pong.t3_ns, t4,
+                        server_uncertainty_ns=max(0, pong.uncertainty_ns))
         if source.estimator.add(sample):
             self.counts["samples"] += 1
             self._update(t4)
