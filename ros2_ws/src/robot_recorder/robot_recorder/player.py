@@ -177,11 +177,15 @@ class Player:
             return
         now = self._node.clock.now_ns()
         messages, times = self._messages, self._times
+        wrapped = False
         while True:
             if self.position >= len(messages):
                 if not self.loop:
                     self.finished = True
                     return
+                if wrapped:  # a bag shorter than a tick: once around per tick
+                    return
+                wrapped = True
                 self.position = 0
                 self._anchor()
                 now = self._anchor_clock
