@@ -101,7 +101,9 @@ def message_definition(type_name: str) -> str:
 class LogReader:
     """Iterates a log's messages in log-time order, file after file.
 
-    ``truncated`` names the files that ended before their last record was complete.
+    ``truncated`` names the files that ended before their last record was complete. Such a
+    file has no index to order by, so its messages come in the order they were written
+    (a recorder's are close to time order; the merged output is then only as ordered).
     """
 
     path: Path

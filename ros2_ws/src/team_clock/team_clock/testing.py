@@ -52,8 +52,8 @@ from .bag import BagWriter, LogReader
 from .clocks import SkewedClock
 from .sync import EXCHANGE_QOS, OFFSET_QOS, OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC, ClockSync
 
-__all__ = ["FLASH_TOPIC", "SimDelay", "SimLogger", "SimNetwork", "SimTeam", "flash_times",
-           "sim_remappings"]
+__all__ = ["EVENT_TOPIC", "FLASH_TOPIC", "SimDelay", "SimLogger", "SimNetwork", "SimTeam",
+           "flash_times", "sim_remappings"]
 
 #: Where the simulated "flashes" (events every robot sees at once) are published.
 FLASH_TOPIC = "/flash"
