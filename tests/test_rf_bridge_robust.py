@@ -284,3 +284,22 @@ def test_listeners_bind_loopback_by_default(ros1: Ros1System) -> None:
         assert adapter._slave._server.server_address[0] == "127.0.0.1"
     finally:
         b.close()
+
+
+def test_oversize_outgoing_message_counted_and_not_sent(ros1: Ros1System) -> None:
+    topic = unique_topic("image")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/Image"}],
+                     ros1={"max_message_bytes": 4096})
+    adapter: Any = b.adapters["ros1"]
+    try:
+        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        node.inject(topic, Image(height=100, width=100, encoding="mono8", step=100,
+                                 data=bytes(10_000)))
+        node.inject(topic, Image(height=1, width=2, encoding="mono8", step=2, data=b"\x01\x02"))
+        assert json.loads(read_line(listener))["width"] == 2  # the big one never went out
+        assert drops(b, topic, "to_ros1") == {"oversize": 1}
+        assert any("max_message_bytes" in text for _, text in node.records)
+    finally:
+        b.close()

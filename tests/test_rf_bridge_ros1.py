@@ -273,51 +273,64 @@ def test_type_learned_from_connection_with_yaml_rule(ros1: Ros1System) -> None:
         b.close()
 
 
-def test_rostopic_echo_hz_and_rosbag_record(ros1: Ros1System) -> None:
-    topic = unique_topic("chatter")
-    node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
+def test_rostopic_echo_hz_and_rosbag_record_and_play(ros1: Ros1System) -> None:
+    """ROS 1's own tools on bridged topics: rostopic (rospy) and rosbag (roscpp) record a
+    bridged topic, and rosbag play (a roscpp publisher) feeds the recording back to ROS 2."""
+    topic, replay = unique_topic("chatter"), unique_topic("replay")
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": topic, "type": "std_msgs/msg/String"},
+            {"ros2": replay, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        ],
+    )
     try:
         echo = ros1.spawn(["rostopic", "echo", "-n", "3", topic], log="echo", stdout_pipe=True)
-        hz = ros1.spawn(["rostopic", "hz", topic], log="hz", stdout_pipe=True)
+        hz = LineReader(ros1.spawn(["rostopic", "hz", topic], log="hz", stdout_pipe=True))
         bag = ros1.workdir / "out.bag"
         rec = ros1.spawn(["rosbag", "record", "-O", str(bag), topic], log="rec")
         pubs = b.adapters["ros1"]._pubs  # type: ignore[attr-defined]
         assert wait_for(lambda: len(pubs[topic].connections) >= 3, 30), "echo, hz, record"
         sent = 0
         deadline = time.monotonic() + 30
-        rates: list[str] = []
+        rates: list[float] = []
         while time.monotonic() < deadline and not rates:
             node.inject(topic, String(data=f"m{sent}"))
             sent += 1
             time.sleep(0.02)
-            if sent % 50 == 0:
-                assert hz.stdout is not None
-                import select
-
-                while select.select([hz.stdout], [], [], 0)[0]:
-                    line = hz.stdout.readline().decode()
-                    if "average rate" in line:
-                        rates.append(line)
+            rates += [float(line.split(":")[1]) for line in hz.drain() if "average rate" in line]
         assert rates, "rostopic hz saw no rate"
-        rate = float(rates[0].split(":")[1])
-        assert 10 < rate < 100
+        assert 10 < rates[0] < 100  # sent every 20 ms plus the loop's own time
         assert echo.wait(timeout=20) == 0
         assert echo.stdout is not None
-        out = echo.stdout.read().decode()
-        assert 'data: "m0"' in out or "data: m0" in out or 'data: "m' in out
+        echoed = [
+            int(line.split('"m')[1].rstrip('"'))
+            for line in echo.stdout.read().decode().splitlines()
+            if line.startswith("data:")
+        ]
+        assert len(echoed) == 3 and echoed == list(range(echoed[0], echoed[0] + 3))
         Ros1System.kill(rec, sig=2)  # SIGINT: rosbag closes the bag
         script = (
-            "import rosbag,sys\nb=rosbag.Bag(sys.argv[1])\n"
-            "print(len([m.data for _,m,_ in b.read_messages()]))"
+            "import json,rosbag,sys\nb=rosbag.Bag(sys.argv[1])\n"
+            "print(json.dumps([m.data for _,m,_ in b.read_messages()]))"
         )
-        count = subprocess.run(
+        result = subprocess.run(
             ["/usr/bin/python3", "-c", script, str(bag)],
             env=ros1.env,
             capture_output=True,
             timeout=60,
             check=True,
         )
-        assert int(count.stdout) > 10
+        recorded = json.loads(result.stdout)
+        first = int(recorded[0][1:])
+        assert len(recorded) > 10 and recorded == [
+            f"m{i}" for i in range(first, first + len(recorded))
+        ]
+        ros1.spawn(
+            ["rosbag", "play", "--wait-for-subscribers", str(bag), f"{topic}:={replay}"], log="play"
+        )
+        assert spin_until(node, lambda: len(node.published(replay)) >= len(recorded), 60)
+        assert [m.data for m in node.published(replay)] == recorded
     finally:
         b.close()
 
@@ -333,17 +346,27 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
 
     out, back = unique_topic("out"), unique_topic("back")
     config = tmp_path / "bridge.yaml"
-    config.write_text(yaml.safe_dump({
-        "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge")},
-        "topics": [
-            {"ros2": out, "type": "std_msgs/msg/String"},
-            {"ros2": back, "type": "std_msgs/msg/String", "direction": "from_peer"},
-        ],
-    }))
+    config.write_text(
+        yaml.safe_dump(
+            {
+                "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge")},
+                "topics": [
+                    {"ros2": out, "type": "std_msgs/msg/String"},
+                    {"ros2": back, "type": "std_msgs/msg/String", "direction": "from_peer"},
+                ],
+            }
+        )
+    )
     domain = isolated_domain_id()
     program = executable("rf_bridge", "rf_bridge")
-    with child([program, "--ros-args", "-p", f"config:={config}"], domain_id=domain,
-               log=tmp_path / "bridge.log"), peer(domain) as p:
+    with (
+        child(
+            [program, "--ros-args", "-p", f"config:={config}"],
+            domain_id=domain,
+            log=tmp_path / "bridge.log",
+        ),
+        peer(domain) as p,
+    ):
         pub = p.node.create_publisher(String, out, 10)
         got: list[str] = []
 
@@ -364,8 +387,7 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
 
         assert p.wait_for(arrived, 30), (tmp_path / "bridge.log").read_text()
         assert json.loads(seen[0])["data"] == "over dds"
-        ros1.python(NODE, "talk", back, "std_msgs/String", "m.String(data='r%d' % i)", "3",
-                    log="t")
+        ros1.python(NODE, "talk", back, "std_msgs/String", "m.String(data='r%d' % i)", "3", log="t")
         assert p.wait_for(lambda: len(got) >= 3, 30)
         assert got[:3] == ["r0", "r1", "r2"]
 

@@ -194,6 +194,13 @@ class Ros1Adapter:
             route.stats_out.dropped("untranslatable")
             self._log.error(f"cannot translate a message for ROS 1 {route.peer_topic}: {exc}")
             return
+        if len(payload) > self.options.max_message_bytes:
+            route.stats_out.dropped("oversize")
+            self._log.error(
+                f"not sending a {len(payload)}-byte message on ROS 1 {route.peer_topic}: over "
+                f"max_message_bytes ({self.options.max_message_bytes})"
+            )
+            return
         data = frame(payload)
         if pub.latch:
             pub.last = data
