@@ -12,6 +12,7 @@
       listen: [tcp/127.0.0.1:7447]
       connect: []
       compression: zlib                # or none
+    stats_period_s: 10                 # log statistics every 10 s (default 0: never)
     topics:
       - ros2: /chatter                 # ROS 2 topic
         type: std_msgs/msg/String      # ROS 2 type (or given by peer_type and a rule)
@@ -103,6 +104,7 @@ class BridgeConfig:
     rules: tuple[TypeRule, ...] = ()
     ros1: Ros1Options | None = None
     team: TeamOptions | None = None
+    stats_period_s: float = 0.0  # log every topic's statistics this often (0: never)
     errors: tuple[str, ...] = field(default=())
 
 
@@ -120,7 +122,7 @@ def load_config(path: str | os.PathLike[str]) -> BridgeConfig:
 def parse_config(data: Any, *, source: str = "<config>") -> BridgeConfig:
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: the top level must be a mapping")
-    unknown = set(data) - {"ros1", "team", "topics", "types"}
+    unknown = set(data) - {"ros1", "team", "topics", "types", "stats_period_s"}
     if unknown:
         raise ConfigError(f"{source}: unknown sections {sorted(unknown)}")
     ros1 = _ros1(data.get("ros1"), f"{source}: ros1") if "ros1" in data else None
@@ -139,8 +141,12 @@ def parse_config(data: Any, *, source: str = "<config>") -> BridgeConfig:
             topics.append(spec)
         except ConfigError as exc:
             errors.append(str(exc))
+    period = _typed(data.get("stats_period_s", 0.0), (int, float), f"{source}: stats_period_s")
+    if period < 0:
+        raise ConfigError(f"{source}: stats_period_s must be >= 0, not {period!r}")
     return BridgeConfig(
-        topics=tuple(topics), rules=rules, ros1=ros1, team=team, errors=tuple(errors)
+        topics=tuple(topics), rules=rules, ros1=ros1, team=team, errors=tuple(errors),
+        stats_period_s=float(period),
     )
 
 

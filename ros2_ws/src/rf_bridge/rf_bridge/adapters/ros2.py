@@ -69,6 +69,8 @@ class BridgeNode:
         node.logger.info(
             f"rf_bridge: {len(self.routes)} topic(s) bridged with {sorted(self.adapters)}"
         )
+        if config.stats_period_s > 0:
+            node.create_timer(config.stats_period_s, self.log_stats)
 
     def _build_adapters(self, config: BridgeConfig) -> dict[str, ChannelAdapter]:
         out: dict[str, ChannelAdapter] = {}
@@ -140,6 +142,15 @@ class BridgeNode:
             if route.spec.inbound:
                 out.append(route.stats_in.snapshot())
         return out
+
+    def log_stats(self) -> None:
+        """One line per topic and direction: what crossed, what did not and why."""
+        for s in self.stats():
+            latency = f", latency {s.latency_median_us:.0f} us" if s.latency_median_us else ""
+            drops = ", ".join(f"{k} {v}" for k, v in sorted(s.drops.items())) or "none"
+            self._node.logger.info(
+                f"{s.topic} {s.direction}: {s.messages} msgs, {s.bytes} B{latency}; drops: {drops}"
+            )
 
     def close(self) -> None:
         for adapter in self.adapters.values():
