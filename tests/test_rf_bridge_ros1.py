@@ -411,3 +411,64 @@ def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System) -
         assert any("learned sensor_msgs/NavSatStatus" in t for _, t in node.records)
     finally:
         b.close()
+
+
+def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None:
+    """The bridge as a component in a container file (entry point ``BridgeNode``), next to
+    the component whose topic it carries: the camera's image reaches the bridge by reference
+    and rospy as a ROS 1 message."""
+    import yaml
+
+    from efficient_comm import Container
+
+    topic = unique_topic("camera")
+    bridge_file = tmp_path / "bridge.yaml"
+    bridge_file.write_text(
+        yaml.safe_dump(
+            {
+                "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge")},
+                "topics": [{"ros2": topic, "type": "sensor_msgs/msg/Image"}],
+            }
+        )
+    )
+    container_file = tmp_path / "robot.yaml"
+    container_file.write_text(
+        yaml.safe_dump(
+            {
+                "components": [
+                    {
+                        "class": "BridgeNode",
+                        "name": "rf_bridge",
+                        "parameters": {
+                            "/rf_bridge": {"ros__parameters": {"config": str(bridge_file)}}
+                        },
+                    },
+                ]
+            }
+        )
+    )
+    with Container("robot", dds=False) as container:
+        report = container.load_file(container_file)
+        assert not report.errors, report.errors
+        bridge_node: BridgeNode = report.loaded[0].instance
+        adapter: Any = bridge_node.adapters["ros1"]
+        sent: list[Any] = []
+        adapter_send = adapter.send
+
+        def spy(route: Any, msg: Any, received_ns: int) -> None:
+            sent.append(msg)
+            adapter_send(route, msg, received_ns)
+
+        adapter.send = spy
+        camera = container.add(
+            lambda node: node.create_publisher(Image, topic, qos=10), name="camera"
+        )
+        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        img = Image(height=2, width=2, encoding="mono8", step=2, data=b"\x01\x02\x03\x04")
+        camera.publish(img)
+        assert sent and sent[0] is img  # by reference up to the adapter
+        got = json.loads(read_line(listener))
+        assert got["width"] == 2 and got["data"]["len"] == 4
+        bridge_node.close()

@@ -16,5 +16,8 @@ setup(
     maintainer_email="dev@example.com",
     description="RoboFrame-style messaging bridge: ROS 2 to ROS 1 and robot-to-robot links.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["rf_bridge = rf_bridge.adapters.ros2:main"]},
+    entry_points={
+        "console_scripts": ["rf_bridge = rf_bridge.adapters.ros2:main"],
+        "efficient_comm.components": ["BridgeNode = rf_bridge.adapters.ros2:BridgeNode"],
+    },
 )

@@ -144,6 +144,8 @@ class TeamAdapter:
         deliver(route, msg, received, len(payload))
 
     def close(self) -> None:
+        if self._session is None:
+            return
         for sub in self._subs:
             sub.undeclare()
         for pub in self._pubs.values():

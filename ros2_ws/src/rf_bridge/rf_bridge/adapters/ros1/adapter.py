@@ -102,6 +102,8 @@ class Ros1Adapter:
         return self._registered.wait(timeout_s)
 
     def close(self) -> None:
+        if self._stop.is_set():
+            return
         self._stop.set()
         for topic, pub in list(self._pubs.items()):
             self._quietly("unregisterPublisher", topic)
