@@ -201,7 +201,7 @@ class TypeRegistry:
 
 # --- deriving a ROS 1 definition from a ROS 2 type -------------------------------------
 
-_ROS2_PRIMITIVES = {
+ROS2_PRIMITIVES = {
     "boolean": "bool",
     "octet": "uint8",
     "char": "uint8",
@@ -274,8 +274,8 @@ def _ros2_field(name: str, ros2_type: str) -> tuple[Field, str | None]:
         array = int(size) if size.isdigit() else -1
     if t.startswith(("string<", "wstring<")):
         t = "string"
-    if t in _ROS2_PRIMITIVES:
-        return Field(name, _ROS2_PRIMITIVES[t], array), None
+    if t in ROS2_PRIMITIVES:
+        return Field(name, ROS2_PRIMITIVES[t], array), None
     if t in _ROS2_SPECIAL:
         return Field(name, _ROS2_SPECIAL[t], array), None
     return Field(name, t, array), t

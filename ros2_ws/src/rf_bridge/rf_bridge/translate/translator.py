@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import TranslationError
-from .ros1_types import _ROS2_PRIMITIVES, Field, TypeRegistry, ros2_class
+from .ros1_types import ROS2_PRIMITIVES, Field, TypeRegistry, ros2_class
 
 Convert = Callable[[Any], Any]
 
@@ -179,7 +179,7 @@ class Translator:
                 raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
             cls = ros2_class(elem)
             return lambda v: cls(sec=v[0], nanosec=v[1])
-        if elem in _ROS2_PRIMITIVES:
+        if elem in ROS2_PRIMITIVES:
             if not f.is_primitive or f.type in ("time", "duration"):
                 raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
             if (elem == "string") != (f.type == "string"):
@@ -227,7 +227,7 @@ class Translator:
             return _to_bytes
         if elem in _TIME_TYPES:
             one: Convert = lambda v: (v.sec, v.nanosec)  # noqa: E731
-        elif elem in _ROS2_PRIMITIVES:
+        elif elem in ROS2_PRIMITIVES:
             one = (lambda v: v[0]) if elem in ("octet", "byte") else _identity
         else:
             pkg, _, name = elem.partition("/")
