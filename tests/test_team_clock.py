@@ -262,6 +262,14 @@ def test_clock_sync_needs_a_reference() -> None:
         ClockSync(TestHandle("clock_sync"))
 
 
+@pytest.mark.parametrize("bad", [{"period_s": 0.0}, {"window_s": -1.0},
+                                 {"stale_after_s": 0.0}, {"max_hops": 0}])
+def test_clock_sync_refuses_parameters_that_would_silently_never_sync(
+        bad: dict[str, float]) -> None:
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        ClockSync(TestHandle("clock_sync", parameters={"reference": "ref", **bad}))
+
+
 def test_misconfigured_teams_are_reported() -> None:
     """Two robots named alike, and a robot expecting another reference: counted, logged."""
     team = SimTeam({"ref": (0, 0.0), "a": (5 * MS, 0.0)}, reference="ref",

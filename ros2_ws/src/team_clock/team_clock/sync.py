@@ -106,8 +106,10 @@ class ClockSync:
         )
         self._max_hops = node.declare_parameter("max_hops", 8, read_only=True)
         self._reply_timeout_ns = round(min(2.0, 2.0 * period) * 1e9)
-        if period <= 0 or window <= 0:
-            raise ParameterError("period_s and window_s must be positive")
+        if period <= 0 or window <= 0 or self._stale_ns <= 0:
+            raise ParameterError("period_s, window_s and stale_after_s must be positive")
+        if self._max_hops < 1:
+            raise ParameterError(f"max_hops must be at least 1, got {self._max_hops}")
         sim_offset = node.declare_parameter("sim_offset_ns", 0, read_only=True)
         sim_drift = node.declare_parameter("sim_drift_ppm", 0.0, read_only=True)
         if local_clock is None:
