@@ -289,7 +289,8 @@ def main() -> int:
     parser.add_argument("--image-n", type=int, default=50, help="latency samples, image")
     parser.add_argument("--small-burst", type=int, default=2000)
     parser.add_argument("--image-burst", type=int, default=50)
-    parser.add_argument("--out", type=Path, help="write all runs as JSON")
+    parser.add_argument("--out", type=Path, default=ROOT / "bench" / "out" / "bridge_bench.json",
+                        help="where to write all runs and the summary as JSON")
     args = parser.parse_args()
     plan = {"small": (args.small_n, args.small_burst), "image": (args.image_n, args.image_burst)}
     runs: list[dict[str, Any]] = []
@@ -326,8 +327,8 @@ def main() -> int:
     target = summary["small"]["bridge"]["latency_ratio"]
     print(f"target: composed bridge round trip <= 2x the direct one for small messages: "
           f"{target:.2f}x -> {'met' if target <= 2.0 else 'MISSED'}")
-    if args.out is not None:
-        args.out.write_text(json.dumps({"runs": runs, "summary": summary}, indent=1))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"runs": runs, "summary": summary}, indent=1))
     return 0
 
 
