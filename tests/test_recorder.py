@@ -254,3 +254,36 @@ def test_serialized_length_is_exact(msg: Any) -> None:
     data = trim(msg, serialize_message(msg))
     name = type_name(type(msg))
     assert len(store.serialize_cdr(store.deserialize_cdr(data, name), name)) == len(data)
+
+
+def test_timer_pacer_holds_the_writer_back_around_deadlines() -> None:
+    """The pacer reads the container's timer heap: hold back from 2 ms before the next
+    deadline until 1 ms after it, else go."""
+    from types import SimpleNamespace
+
+    from robot_recorder.recorder import _timer_pacer
+
+    class Clock:
+        now = 0
+
+        def now_ns(self) -> int:
+            return self.now
+
+    clock = Clock()
+    timers: list[tuple[int, ...]] = [(10_000_000,)]
+    executor = SimpleNamespace(_timers=timers, clock=clock)
+    node: Any = SimpleNamespace(_container=SimpleNamespace(executor=executor))
+    pace = _timer_pacer(node, 0.002, 0.001)
+    assert pace is not None
+    clock.now = 7_000_000
+    assert pace() == 0.0  # 3 ms ahead: go
+    clock.now = 8_500_000
+    assert pace() == pytest.approx(0.0025)  # until 1 ms after the deadline
+    timers[0] = (20_000_000,)  # the timer ran and was rescheduled
+    clock.now = 10_400_000
+    assert pace() == pytest.approx(0.0006)  # still inside the round after the deadline
+    clock.now = 11_100_000
+    assert pace() == 0.0
+    timers.clear()
+    assert pace() == 0.0
+    assert _timer_pacer(TestHandle("manual"), 0.002, 0.001) is None  # manual clock: no pacing
