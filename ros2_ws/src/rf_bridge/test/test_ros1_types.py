@@ -12,7 +12,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, Point
 from std_msgs.msg import Header, String
 
 from rf_bridge.errors import ProtocolError, TranslationError
-from rf_bridge.translate import TranslatorSet
+from rf_bridge.translate import Ros1Codec, TranslatorSet
 from rf_bridge.translate.ros1_types import TypeRegistry, parse_msg
 
 TYPES = [String, Header, Image, PoseStamped, CameraInfo, Imu, JointState, LaserScan,
@@ -110,5 +110,39 @@ def test_bad_definitions_are_named() -> None:
     with pytest.raises(TranslationError, match="package/Name"):
         parse_msg("NoPackage", "int32 a")
     reg = TypeRegistry()
-    with pytest.raises(TranslationError, match="unknown ROS 1 type"):
+    with pytest.raises(TranslationError, match="'q/Missing' has no definition"):
         reg.add_full_definition("p/T", "q/Missing inner")
+
+
+SEP = "\n" + "=" * 80 + "\n"
+
+
+@pytest.mark.parametrize(("definition", "error"), [
+    ("int32 a\nfoo/Missing b", "has no definition"),
+    ("std_msgs/Header header" + SEP + "MSG: std_msgs/Header\nstd_msgs/Header again",
+     "contains itself"),
+    ("p/L0 x" + "".join(f"{SEP}MSG: p/L{i}\np/L{i + 1} x" for i in range(40))
+     + f"{SEP}MSG: p/L40\nint8 a", "levels deep"),
+], ids=["missing", "cycle", "deep"])
+def test_a_bad_peer_definition_changes_nothing(definition: str, error: str) -> None:
+    """A peer's definition is taken whole or not at all: one that redefines std_msgs/Header
+    badly must not break the Header every other connection uses."""
+    ts = TranslatorSet()
+    name = ts.ros1_type_for(String)
+    header = ts.ros1_type_for(Header)
+    before = {n: ts.registry.md5sum(n) for n in (name, header)}
+    with pytest.raises(TranslationError, match=error):
+        ts.registry.add_full_definition("p/Bad", definition)
+    assert "p/Bad" not in ts.registry
+    assert {n: ts.registry.md5sum(n) for n in (name, header)} == before
+
+
+def test_array_of_empty_messages_cannot_claim_more_elements_than_bytes() -> None:
+    """Empty elements cost no bytes, so their count is held to the bytes that follow it:
+    2**32 - 1 of them would otherwise be built from a four-byte frame."""
+    reg = TypeRegistry()
+    reg.add_full_definition("p/Many", "p/Nothing[] items\nuint16 tail" + SEP + "MSG: p/Nothing\n")
+    codec = Ros1Codec(reg)
+    assert codec.decode("p/Many", b"\x02\x00\x00\x00\x07\x00") == {"items": [{}, {}], "tail": 7}
+    with pytest.raises(ProtocolError, match="truncated"):
+        codec.decode("p/Many", b"\xff\xff\xff\xff\x07\x00")

@@ -4,6 +4,9 @@ A message is a ``dict`` of field name to value: numbers, ``str``, ``(secs, nsecs
 time and duration, ``bytes`` for ``uint8``/``int8`` arrays, lists for other arrays, dicts for
 nested messages. Codecs are compiled once per type into closures; decoding checks every
 length against the bytes present, so a hostile frame raises instead of allocating.
+An array's count is checked against the smallest size its elements can have (at least a
+byte each, so an array of empty messages may not be longer than the bytes that follow it:
+a count that costs no bytes on the wire would otherwise allocate without bound).
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..errors import ProtocolError
-from .ros1_types import Field, TypeRegistry
+from .ros1_types import PRIMITIVES, Field, TypeRegistry
 
 Decoder = Callable[[memoryview, int], tuple[Any, int]]
 Encoder = Callable[[Any, list[bytes]], None]
@@ -125,11 +128,13 @@ class Ros1Codec:
 
             return dec_numbers
 
+        least = max(1, self._min_size(f.type))
+
         def dec_list(buf: memoryview, off: int) -> tuple[Any, int]:
             n = fixed
             if n < 0:
                 n, off = _read_len(buf, off)
-            _need(buf, off, n)  # elements take a byte or more: bounds a bogus count
+            _need(buf, off, n * least)  # bounds a bogus count before anything is allocated
             items = []
             for _ in range(n):
                 item, off = elem(buf, off)
@@ -137,6 +142,22 @@ class Ros1Codec:
             return items, off
 
         return dec_list
+
+    def _min_size(self, type_name: str) -> int:
+        """Fewest bytes a value of ``type_name`` takes on the wire."""
+        if type_name == "string":
+            return 4
+        if type_name in PRIMITIVES:
+            return PRIMITIVES[type_name]
+        total = 0
+        for f in self.registry.get(type_name).fields:
+            if f.array is None:
+                total += self._min_size(f.type)
+            elif f.array < 0:
+                total += 4
+            else:
+                total += f.array * self._min_size(f.type)
+        return total
 
     def _element_decoder(self, type_name: str) -> Decoder:
         if type_name == "string":

@@ -147,7 +147,13 @@ class TypeRegistry:
             raise UnknownTypeError(f"unknown ROS 1 type {name!r}") from None
 
     def add_full_definition(self, name: str, full_text: str) -> MsgSpec:
-        """Learn ``name`` and every type embedded in its full definition (as peers send it)."""
+        """Learn ``name`` and every type embedded in its full definition (as peers send it).
+
+        All or nothing: the definition is checked as a whole (every embedded type present,
+        no type containing itself, nesting at most :data:`MAX_NESTING` deep) before any of
+        it replaces what the registry knows, so a peer's broken definition cannot spoil the
+        types other connections use.
+        """
         sections = full_text.split("\n" + _SEPARATOR + "\n")
         specs = [parse_msg(name, sections[0])]
         for section in sections[1:]:
@@ -155,9 +161,11 @@ class TypeRegistry:
             if not head.startswith("MSG: "):
                 raise TranslationError(f"{name}: embedded definition without 'MSG:' line")
             specs.append(parse_msg(head[5:].strip(), body))
+        with self._lock:
+            staged = {**self._specs, **{spec.name: spec for spec in specs}}
+        _check_closed(staged, name)
         for spec in specs:
             self.add(spec)
-        self.md5sum(name)  # every dependency must be present
         return specs[0]
 
     def md5sum(self, name: str) -> str:
@@ -197,6 +205,32 @@ class TypeRegistry:
 
         visit(name)
         return seen
+
+
+#: Deepest nesting of message types accepted from a peer; decoding recurses once per level.
+MAX_NESTING = 32
+
+
+def _check_closed(specs: dict[str, MsgSpec], name: str) -> None:
+    """Every type ``name`` embeds is in ``specs``, none contains itself, nesting is bounded."""
+    done: set[str] = set()
+
+    def visit(n: str, path: tuple[str, ...]) -> None:
+        if n in path:
+            raise TranslationError(f"{name}: {n} contains itself ({' -> '.join((*path, n))})")
+        if len(path) > MAX_NESTING:
+            raise TranslationError(f"{name}: nested more than {MAX_NESTING} levels deep")
+        if n in done:
+            return
+        spec = specs.get(n)
+        if spec is None:
+            raise UnknownTypeError(f"{name}: embedded type {n!r} has no definition")
+        for f in spec.fields:
+            if not f.is_primitive:
+                visit(f.type, (*path, n))
+        done.add(n)
+
+    visit(name, ())
 
 
 # --- deriving a ROS 1 definition from a ROS 2 type -------------------------------------
