@@ -81,6 +81,7 @@ class Ros1Adapter:
             on_request=self._on_request,
             publications=lambda: [[t, p.ros1_type] for t, p in self._pubs.items()],
             subscriptions=lambda: [[t, s.ros1_type] for t, s in self._subs.items()],
+            log=self._log,
         )
         for route in routes:
             try:
@@ -320,7 +321,7 @@ class Ros1Adapter:
     def _on_request(self, topic: str, protocols: list[list[Any]]) -> list[Any]:
         if topic not in self._pubs:
             raise LookupError(f"the bridge does not publish {topic!r}")
-        if not any(p and p[0] == "TCPROS" for p in protocols):
+        if not any(isinstance(p, list) and p and p[0] == "TCPROS" for p in protocols):
             raise LookupError("only TCPROS is supported")
         return ["TCPROS", self._advertise, self._tcp_port]
 

@@ -3,6 +3,11 @@
 The master tells the bridge who publishes what; every ROS 1 node, the bridge included, runs
 a small "slave" XML-RPC server through which the master announces new publishers
 (``publisherUpdate``) and subscribers ask for a data connection (``requestTopic``).
+
+Anyone who can reach these sockets can talk to them (ROS 1 has no authentication), so both
+ends are bounded: requests and replies are limited in size before they are parsed, every
+socket has a timeout, the server serves a limited number of connections at once, and
+arguments are checked before the adapter sees them.
 """
 
 from __future__ import annotations
@@ -16,7 +21,15 @@ from socketserver import ThreadingMixIn
 from typing import Any
 from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
+from ..._log import RateLimitedLog
 from ...errors import LinkError
+
+#: Largest XML-RPC request or reply accepted; ROS 1 API calls are a few kilobytes.
+MAX_XMLRPC_BYTES = 1 << 20
+#: Connections the node API serves at once; more are refused until one finishes.
+MAX_XMLRPC_CONNECTIONS = 32
+#: Seconds a connection to the node API may sit idle before it is closed.
+XMLRPC_TIMEOUT_S = 5.0
 
 
 class MasterRefusedError(LinkError):
@@ -27,6 +40,11 @@ Reply = list[Any]  # [code, status message, value], as every ROS 1 API call retu
 
 
 class _Transport(xmlrpc.client.Transport):
+    """A timeout on every socket operation and a reply read in bounded pieces (no gzip,
+    whose expansion could not be bounded before parsing)."""
+
+    accept_gzip_encoding = False
+
     def __init__(self, timeout_s: float) -> None:
         super().__init__()
         self._timeout = timeout_s
@@ -35,6 +53,17 @@ class _Transport(xmlrpc.client.Transport):
         conn = super().make_connection(host)
         conn.timeout = self._timeout
         return conn
+
+    def parse_response(self, response: http.client.HTTPResponse) -> Any:
+        parser, unmarshaller = self.getparser()
+        total = 0
+        while data := response.read(65536):
+            total += len(data)
+            if total > MAX_XMLRPC_BYTES:
+                raise ValueError(f"reply larger than {MAX_XMLRPC_BYTES} bytes")
+            parser.feed(data)
+        parser.close()
+        return unmarshaller.close()
 
 
 def call(uri: str, method: str, *args: Any, timeout_s: float = 2.0) -> Any:
@@ -45,20 +74,60 @@ def call(uri: str, method: str, *args: Any, timeout_s: float = 2.0) -> Any:
     try:
         with xmlrpc.client.ServerProxy(uri, transport=_Transport(timeout_s)) as proxy:
             code, status, value = getattr(proxy, method)(*args)
-    except (OSError, xmlrpc.client.Error, http.client.HTTPException, ValueError) as exc:
+    except (OSError, xmlrpc.client.Error, http.client.HTTPException, ValueError, TypeError) as exc:
         raise LinkError(f"{method} on {uri}: {exc}") from None
     if code != 1:
         raise MasterRefusedError(f"{method} on {uri} refused: {status}")
     return value
 
 
-class _Quiet(SimpleXMLRPCRequestHandler):
+class _Handler(SimpleXMLRPCRequestHandler):
+    """Refuses a request body over the limit before reading it; quiet otherwise (the
+    standard handler logs every request to stderr)."""
+
+    timeout = XMLRPC_TIMEOUT_S
+    server: _Server
+
+    def do_POST(self) -> None:  # noqa: N802 (the http.server name)
+        length = self.headers.get("content-length", "")
+        if not length.isdigit() or int(length) > MAX_XMLRPC_BYTES:
+            self.server.log.warning(
+                f"refusing an XML-RPC request from {self.client_address[0]}: body of "
+                f"{length or 'unknown'} bytes (limit {MAX_XMLRPC_BYTES})"
+            )
+            self.send_error(413 if length.isdigit() else 411)
+            return
+        super().do_POST()
+
     def log_message(self, format: str, *args: Any) -> None:
         pass
 
 
 class _Server(ThreadingMixIn, SimpleXMLRPCServer):
     daemon_threads = True
+    block_on_close = False
+    request_queue_size = 2 * MAX_XMLRPC_CONNECTIONS  # a burst is refused in words, not stalled
+
+    def __init__(self, address: tuple[str, int], log: RateLimitedLog) -> None:
+        super().__init__(address, requestHandler=_Handler, logRequests=False, allow_none=False)
+        self.log = log
+        self._slots = threading.BoundedSemaphore(MAX_XMLRPC_CONNECTIONS)
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self._slots.acquire(blocking=False):
+            self.log.warning(
+                f"refusing an XML-RPC connection from {client_address[0]}: "
+                f"{MAX_XMLRPC_CONNECTIONS} already open"
+            )
+            self.shutdown_request(request)
+            return
+        super().process_request(request, client_address)
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
 
 
 class SlaveServer:
@@ -75,10 +144,10 @@ class SlaveServer:
         on_request: Callable[[str, list[list[Any]]], list[Any]],
         publications: Callable[[], list[list[str]]],
         subscriptions: Callable[[], list[list[str]]],
+        log: RateLimitedLog,
     ) -> None:
-        self._server = _Server(
-            (host, 0), requestHandler=_Quiet, logRequests=False, allow_none=False
-        )
+        self._log = log
+        self._server = _Server((host, 0), log)
         port = self._server.server_address[1]
         self.uri = f"http://{advertise_host}:{port}/"
         self._master_uri = master_uri
@@ -103,15 +172,28 @@ class SlaveServer:
         self._thread.start()
 
     def publisherUpdate(self, caller_id: Any, topic: Any, publishers: Any) -> Reply:  # noqa: N802
-        self._on_publishers(topic, list(publishers))
+        if (
+            not isinstance(topic, str)
+            or not isinstance(publishers, list)
+            or not all(isinstance(uri, str) for uri in publishers)
+        ):
+            return self._bad(caller_id, "publisherUpdate(caller_id, topic, [uri, ...])")
+        self._on_publishers(topic, publishers)
         return [1, "", 0]
 
     def requestTopic(self, caller_id: Any, topic: Any, protocols: Any) -> Reply:  # noqa: N802
+        if not isinstance(topic, str) or not isinstance(protocols, list):
+            return self._bad(caller_id, "requestTopic(caller_id, topic, [[protocol, ...], ...])")
         try:
             return [1, "ready", self._on_request(topic, protocols)]
         except LookupError as exc:
             return [0, str(exc), []]
 
+    def _bad(self, caller_id: Any, expected: str) -> Reply:
+        self._log.warning(f"refusing an XML-RPC call from {caller_id!r}: expected {expected}")
+        return [-1, f"bad arguments: expected {expected}", 0]
+
     def close(self) -> None:
         self._server.shutdown()
         self._server.server_close()
+        self._thread.join(timeout=5.0)
