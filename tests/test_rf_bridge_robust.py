@@ -303,3 +303,59 @@ def test_oversize_outgoing_message_counted_and_not_sent(ros1: Ros1System) -> Non
         assert any("max_message_bytes" in text for _, text in node.records)
     finally:
         b.close()
+
+
+def test_idle_connections_hold_handshakes_for_a_bounded_time(ros1: Ros1System) -> None:
+    """Connections that never send a header take a handshake slot each until it times
+    out; beyond the limit they are refused at once, and subscribers are served again
+    as soon as slots free up."""
+    from rf_bridge.adapters.ros1.adapter import MAX_HANDSHAKES
+
+    topic = unique_topic("out")
+    node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
+    adapter: Any = b.adapters["ros1"]
+    port = tcpros_port(adapter, topic)
+    idle = [socket.create_connection(("127.0.0.1", port), timeout=5) for _ in range(MAX_HANDSHAKES)]
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as extra:
+            assert extra.recv(100) == b""  # refused while the idle ones hold every slot
+        assert any("handshakes already in progress" in text for _, text in node.records)
+        for s in idle:
+            s.close()
+        listener = ros1.python(NODE, "listen", topic, "std_msgs/String", log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        node.inject(topic, String(data="served"))
+        assert json.loads(read_line(listener))["data"] == "served"
+    finally:
+        for s in idle:
+            s.close()
+        b.close()
+
+
+def test_close_ends_every_thread_and_stops_listening(ros1: Ros1System) -> None:
+    out, inn = unique_topic("out"), unique_topic("in")
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": out, "type": "std_msgs/msg/String"},
+            {"ros2": inn, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        ],
+    )
+    adapter: Any = b.adapters["ros1"]
+    listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
+    assert read_line(listener) == "ready"
+    ros1.python(NODE, "talk", inn, "std_msgs/String", "m.String(data='t%d' % i)", "1", log="t")
+    assert wait_for(lambda: bool(adapter._pubs[out].connections), 20)
+    assert spin_until(node, lambda: len(node.published(inn)) >= 1)
+    port = tcpros_port(adapter, out)
+    threads = [
+        *adapter._threads,
+        *(c.thread for c in adapter._pubs[out].connections),
+        *(link.thread for link in adapter._subs[inn].links.values()),
+    ]
+    assert len(threads) >= 4 and all(t.is_alive() for t in threads)
+    b.close()
+    assert [t.name for t in threads if t.is_alive()] == []
+    with pytest.raises(ConnectionRefusedError):
+        socket.create_connection(("127.0.0.1", port), timeout=5).close()

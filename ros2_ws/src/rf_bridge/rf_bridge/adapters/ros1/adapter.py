@@ -4,6 +4,10 @@ It registers the bridge's publications and subscriptions with the master, serves
 ROS 1 subscribers and connects to ROS 1 publishers. A watchdog asks the master every
 ``master_check_s`` whether it still knows the bridge; after a master restart it registers
 everything again, so ROS 1 nodes started later find the bridged topics without a restart.
+
+Every thread it starts ends when it is closed: :meth:`Ros1Adapter.close` unregisters, stops
+the links, shuts the listener (closing alone does not wake a thread blocked in ``accept``)
+and joins what it started, so a closed bridge leaves no socket listening behind it.
 """
 
 from __future__ import annotations
@@ -24,6 +28,13 @@ from ...errors import LinkError, ProtocolError, RfBridgeError, TranslationError
 from ...translate import Translator, TranslatorSet
 from .tcpros import InboundLink, OutboundConnection, encode_header, frame, read_header
 from .xmlrpc import MasterRefusedError, SlaveServer, call
+
+#: TCPROS handshakes in progress at once; a peer opening connections without sending a
+#: header holds one for at most the handshake timeout, further connections are refused.
+MAX_HANDSHAKES = 32
+HANDSHAKE_TIMEOUT_S = 5.0
+#: How long :meth:`Ros1Adapter.close` waits for its threads altogether.
+CLOSE_TIMEOUT_S = 5.0
 
 
 @dataclass(eq=False)
@@ -62,6 +73,8 @@ class Ros1Adapter:
         self._listener: socket.socket | None = None
         self._slave: SlaveServer | None = None
         self._registered = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._handshakes = threading.BoundedSemaphore(MAX_HANDSHAKES)
         self.registrations = 0  # how many times everything was registered (restarts + 1)
 
     # --- lifecycle ---------------------------------------------------------------------
@@ -91,8 +104,10 @@ class Ros1Adapter:
                     self._add_subscription(route)
             except RfBridgeError as exc:
                 self._log.error(f"ROS 1 topic {route.peer_topic} not bridged: {exc}")
-        threading.Thread(target=self._accept, name="tcpros-accept", daemon=True).start()
-        threading.Thread(target=self._watch_master, name="ros1-master", daemon=True).start()
+        for target, name in ((self._accept, "tcpros-accept"), (self._watch_master, "ros1-master")):
+            thread = threading.Thread(target=target, name=name, daemon=True)
+            thread.start()
+            self._threads.append(thread)
 
     @property
     def uri(self) -> str:
@@ -106,18 +121,33 @@ class Ros1Adapter:
         if self._stop.is_set():
             return
         self._stop.set()
+        if self._listener is not None:
+            with contextlib.suppress(OSError):
+                self._listener.shutdown(socket.SHUT_RDWR)  # wakes the accept thread
+            self._listener.close()
+        threads = list(self._threads)
         for topic, pub in list(self._pubs.items()):
             self._quietly("unregisterPublisher", topic)
-            for conn in list(pub.connections):
+            with self._lock:
+                conns = list(pub.connections)
+            for conn in conns:
                 conn.close()
+                threads.append(conn.thread)
         for topic, sub in list(self._subs.items()):
             self._quietly("unregisterSubscriber", topic)
-            for link in sub.links.values():
+            with self._lock:
+                links = list(sub.links.values())
+            for link in links:
                 link.stop()
-        if self._listener is not None:
-            self._listener.close()
+                threads.append(link.thread)
         if self._slave is not None:
             self._slave.close()
+        deadline = time.monotonic() + CLOSE_TIMEOUT_S
+        for thread in threads:
+            thread.join(max(0.0, deadline - time.monotonic()))
+        left = [t.name for t in threads if t.is_alive()]
+        if left:
+            self._log.warning(f"ROS 1 adapter closed; threads still ending: {', '.join(left)}")
 
     def _quietly(self, method: str, topic: str) -> None:
         with contextlib.suppress(LinkError):
@@ -221,18 +251,30 @@ class Ros1Adapter:
                 sock, addr = self._listener.accept()
             except OSError:
                 return
+            if self._stop.is_set():
+                sock.close()
+                return
+            if not self._handshakes.acquire(blocking=False):
+                self._log.warning(
+                    f"rejecting TCPROS connection from {addr[0]}:{addr[1]}: "
+                    f"{MAX_HANDSHAKES} handshakes already in progress"
+                )
+                sock.close()
+                continue
             threading.Thread(
                 target=self._handshake, args=(sock, addr), name="tcpros-handshake", daemon=True
             ).start()
 
     def _handshake(self, sock: socket.socket, addr: Any) -> None:
-        sock.settimeout(5.0)
+        sock.settimeout(HANDSHAKE_TIMEOUT_S)
         try:
             header = read_header(sock)
         except (OSError, LinkError, ProtocolError) as exc:
             self._log.warning(f"rejecting TCPROS connection from {addr[0]}:{addr[1]}: {exc}")
             sock.close()
             return
+        finally:
+            self._handshakes.release()
         topic = header.get("topic", "")
         peer = header.get("callerid", f"{addr[0]}:{addr[1]}")
         pub = self._pubs.get(topic)
@@ -280,6 +322,9 @@ class Ros1Adapter:
             log=self._log,
         )
         with self._lock:
+            if self._stop.is_set():  # closed during the handshake: close() did not see it
+                conn.close()
+                return
             if pub.latch and pub.last is not None:
                 conn.send(pub.last)
             pub.connections = [*pub.connections, conn]  # copy on write: send() iterates freely
@@ -329,10 +374,12 @@ class Ros1Adapter:
 
     def _on_publishers(self, topic: str, uris: list[str]) -> None:
         sub = self._subs.get(topic)
-        if sub is None or self._stop.is_set():
+        if sub is None:
             return
         wanted = {u for u in uris if u != self.uri}  # never subscribe to ourselves
         with self._lock:
+            if self._stop.is_set():  # checked under the lock close() takes the links with
+                return
             for uri in list(sub.links):
                 if uri not in wanted:
                     sub.links.pop(uri).stop()

@@ -121,10 +121,8 @@ class OutboundConnection:
         self._cond = threading.Condition()
         self._closed = False
         self.sent = 0
-        self._thread = threading.Thread(
-            target=self._writer, name=f"tcpros-out {topic}", daemon=True
-        )
-        self._thread.start()
+        self.thread = threading.Thread(target=self._writer, name=f"tcpros-out {topic}", daemon=True)
+        self.thread.start()
 
     @property
     def closed(self) -> bool:
@@ -270,8 +268,8 @@ class InboundLink:
         self._stop = threading.Event()
         self._sock: socket.socket | None = None
         self.connected = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"tcpros-in {topic}", daemon=True)
-        self._thread.start()
+        self.thread = threading.Thread(target=self._run, name=f"tcpros-in {topic}", daemon=True)
+        self.thread.start()
 
     def stop(self) -> None:
         self._stop.set()
