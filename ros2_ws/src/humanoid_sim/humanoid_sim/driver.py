@@ -4,14 +4,21 @@ A component (it takes an efficient_comm node handle) that talks to the bus with
 dynamixel-sdk exactly as on the robot; only ``port`` differs (the emulator's pty instead of
 /dev/ttyUSB0). It publishes ``joint_states`` (position and velocity of every servo that
 answered), takes ``joint_commands`` (JointState with names and positions), and reports each
-servo on ``/diagnostics``: OK, or ERROR while it does not answer. A missing port, missing
-servos and garbled replies are reported and survived: the driver keeps cycling; a servo
-that failed :data:`MISSING_AFTER` reads in a row is reported missing, pinged once a second
-and taken back when it answers again.
+servo on ``/diagnostics`` once a second: OK; ERROR while it does not answer; ERROR with the
+Hardware Error Status while its replies carry the alert bit (overload, overheating, ...).
+A missing or vanishing port, missing servos and garbled replies are reported and survived:
+the driver keeps cycling; a servo that failed :data:`MISSING_AFTER` reads in a row is
+reported missing, pinged once a second and taken back (torque on) when it answers again.
+
+dynamixel-sdk stops reading a sync read's replies at the first servo that fails, so a
+silent servo would hide every servo after it. The driver therefore reads the servos that
+failed last time at the end of the sync read, and counts a miss only for the servo that
+actually failed: one unplugged servo costs the others at most one cycle.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from typing import Any
 
@@ -34,17 +41,15 @@ from .dynamixel import control_table as ct
 from .errors import SimConfigError
 
 ADDR_TORQUE = ct.BY_NAME["torque_enable"].address
+ADDR_HARDWARE_ERROR = ct.BY_NAME["hardware_error_status"].address
 ADDR_GOAL = ct.BY_NAME["goal_position"].address
 ADDR_VELOCITY = ct.BY_NAME["present_velocity"].address  # velocity then position: 8 bytes
 READ_LENGTH = 8
 RETRY_NS = 1_000_000_000
+ALERT = 0x80  # the status error byte's hardware error bit (the rest is the error number)
 #: Consecutive failed reads after which a servo counts as missing (a garbled reply or two
 #: on a noisy line must not take a joint away).
 MISSING_AFTER = 10
-
-
-def _signed32(value: int) -> int:
-    return value - (1 << 32) if value >= 1 << 31 else value
 
 
 class ServoDriver:
@@ -70,6 +75,8 @@ class ServoDriver:
         self.goals: dict[int, int] = {}
         self.present: set[int] = set()
         self._misses: dict[int, int] = {}
+        #: Hardware Error Status (address 70) by servo, read once a second; 0: none.
+        self.hardware_errors: dict[int, int] = {}
         self.cycles = 0
         self.comm_errors = 0
         self._port: PortHandler | None = None
@@ -97,11 +104,18 @@ class ServoDriver:
             if dxl_id in self.present:
                 continue
             _, result, _ = self._packets.ping(self._port, dxl_id)
-            if result == COMM_SUCCESS:
-                self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
-                self.present.add(dxl_id)
-                self._misses[dxl_id] = 0
-                self.node.logger.info(f"servo {dxl_id} answers; torque on")
+            if result != COMM_SUCCESS:
+                continue
+            result, error = self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
+            if result != COMM_SUCCESS or error & ~ALERT:
+                self.comm_errors += 1  # tried again within a second
+                self.node.logger.warning(f"servo {dxl_id} answers but torque on failed "
+                                         f"({self._packets.getTxRxResult(result)}, "
+                                         f"error {error:#04x})")
+                continue
+            self.present.add(dxl_id)
+            self._misses[dxl_id] = 0
+            self.node.logger.info(f"servo {dxl_id} answers; torque on")
 
     # -- the cycle ----------------------------------------------------------------------
 
@@ -115,44 +129,82 @@ class ServoDriver:
     def cycle(self) -> None:
         now = self.node.clock.now_ns()
         self.cycles += 1
-        if now - self._last_retry_ns >= RETRY_NS:
-            self._last_retry_ns = now
-            if self._port is None:
-                self._connect()
-            if self._port is not None:
-                self._adopt_missing()
-        if self._port is not None and self.present:
-            self._read(now)
-            self._write()
+        try:
+            if now - self._last_retry_ns >= RETRY_NS:
+                self._last_retry_ns = now
+                if self._port is None:
+                    self._connect()
+                if self._port is not None:
+                    self._adopt_missing()
+            if self._port is not None and self.present:
+                self._read(now)
+                self._write()
+        except OSError as exc:  # pyserial's SerialException too: the device went away
+            self._lose_port(exc)
         if now - self._last_diag_ns >= RETRY_NS:
             self._last_diag_ns = now
+            try:
+                if self._port is not None and self.present:
+                    self._read_hardware_errors()
+            except OSError as exc:
+                self._lose_port(exc)
             self._publish_diagnostics(now)
 
-    def _read(self, now: int) -> None:
+    def _lose_port(self, exc: OSError) -> None:
+        self.node.logger.error(f"lost {self.port_name}: {exc}; reopening within a second")
+        self.comm_errors += 1
+        port, self._port = self._port, None
+        self.present.clear()
+        if port is not None:
+            with contextlib.suppress(OSError):
+                port.closePort()
+
+    def _sync_read(self, address: int, length: int, order: list[int]
+                   ) -> tuple[dict[int, bytes], int | None]:
+        """One sync read: what each servo sent, and the servo that failed (if one did)."""
         assert self._port is not None
-        reader = GroupSyncRead(self._port, self._packets, ADDR_VELOCITY, READ_LENGTH)
-        for dxl_id in sorted(self.present):
+        reader = GroupSyncRead(self._port, self._packets, address, length)
+        for dxl_id in order:
             reader.addParam(dxl_id)
         if reader.txRxPacket() != COMM_SUCCESS:
             self.comm_errors += 1
+        got: dict[int, bytes] = {}
+        for dxl_id in order:
+            # After a failure the SDK keeps what the servos before the failed one sent
+            # (isAvailable() then says no for all of them).
+            data = bytes(reader.data_dict.get(dxl_id) or b"")
+            if len(data) != length:
+                return got, dxl_id  # the servos after it were not read
+            got[dxl_id] = data
+        return got, None
+
+    def _read(self, now: int) -> None:
+        order = sorted(self.present, key=lambda i: (self._misses.get(i, 0) > 0, i))
+        got, failed = self._sync_read(ADDR_VELOCITY, READ_LENGTH, order)
+        if failed is not None:
+            self._missed(failed)
         msg = JointState()
         msg.header.stamp = to_msg(now)
-        for dxl_id in sorted(self.present):
-            if not reader.isAvailable(dxl_id, ADDR_VELOCITY, READ_LENGTH):
-                misses = self._misses[dxl_id] = self._misses.get(dxl_id, 0) + 1
-                if misses >= MISSING_AFTER:
-                    self.present.discard(dxl_id)  # pinged again within a second
-                    self.node.logger.warning(
-                        f"servo {dxl_id} did not answer {misses} times in a row"
-                    )
-                continue
+        for dxl_id in sorted(got):
             self._misses[dxl_id] = 0
-            velocity = _signed32(reader.getData(dxl_id, ADDR_VELOCITY, 4))
-            position = _signed32(reader.getData(dxl_id, ADDR_VELOCITY + 4, 4))
+            velocity = int.from_bytes(got[dxl_id][:4], "little", signed=True)
+            position = int.from_bytes(got[dxl_id][4:], "little", signed=True)
             msg.name.append(self.names[self.ids.index(dxl_id)])
             msg.position.append((position - ct.CENTER_TICKS) / ct.TICKS_PER_RAD)
             msg.velocity.append(velocity * ct.RPM_PER_UNIT * 2 * math.pi / 60)
         self.state_pub.publish(msg)
+
+    def _read_hardware_errors(self) -> None:
+        """Hardware Error Status of every servo (once a second, with the diagnostics)."""
+        got, _ = self._sync_read(ADDR_HARDWARE_ERROR, 1, sorted(self.present))
+        for dxl_id, data in got.items():
+            self.hardware_errors[dxl_id] = data[0]
+
+    def _missed(self, dxl_id: int) -> None:
+        misses = self._misses[dxl_id] = self._misses.get(dxl_id, 0) + 1
+        if misses >= MISSING_AFTER:
+            self.present.discard(dxl_id)  # pinged again within a second
+            self.node.logger.warning(f"servo {dxl_id} did not answer {misses} times in a row")
 
     def _write(self) -> None:
         assert self._port is not None
@@ -165,17 +217,25 @@ class ServoDriver:
         if writer.txPacket() != COMM_SUCCESS:
             self.comm_errors += 1
 
+    def _servo_status(self, dxl_id: int) -> tuple[bytes, str]:
+        """(diagnostic level, message) of one servo."""
+        if self._port is None:
+            return DiagnosticStatus.ERROR, "port not open"
+        if dxl_id not in self.present:
+            return DiagnosticStatus.ERROR, "not answering"
+        if hardware_error := self.hardware_errors.get(dxl_id, 0):
+            return DiagnosticStatus.ERROR, f"hardware error status {hardware_error:#04x}"
+        return DiagnosticStatus.OK, "ok"
+
     def _publish_diagnostics(self, now: int) -> None:
         array = DiagnosticArray()
         array.header.stamp = to_msg(now)
         for dxl_id, name in zip(self.ids, self.names, strict=True):
-            ok = self._port is not None and dxl_id in self.present
+            level, message = self._servo_status(dxl_id)
             array.status.append(DiagnosticStatus(
-                level=DiagnosticStatus.OK if ok else DiagnosticStatus.ERROR,
+                level=level,
                 name=f"{self.node.name}: servo {dxl_id} ({name})",
-                message="ok" if ok else (
-                    "port not open" if self._port is None else "not answering"
-                ),
+                message=message,
                 hardware_id=f"dynamixel:{self.port_name}:{dxl_id}",
                 values=[KeyValue(key="comm_errors", value=str(self.comm_errors))],
             ))

@@ -54,22 +54,58 @@ def test_reaches_commanded_positions(bus: tuple[PtyBus, IdealPlant]) -> None:
     driver.close()
 
 
-def test_an_unplugged_servo_is_reported_and_taken_back(bus: tuple[PtyBus, IdealPlant]) -> None:
+def _diagnostics(node: TestHandle) -> dict[str, DiagnosticStatus]:
+    statuses = node.published("/diagnostics")[-1].status
+    return {s.name.split("(")[1].rstrip(")"): s for s in statuses}
+
+
+@pytest.mark.parametrize("unplugged", [1, 3])  # first in the sync read, and last
+def test_an_unplugged_servo_is_reported_and_taken_back(
+        bus: tuple[PtyBus, IdealPlant], unplugged: int) -> None:
     pty, _ = bus
     node, driver = _driver(pty)
     node.advance(0.01)
+    gone = NAMES[IDS.index(unplugged)]
     with pty.lock:
-        pty.bus.servos[3].connected = False
+        pty.bus.servos[unplugged].connected = False
+    before = len(node.published("joint_states"))
     node.advance(1.0)  # ten missed reads, then reported
-    assert "hip_roll" not in _last_state(node)
-    assert set(_last_state(node)) == {"neck_yaw", "neck_pitch"}  # the others keep going
-    diag = {s.name.split("(")[1].rstrip(")"): s for s in node.published("/diagnostics")[-1].status}
-    assert diag["hip_roll"].level == DiagnosticStatus.ERROR
-    assert diag["neck_yaw"].level == DiagnosticStatus.OK
+    states = [set(m.name) for m in node.published("joint_states")[before:]]
+    others = set(NAMES) - {gone}
+    assert len(states) == 100
+    assert all(others <= names for names in states[1:])  # hidden for one cycle at most
+    assert gone not in states[-1]
+    diag = _diagnostics(node)
+    assert diag[gone].level == DiagnosticStatus.ERROR and diag[gone].message == "not answering"
+    assert {diag[name].level for name in others} == {DiagnosticStatus.OK}
+    warnings = [text for level, text in node.records if level == "warning"]
+    assert warnings == [f"servo {unplugged} did not answer 10 times in a row"]  # no other
     with pty.lock:
-        pty.bus.servos[3].connected = True
+        pty.bus.servos[unplugged].connected = True
     node.advance(1.1)
-    assert "hip_roll" in _last_state(node)
+    assert gone in _last_state(node)
+    assert _diagnostics(node)[gone].level == DiagnosticStatus.OK
+    driver.close()
+
+
+def test_a_hardware_error_is_reported_until_the_servo_is_rebooted(
+        bus: tuple[PtyBus, IdealPlant]) -> None:
+    pty, _ = bus
+    node, driver = _driver(pty)
+    node.advance(1.0)
+    assert _diagnostics(node)["neck_pitch"].level == DiagnosticStatus.OK
+    with pty.lock:
+        pty.bus.servos[2].set_hardware_error(0x20)  # overload: torque off, alert bit set
+    node.advance(1.0)
+    diag = _diagnostics(node)
+    assert diag["neck_pitch"].level == DiagnosticStatus.ERROR
+    assert diag["neck_pitch"].message == "hardware error status 0x20"
+    assert diag["neck_yaw"].level == DiagnosticStatus.OK
+    assert set(_last_state(node)) == set(NAMES)  # still read: it answers, with the alert
+    with pty.lock:
+        pty.bus.servos[2].reset(keep=(), ram_only=True)  # what REBOOT does
+    node.advance(1.0)
+    assert _diagnostics(node)["neck_pitch"].level == DiagnosticStatus.OK
     driver.close()
 
 

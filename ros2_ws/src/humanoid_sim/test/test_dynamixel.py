@@ -161,3 +161,107 @@ def test_unplugged_servo_does_not_answer(rig) -> None:
     assert ph.ping(port, 3)[1] != COMM_SUCCESS
     ids, result = ph.broadcastPing(port)
     assert result == COMM_SUCCESS and sorted(ids) == [1, 2]
+
+
+def _ask(bus: Bus, dxl_id: int, instruction: int, params: bytes = b"") -> list[Packet]:
+    """What the bus answers one packet with, as status packets (no pty needed)."""
+    return Parser().feed(bus.handle(Parser().feed(encode(dxl_id, instruction, params))[0]))
+
+
+def _write(address: int, value: int, size: int) -> bytes:
+    return address.to_bytes(2, "little") + value.to_bytes(size, "little", signed=True)
+
+
+def test_writes_are_checked_like_the_e_manual_says() -> None:
+    bus = Bus(IDS, IdealPlant())
+
+    def error(params: bytes, instruction: int = Instruction.WRITE) -> int:
+        (reply,) = _ask(bus, 1, instruction, params)
+        return reply.params[0]
+
+    assert error(_write(GOAL, 2048, 2)) == Error.DATA_LENGTH  # 2 bytes of a 4-byte item
+    assert error(_write(GOAL + 1, 8, 1)) == Error.DATA_LENGTH
+    assert error(_write(TORQUE, 2, 1)) == Error.DATA_RANGE  # torque enable is 0 or 1
+    assert error(_write(84, 20000, 2)) == Error.DATA_RANGE  # gain beyond 16,383
+    assert error(_write(102, 1194, 2)) == Error.DATA_LIMIT  # goal current > current limit
+    assert error(_write(104, -201, 4)) == Error.DATA_LIMIT  # |goal velocity| > velocity limit
+    assert error(_write(66, 0, 1)) == Error.ACCESS  # reserved address
+    assert error(_write(200, 0, 1)) == Error.ACCESS  # beyond the emulated table
+    assert error(_write(PRESENT, 0, 4)) == Error.ACCESS  # read only
+    assert error(b"", Instruction.ACTION) == Error.INSTRUCTION  # nothing registered
+    assert error(b"\x00\x00\x02", Instruction.READ) == Error.DATA_LENGTH  # READ needs 4
+    assert bus.servos[1].get("goal_position") == 2048  # nothing refused was written
+    # Outside position control mode the position limits do not bound the goal.
+    assert error(_write(11, 4, 1)) == Error.NONE  # extended position control
+    assert error(_write(GOAL, 5000, 4)) == Error.NONE
+
+
+def test_homing_offset_is_added_to_the_present_position() -> None:
+    plant = IdealPlant()
+    bus = Bus(IDS, plant)
+    servo = bus.servos[1]
+    assert servo.write(20, (100).to_bytes(4, "little")) == Error.NONE
+    assert servo.read(PRESENT, 4)[1] == (2148).to_bytes(4, "little")  # actual 2048 + 100
+    servo.write(TORQUE, b"\x01")
+    servo.write(GOAL, (2148).to_bytes(4, "little"))  # in present-position terms
+    plant.step(1.0)
+    assert plant.state(1).position_rad == 0.0  # the joint stays at its actual centre
+
+
+def test_reg_write_action_reboot_and_a_new_id() -> None:
+    plant = IdealPlant()
+    bus = Bus(IDS, plant)
+    assert _ask(bus, 0xFE, Instruction.REG_WRITE, _write(TORQUE, 1, 1)) == []  # broadcast
+    assert [s.get("registered_instruction") for s in bus.servos.values()] == [1, 1, 1]
+    assert _ask(bus, 0xFE, Instruction.ACTION) == []
+    assert [s.get("torque_enable") for s in bus.servos.values()] == [1, 1, 1]
+    bus.servos[2].set_hardware_error(0x04)  # overheating
+    (status,) = _ask(bus, 2, Instruction.PING)
+    assert status.params[0] == 0x80 and bus.servos[2].get("torque_enable") == 0
+    assert len(_ask(bus, 2, Instruction.REBOOT)) == 1
+    assert _ask(bus, 2, Instruction.PING)[0].params[0] == 0  # cleared
+    # A new ID takes effect at once; the servo still moves its own joint.
+    bus.servos[3].write(TORQUE, b"\x00")
+    assert len(_ask(bus, 3, Instruction.WRITE, _write(7, 9, 1))) == 1
+    assert _ask(bus, 3, Instruction.PING) == []
+    assert _ask(bus, 9, Instruction.PING)[0].dxl_id == 9
+    _ask(bus, 9, Instruction.WRITE, _write(TORQUE, 1, 1))
+    _ask(bus, 9, Instruction.WRITE, _write(GOAL, 2048 + 512, 4))
+    plant.step(1.0)
+    assert plant.state(3).position_rad == pytest.approx(math.pi / 4)
+
+
+def test_status_return_level_silences_replies_but_not_ping() -> None:
+    bus = Bus(IDS, IdealPlant())
+    bus.servos[1].write(68, b"\x00")
+    assert _ask(bus, 1, Instruction.WRITE, _write(TORQUE, 1, 1)) == []
+    assert _ask(bus, 1, Instruction.READ, b"\x84\x00\x04\x00") == []
+    sync_read = b"\x84\x00\x04\x00\x01\x02"
+    assert [p.dxl_id for p in _ask(bus, 0xFE, Instruction.SYNC_READ, sync_read)] == [2]
+    assert len(_ask(bus, 1, Instruction.PING)) == 1
+    bus.servos[1].write(68, b"\x01")
+    assert _ask(bus, 1, Instruction.WRITE, _write(TORQUE, 0, 1)) == []
+    assert len(_ask(bus, 1, Instruction.READ, b"\x84\x00\x04\x00")) == 1
+
+
+@pytest.mark.parametrize("garbage", [
+    b"\xff\xff\xfd\x00\x01\xff\xff",  # a header with an absurd length
+    b"\xff\xff\xfd\x00\x01\x01\x00\x02",  # a length too short for any packet
+    encode(1, Instruction.SYNC_WRITE, b"\x74\x00\x04"),  # sync write not broadcast
+    encode(0xFE, Instruction.SYNC_WRITE, b"\x74\x00\x04\x00\x01\x00"),  # cut short
+    encode(0xFE, Instruction.BULK_READ, b"\x01\x84"),
+    encode(0xFE, Instruction.FACTORY_RESET, b"\xff"),
+    encode(1, Instruction.FACTORY_RESET, b""),
+    bytes(range(256)) * 4,
+])
+def test_malformed_input_never_stops_the_bus(rig, garbage: bytes) -> None:
+    pty, _, port, ph = rig
+    fd = os.open(pty.port, os.O_RDWR | os.O_NOCTTY)
+    try:
+        os.write(fd, garbage)
+    finally:
+        os.close(fd)
+    assert pty.sync()
+    port.clearPort()
+    assert ph.ping(port, 1)[1] == COMM_SUCCESS
+    assert pty.errors == []

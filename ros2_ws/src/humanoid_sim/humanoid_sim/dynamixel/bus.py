@@ -1,35 +1,46 @@
 """The instructions of Protocol 2.0, answered the way servos on one bus answer them.
 
-Broadcast rules: a broadcast PING is answered by every servo, in ID order; other
-broadcasts (WRITE, REG_WRITE, ACTION, SYNC_WRITE, BULK_WRITE) are obeyed silently; a
-broadcast READ is ignored. SYNC_READ and BULK_READ are answered by each listed servo in the
-order listed. A packet with a bad CRC gets a CRC error from the servo it names (none for
-broadcasts); an unknown instruction gets an instruction error. Status return level 0
-answers only PING, 1 also READs, 2 everything. Unplugged servos never answer.
+Broadcast rules (e-Manual, Protocol 2.0): a broadcast PING is answered by every servo, in
+ID order; other broadcasts (WRITE, REG_WRITE, ACTION, REBOOT, SYNC_WRITE, BULK_WRITE) are
+obeyed silently; a broadcast READ is ignored. SYNC_READ and BULK_READ are answered by each
+listed servo in the order listed. A packet with a bad CRC gets a CRC error from the servo it
+names (none for broadcasts); an unknown instruction, or ACTION with nothing registered, gets
+an instruction error. Status return level 0 answers only PING, 1 also the reads, 2
+everything. Unplugged servos never answer. Servos are addressed by the ID in their control
+table, so a written ID takes effect at once.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 
+from . import control_table as ct
 from .plant import Plant
 from .protocol import BROADCAST_ID, Error, Instruction, Packet, status
 from .servo import Servo
 
 _READS = {Instruction.READ, Instruction.SYNC_READ, Instruction.BULK_READ}
+#: CLEAR's only defined option: reset the multi-turn count (parameters fixed by the e-Manual).
+_CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
+_FACTORY_RESET_KEEP = {0xFF: (), 0x01: ("id",), 0x02: ("id", "baud_rate")}
+_REGISTERED = ct.BY_NAME["registered_instruction"].address
 
 
 class Bus:
     def __init__(self, ids: Iterable[int], plant: Plant) -> None:
+        #: The servos by the ID they left the factory with (their place on the robot).
         self.servos = {i: Servo(i, plant) for i in ids}
         self.packets = 0
         self.crc_errors = 0
 
     def _present(self, dxl_id: int) -> Servo | None:
-        servo = self.servos.get(dxl_id)
-        return servo if servo is not None and servo.connected else None
+        for servo in self.servos.values():
+            if servo.connected and servo.dxl_id == dxl_id:
+                return servo
+        return None
 
-    def _reply(self, servo: Servo, instruction: int, error: int, params: bytes = b"") -> bytes:
+    @staticmethod
+    def _reply(servo: Servo, instruction: int, error: int, params: bytes = b"") -> bytes:
         level = servo.get("status_return_level")
         if instruction != Instruction.PING and (
             level == 0 or (level == 1 and instruction not in _READS)
@@ -50,59 +61,84 @@ class Bus:
         servo = self._present(packet.dxl_id)
         if servo is None:
             return b""
-        return self._unicast(servo, inst, p)
+        return self._reply(servo, inst, *self._unicast(servo, inst, p))
 
-    def _unicast(self, servo: Servo, inst: int, p: bytes) -> bytes:
+    def _unicast(self, servo: Servo, inst: int, p: bytes) -> tuple[int, bytes]:
+        """(error, parameters) of the status ``servo`` answers ``inst`` with."""
         if inst == Instruction.PING:
-            return self._reply(servo, inst, Error.NONE, self._ping_params(servo))
+            return Error.NONE, self._ping_params(servo)
         if inst == Instruction.READ:
             if len(p) != 4:
-                return self._reply(servo, inst, Error.DATA_LENGTH)
-            error, data = servo.read(int.from_bytes(p[:2], "little"),
-                                     int.from_bytes(p[2:4], "little"))
-            return self._reply(servo, inst, error, data)
+                return Error.DATA_LENGTH, b""
+            return servo.read(int.from_bytes(p[:2], "little"), int.from_bytes(p[2:4], "little"))
         if inst in (Instruction.WRITE, Instruction.REG_WRITE):
             if len(p) < 3:
-                return self._reply(servo, inst, Error.DATA_LENGTH)
+                return Error.DATA_LENGTH, b""
             address, data = int.from_bytes(p[:2], "little"), p[2:]
             if inst == Instruction.WRITE:
-                return self._reply(servo, inst, servo.write(address, data))
-            error = servo.check_write(address, data)
-            if not error:
-                servo.registered = (address, data)
-                servo.table[69] = 1
-            return self._reply(servo, inst, error)
+                return servo.write(address, data), b""
+            return self._register(servo, address, data), b""
         if inst == Instruction.ACTION:
-            return self._reply(servo, inst, self._action(servo))
+            return self._action(servo), b""
         if inst == Instruction.REBOOT:
-            servo.table[70] = 0  # clears hardware errors; torque goes off
-            servo.write(64, b"\x00")
-            return self._reply(servo, inst, Error.NONE)
-        return self._reply(servo, inst, Error.INSTRUCTION)
+            servo.reset(keep=(), ram_only=True)  # clears hardware errors; torque goes off
+            return Error.NONE, b""
+        if inst == Instruction.FACTORY_RESET:
+            keep = _FACTORY_RESET_KEEP.get(p[0]) if len(p) == 1 else None
+            if keep is None:
+                return Error.DATA_RANGE, b""
+            servo.reset(keep=keep)
+            return Error.NONE, b""
+        if inst == Instruction.CLEAR:
+            if p != _CLEAR_MULTI_TURN:
+                return Error.DATA_RANGE, b""
+            # Single-turn position control has no turn count to clear; a moving servo refuses.
+            return (Error.RESULT_FAIL if servo.read(ct.BY_NAME["moving"].address, 1)[1] != b"\0"
+                    else Error.NONE), b""
+        return Error.INSTRUCTION, b""
 
-    def _action(self, servo: Servo) -> int:
+    @staticmethod
+    def _register(servo: Servo, address: int, data: bytes) -> int:
+        error = servo.check_write(address, data)
+        if not error:
+            servo.registered = (address, data)
+            servo.table[_REGISTERED] = 1
+        return error
+
+    @staticmethod
+    def _action(servo: Servo) -> int:
         if servo.registered is None:
-            return Error.RESULT_FAIL
+            return Error.INSTRUCTION  # e-Manual: ACTION without REG_WRITE
         address, data = servo.registered
         servo.registered = None
-        servo.table[69] = 0
+        servo.table[_REGISTERED] = 0
         return servo.write(address, data)
 
     @staticmethod
     def _ping_params(servo: Servo) -> bytes:
-        return bytes(servo.table[0:2]) + bytes(servo.table[6:7])
+        model, firmware = ct.BY_NAME["model_number"], ct.BY_NAME["firmware_version"]
+        return (bytes(servo.table[model.address : model.address + model.size])
+                + bytes(servo.table[firmware.address : firmware.address + 1]))
 
     def _broadcast(self, inst: int, p: bytes) -> bytes:
-        present = [s for _, s in sorted(self.servos.items()) if s.connected]
+        present = sorted((s for s in self.servos.values() if s.connected),
+                         key=lambda s: s.dxl_id)
         if inst == Instruction.PING:
             return b"".join(status(s.dxl_id, s.alert(), self._ping_params(s)) for s in present)
-        if inst == Instruction.WRITE and len(p) >= 3:
+        if inst in (Instruction.WRITE, Instruction.REG_WRITE) and len(p) >= 3:
+            address, data = int.from_bytes(p[:2], "little"), p[2:]
             for s in present:
-                s.write(int.from_bytes(p[:2], "little"), p[2:])
+                if inst == Instruction.WRITE:
+                    s.write(address, data)
+                else:
+                    self._register(s, address, data)
         elif inst == Instruction.ACTION:
             for s in present:
                 if s.registered is not None:
                     self._action(s)
+        elif inst == Instruction.REBOOT:
+            for s in present:
+                s.reset(keep=(), ram_only=True)
         elif inst == Instruction.SYNC_WRITE and len(p) >= 4:
             address, size = int.from_bytes(p[:2], "little"), int.from_bytes(p[2:4], "little")
             for i in range(4, len(p) - size, size + 1):
@@ -120,20 +156,17 @@ class Bus:
                 i += 5 + size
         elif inst == Instruction.SYNC_READ and len(p) >= 4:
             address, size = int.from_bytes(p[:2], "little"), int.from_bytes(p[2:4], "little")
-            out = b""
-            for dxl_id in p[4:]:
-                servo = self._present(dxl_id)
-                if servo is not None:
-                    error, data = servo.read(address, size)
-                    out += status(dxl_id, error | servo.alert(), data)
-            return out
+            return b"".join(self._read_status(dxl_id, inst, address, size) for dxl_id in p[4:])
         elif inst == Instruction.BULK_READ:
-            out = b""
-            for i in range(0, len(p) - 4, 5):
-                servo = self._present(p[i])
-                if servo is not None:
-                    error, data = servo.read(int.from_bytes(p[i + 1 : i + 3], "little"),
-                                             int.from_bytes(p[i + 3 : i + 5], "little"))
-                    out += status(p[i], error | servo.alert(), data)
-            return out
+            return b"".join(
+                self._read_status(p[i], inst, int.from_bytes(p[i + 1 : i + 3], "little"),
+                                  int.from_bytes(p[i + 3 : i + 5], "little"))
+                for i in range(0, len(p) - 4, 5)
+            )
         return b""
+
+    def _read_status(self, dxl_id: int, inst: int, address: int, size: int) -> bytes:
+        servo = self._present(dxl_id)
+        if servo is None:
+            return b""
+        return self._reply(servo, inst, *servo.read(address, size))
