@@ -12,6 +12,7 @@
       listen: [tcp/127.0.0.1:7447]
       connect: []
       compression: zlib                # or none
+      max_message_bytes: 67108864      # larger samples (after decompression) are dropped
     stats_period_s: 10                 # log statistics every 10 s (default 0: never)
     topics:
       - ros2: /chatter                 # ROS 2 topic
@@ -75,6 +76,7 @@ class TeamOptions:
     prefix: str = "rf_team"
     multicast_scouting: bool = False
     lease_s: float = 3.0
+    max_message_bytes: int = 64 << 20
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -167,6 +169,15 @@ def _typed(value: Any, kind: type | tuple[type, ...], where: str) -> Any:
     return value
 
 
+def _positive(m: Mapping[str, Any], key: str, default: float, kind: type, where: str) -> Any:
+    """An option that must be a number above zero (a zero timeout or limit would stall or
+    refuse everything without saying why)."""
+    value = _typed(m.get(key, default), kind if kind is int else (int, float), f"{where}.{key}")
+    if value <= 0:
+        raise ConfigError(f"{where}.{key}: must be > 0, not {value!r}")
+    return value if kind is int else float(value)
+
+
 def _ros1(value: Any, where: str) -> Ros1Options:
     m = _mapping(
         value,
@@ -188,21 +199,18 @@ def _ros1(value: Any, where: str) -> Ros1Options:
     node_name = _typed(m.get("node_name", "/rf_bridge"), str, f"{where}.node_name")
     if not node_name.startswith("/"):
         node_name = "/" + node_name
+    advertise = m.get("advertise_host")
+    if advertise is not None:
+        advertise = _typed(advertise, str, f"{where}.advertise_host")
     return Ros1Options(
         master_uri=_typed(master, str, f"{where}.master_uri"),
         node_name=node_name,
         bind=_typed(m.get("bind", "127.0.0.1"), str, f"{where}.bind"),
-        advertise_host=m.get("advertise_host"),
-        max_message_bytes=_typed(
-            m.get("max_message_bytes", 64 << 20), int, f"{where}.max_message_bytes"
-        ),
-        send_timeout_s=float(
-            _typed(m.get("send_timeout_s", 2.0), (int, float), f"{where}.send_timeout_s")
-        ),
-        queue_size=_typed(m.get("queue_size", 100), int, f"{where}.queue_size"),
-        master_check_s=float(
-            _typed(m.get("master_check_s", 0.5), (int, float), f"{where}.master_check_s")
-        ),
+        advertise_host=advertise,
+        max_message_bytes=_positive(m, "max_message_bytes", 64 << 20, int, where),
+        send_timeout_s=_positive(m, "send_timeout_s", 2.0, float, where),
+        queue_size=_positive(m, "queue_size", 100, int, where),
+        master_check_s=_positive(m, "master_check_s", 0.5, float, where),
     )
 
 
@@ -210,7 +218,16 @@ def _team(value: Any, where: str) -> TeamOptions:
     m = _mapping(
         value,
         where,
-        {"robot_id", "listen", "connect", "compression", "prefix", "multicast_scouting", "lease_s"},
+        {
+            "robot_id",
+            "listen",
+            "connect",
+            "compression",
+            "prefix",
+            "multicast_scouting",
+            "lease_s",
+            "max_message_bytes",
+        },
     )
     robot_id = _typed(m.get("robot_id"), str, f"{where}.robot_id")
     compression = m.get("compression", "zlib")
@@ -227,7 +244,8 @@ def _team(value: Any, where: str) -> TeamOptions:
         multicast_scouting=_typed(
             m.get("multicast_scouting", False), bool, f"{where}.multicast_scouting"
         ),
-        lease_s=float(_typed(m.get("lease_s", 3.0), (int, float), f"{where}.lease_s")),
+        lease_s=_positive(m, "lease_s", 3.0, float, where),
+        max_message_bytes=_positive(m, "max_message_bytes", 64 << 20, int, where),
     )
 
 

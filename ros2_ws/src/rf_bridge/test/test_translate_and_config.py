@@ -82,3 +82,21 @@ def test_config_fatal_errors(tmp_path: Path) -> None:
 def test_defaults_bind_loopback() -> None:
     config = parse_config({"ros1": {"master_uri": "http://127.0.0.1:1/"}})
     assert config.ros1 is not None and config.ros1.bind == "127.0.0.1"
+
+
+@pytest.mark.parametrize(
+    ("section", "key", "value"),
+    [
+        ("ros1", "max_message_bytes", 0),
+        ("ros1", "queue_size", -1),
+        ("ros1", "send_timeout_s", 0.0),
+        ("ros1", "master_check_s", 0),
+        ("ros1", "advertise_host", 5),
+        ("team", "lease_s", 0),
+        ("team", "max_message_bytes", -5),
+    ],
+)
+def test_limits_and_timeouts_must_be_positive(section: str, key: str, value: object) -> None:
+    base = {"ros1": {"master_uri": "http://127.0.0.1:1/"}, "team": {"robot_id": "a"}}
+    with pytest.raises(ConfigError, match=f"{section}.{key}"):
+        parse_config({section: {**base[section], key: value}})

@@ -153,8 +153,12 @@ class BridgeNode:
             )
 
     def close(self) -> None:
-        for adapter in self.adapters.values():
-            adapter.close()
+        """Close every adapter, even when one of them fails to (that one is logged)."""
+        for name, adapter in self.adapters.items():
+            try:
+                adapter.close()
+            except Exception as exc:
+                self._node.logger.error(f"closing the {name} adapter raised {exc!r}")
 
 
 def main() -> int:

@@ -7,6 +7,8 @@ when that helps), an attachment with the sending robot's id (loop prevention: a 
 takes its own samples back) and a per-topic sequence number, so every sample lost on the way
 is counted at the receiver (``lost``). Throttling happens in the core before anything is
 sent. Publishers never block the executor: congestion drops, and is counted by the receiver.
+A received sample is decompressed at most to ``max_message_bytes``: a few kilobytes of zlib
+can claim gigabytes, so the limit applies to what decompression produces.
 """
 
 from __future__ import annotations
@@ -134,8 +136,25 @@ class TeamAdapter:
             if seq > last + 1:
                 route.stats_in.dropped("lost", seq - last - 1)
         payload = sample.payload.to_bytes()
+        limit = self.options.max_message_bytes
+        if flags & _ZLIB:
+            inflate = zlib.decompressobj()
+            try:
+                data = inflate.decompress(payload, limit)
+            except zlib.error as exc:
+                route.stats_in.dropped("malformed")
+                self._log.warning(f"team link: undecodable sample on {route.peer_topic}: {exc}")
+                return
+            oversize = bool(inflate.unconsumed_tail)
+        else:
+            data, oversize = payload, len(payload) > limit
+        if oversize:
+            route.stats_in.dropped("oversize")
+            self._log.warning(
+                f"team link: sample on {route.peer_topic} over max_message_bytes ({limit})"
+            )
+            return
         try:
-            data = zlib.decompress(payload) if flags & _ZLIB else payload
             msg = deserialize_message(data, route.ros2_cls)
         except Exception as exc:
             route.stats_in.dropped("malformed")

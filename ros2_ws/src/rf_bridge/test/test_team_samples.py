@@ -1,0 +1,79 @@
+"""What the team adapter does with a received sample, without a Zenoh session: a sample is
+counted (delivered, lost, malformed, oversize) and a compressed one cannot expand past the
+configured limit."""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.serialization import serialize_message
+from std_msgs.msg import String
+
+from rf_bridge import parse_config
+from rf_bridge.adapters.team import _ATTACHMENT, _ZLIB, TeamAdapter
+from rf_bridge.core.adapter import Route
+from rf_bridge.core.stats import TopicStats
+
+
+@dataclass
+class Bytes:
+    data: bytes
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class Sample:
+    payload: Bytes
+    attachment: Bytes | None
+
+
+class Records:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def info(self, message: str, /) -> None:
+        self.lines.append(message)
+
+    warning = error = info
+
+
+def setup(limit: int) -> tuple[TeamAdapter, Route, Records, list[Any]]:
+    config = parse_config(
+        {
+            "team": {"robot_id": "b", "max_message_bytes": limit},
+            "topics": [{"ros2": "/t", "type": "std_msgs/msg/String", "peer": "team"}],
+        }
+    )
+    assert config.team is not None
+    records = Records()
+    spec = config.topics[0]
+    route = Route(spec, String, TopicStats("/t", "to_team"), TopicStats("/t", "from_team"))
+    delivered: list[Any] = []
+    adapter = TeamAdapter(config.team, records)
+    return adapter, route, records, delivered
+
+
+def sample(seq: int, payload: bytes, *, flags: int = 0) -> Sample:
+    return Sample(Bytes(payload), Bytes(_ATTACHMENT.pack(seq, flags, 1) + b"a"))
+
+
+def test_samples_counted_and_a_decompression_bomb_stopped_at_the_limit() -> None:
+    adapter, route, records, delivered = setup(limit=4096)
+
+    def deliver(route: Route, msg: Any, received_ns: int, nbytes: int) -> None:
+        delivered.append(msg)
+
+    small = serialize_message(String(data="hello"))
+    bomb = zlib.compress(bytes(64 << 20), 9)  # 64 MiB of zeros in about 64 KiB
+    adapter._on_sample(route, sample(1, small), deliver)
+    adapter._on_sample(route, sample(2, bomb, flags=_ZLIB), deliver)
+    adapter._on_sample(route, sample(3, b"not zlib", flags=_ZLIB), deliver)
+    adapter._on_sample(route, Sample(Bytes(small), None), deliver)
+    adapter._on_sample(route, sample(6, small), deliver)
+    assert [m.data for m in delivered] == ["hello", "hello"]
+    assert route.stats_in.snapshot().drops == {"oversize": 1, "malformed": 2, "lost": 2}
+    assert any("over max_message_bytes (4096)" in line for line in records.lines)
