@@ -202,7 +202,6 @@ def run_bridge_dds(
 ) -> dict[str, Any]:
     import os
     import subprocess
-    import tempfile
 
     import rclpy
     import yaml
@@ -216,7 +215,7 @@ def run_bridge_dds(
     relay = ros1.python(RELAY, ping, pong, ROS1_TYPES[kind], log=f"relay_{tag}")
     assert LineReader(relay).next(30) == "ready"
     depth = max(n_burst, 10)
-    config = Path(tempfile.mkdtemp()) / "bridge.yaml"
+    config = ros1.workdir / f"bridge_{tag}.yaml"  # removed with the ROS 1 system
     config.write_text(yaml.safe_dump({
         "ros1": {"master_uri": ros1.master_uri, "node_name": f"/rf_bridge_{tag}",
                  "queue_size": depth},
