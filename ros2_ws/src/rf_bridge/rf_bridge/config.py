@@ -35,6 +35,7 @@ others still load (``BridgeConfig.errors``).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -163,6 +164,11 @@ def _mapping(value: Any, where: str, allowed: set[str]) -> Mapping[str, Any]:
     return value
 
 
+def _keys(options: type) -> set[str]:
+    """The keys a section accepts are its options' fields: one list to keep up to date."""
+    return {f.name for f in dataclasses.fields(options)}
+
+
 def _typed(value: Any, kind: type | tuple[type, ...], where: str) -> Any:
     if (isinstance(value, bool) and kind is not bool) or not isinstance(value, kind):
         raise ConfigError(f"{where}: expected {kind}, not {value!r}")
@@ -179,20 +185,7 @@ def _positive(m: Mapping[str, Any], key: str, default: float, kind: type, where:
 
 
 def _ros1(value: Any, where: str) -> Ros1Options:
-    m = _mapping(
-        value,
-        where,
-        {
-            "master_uri",
-            "node_name",
-            "bind",
-            "advertise_host",
-            "max_message_bytes",
-            "send_timeout_s",
-            "queue_size",
-            "master_check_s",
-        },
-    )
+    m = _mapping(value, where, _keys(Ros1Options))
     master = m.get("master_uri") or os.environ.get("ROS_MASTER_URI")
     if not master:
         raise ConfigError(f"{where}: no master_uri and no ROS_MASTER_URI in the environment")
@@ -215,20 +208,7 @@ def _ros1(value: Any, where: str) -> Ros1Options:
 
 
 def _team(value: Any, where: str) -> TeamOptions:
-    m = _mapping(
-        value,
-        where,
-        {
-            "robot_id",
-            "listen",
-            "connect",
-            "compression",
-            "prefix",
-            "multicast_scouting",
-            "lease_s",
-            "max_message_bytes",
-        },
-    )
+    m = _mapping(value, where, _keys(TeamOptions))
     robot_id = _typed(m.get("robot_id"), str, f"{where}.robot_id")
     compression = m.get("compression", "zlib")
     if compression not in ("zlib", "none"):

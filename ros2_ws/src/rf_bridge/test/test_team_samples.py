@@ -11,6 +11,7 @@ from typing import Any
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
+from efficient_comm.composed import RecordingLogger
 from rf_bridge import parse_config
 from rf_bridge.adapters.team import _ATTACHMENT, _ZLIB, TeamAdapter
 from rf_bridge.core.adapter import Route
@@ -31,17 +32,7 @@ class Sample:
     attachment: Bytes | None
 
 
-class Records:
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-
-    def info(self, message: str, /) -> None:
-        self.lines.append(message)
-
-    warning = error = info
-
-
-def setup(limit: int) -> tuple[TeamAdapter, Route, Records, list[Any]]:
+def setup(limit: int) -> tuple[TeamAdapter, Route, RecordingLogger, list[Any]]:
     config = parse_config(
         {
             "team": {"robot_id": "b", "max_message_bytes": limit},
@@ -49,7 +40,7 @@ def setup(limit: int) -> tuple[TeamAdapter, Route, Records, list[Any]]:
         }
     )
     assert config.team is not None
-    records = Records()
+    records = RecordingLogger("/rf_bridge_test")
     spec = config.topics[0]
     route = Route(spec, String, TopicStats("/t", "to_team"), TopicStats("/t", "from_team"))
     delivered: list[Any] = []
@@ -76,4 +67,4 @@ def test_samples_counted_and_a_decompression_bomb_stopped_at_the_limit() -> None
     adapter._on_sample(route, sample(6, small), deliver)
     assert [m.data for m in delivered] == ["hello", "hello"]
     assert route.stats_in.snapshot().drops == {"oversize": 1, "malformed": 2, "lost": 2}
-    assert any("over max_message_bytes (4096)" in line for line in records.lines)
+    assert any("over max_message_bytes (4096)" in text for _, text in records.records)

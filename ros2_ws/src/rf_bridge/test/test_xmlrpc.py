@@ -11,25 +11,16 @@ from typing import Any
 
 import pytest
 
+from efficient_comm.composed import RecordingLogger
 from rf_bridge._log import RateLimitedLog
 from rf_bridge.adapters.ros1 import xmlrpc
 from rf_bridge.errors import LinkError
 from rf_bridge.testing import wait_for
 
 
-class Records:
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-
-    def info(self, message: str, /) -> None:
-        self.lines.append(message)
-
-    warning = error = info
-
-
 @pytest.fixture
-def server() -> Iterator[tuple[xmlrpc.SlaveServer, Records, list[Any]]]:
-    records = Records()
+def server() -> Iterator[tuple[xmlrpc.SlaveServer, RecordingLogger, list[Any]]]:
+    records = RecordingLogger("/rf_bridge_test")
     updates: list[Any] = []
     slave = xmlrpc.SlaveServer(
         host="127.0.0.1",
@@ -56,7 +47,7 @@ def test_arguments_are_checked_before_the_adapter_sees_them(server: Any) -> None
     with pytest.raises(xmlrpc.MasterRefusedError, match="bad arguments"):
         xmlrpc.call(slave.uri, "requestTopic", "/m", ["/t"], [["TCPROS"]])
     assert updates == [("/t", ["http://127.0.0.1:2/"])]
-    assert any("refusing an XML-RPC call from '/m'" in line for line in records.lines)
+    assert any("refusing an XML-RPC call from '/m'" in text for _, text in records.records)
 
 
 def test_oversize_request_refused_before_it_is_read(server: Any) -> None:
@@ -68,7 +59,7 @@ def test_oversize_request_refused_before_it_is_read(server: Any) -> None:
     conn.endheaders()  # no body follows: the answer must not wait for it
     assert conn.getresponse().status == 413
     conn.close()
-    assert any("refusing an XML-RPC request" in line for line in records.lines)
+    assert any("refusing an XML-RPC request" in text for _, text in records.records)
     assert xmlrpc.call(slave.uri, "getPid", "/m") > 0  # still serving
 
 
@@ -91,7 +82,7 @@ def test_connections_beyond_the_limit_are_refused(server: Any) -> None:
     try:  # the server accepts in order: the held ones took every slot before this one
         with socket.create_connection(("127.0.0.1", port), timeout=5) as extra:
             assert extra.recv(100) == b""
-        assert any("already open" in line for line in records.lines)
+        assert any("already open" in text for _, text in records.records)
     finally:
         for s in held:
             s.close()

@@ -296,16 +296,20 @@ def ros2_constants(cls: type) -> dict[str, Any]:
     return found
 
 
+def split_ros2_type(ros2_type: str) -> tuple[str, int | None]:
+    """Element type and array kind (None scalar, -1 sequence, n fixed) of a ROS 2 field type
+    (``sequence<T>``, ``sequence<T, N>`` and ``T[<=N]`` are all unbounded on ROS 1)."""
+    if ros2_type.startswith("sequence<"):
+        return ros2_type[len("sequence<") : -1].split(",")[0], -1
+    if ros2_type.endswith("]"):
+        base, _, size = ros2_type[:-1].partition("[")
+        return base, int(size) if size.isdigit() else -1
+    return ros2_type, None
+
+
 def _ros2_field(name: str, ros2_type: str) -> tuple[Field, str | None]:
     """ROS 1 field for a ROS 2 field type string; returns the nested ROS 2 type to derive."""
-    array: int | None = None
-    t = ros2_type
-    if t.startswith("sequence<"):
-        t = t[len("sequence<") : -1].split(",")[0]
-        array = -1
-    elif t.endswith("]"):
-        t, _, size = t[:-1].partition("[")
-        array = int(size) if size.isdigit() else -1
+    t, array = split_ros2_type(ros2_type)
     if t.startswith(("string<", "wstring<")):
         t = "string"
     if t in ROS2_PRIMITIVES:

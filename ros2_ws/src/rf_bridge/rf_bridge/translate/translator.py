@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import TranslationError
-from .ros1_types import ROS2_PRIMITIVES, Field, TypeRegistry, ros2_class
+from .ros1_types import ROS2_PRIMITIVES, Field, TypeRegistry, ros2_class, split_ros2_type
 
 Convert = Callable[[Any], Any]
 
@@ -49,16 +49,6 @@ class TypeRule:
     ros2: str
     fields: Mapping[str, str] = field(default_factory=dict)
     ros1_definition: str | None = None
-
-
-def _split(ros2_type: str) -> tuple[str, int | None]:
-    """Element type and array kind (None scalar, -1 sequence, n fixed) of a ROS 2 type."""
-    if ros2_type.startswith("sequence<"):
-        return ros2_type[len("sequence<") : -1].split(",")[0], -1
-    if ros2_type.endswith("]"):
-        base, _, size = ros2_type[:-1].partition("[")
-        return base, int(size) if size.isdigit() else -1
-    return ros2_type, None
 
 
 def _base(ros2_type: str) -> str:
@@ -148,7 +138,7 @@ class Translator:
         return convert
 
     def _conv_to_ros2(self, ros2_type: str, f: Field, where: str) -> Convert:
-        elem, arr = _split(ros2_type)
+        elem, arr = split_ros2_type(ros2_type)
         elem = _base(elem)
         if (arr is None) != (f.array is None):
             raise TranslationError(
@@ -219,7 +209,7 @@ class Translator:
         return convert
 
     def _conv_to_ros1(self, ros2_type: str, f: Field, where: str) -> Convert:
-        elem, arr = _split(ros2_type)
+        elem, arr = split_ros2_type(ros2_type)
         elem = _base(elem)
         if arr is not None and f.type in ("uint8", "int8", "byte", "char"):
             if elem in ("octet", "byte"):

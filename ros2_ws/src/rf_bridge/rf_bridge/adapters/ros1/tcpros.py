@@ -194,14 +194,8 @@ class OutboundConnection:
         return self._closed
 
     def _close_locked(self, reason: str, *, pending: int) -> None:
-        lost = pending + len(self._queue)
-        self._queue.clear()
-        self._closed = True
-        self._cond.notify_all()
-        with contextlib.suppress(OSError):
-            self.sock.close()
-        if lost:
-            self._undelivered("connection_dropped", lost)
+        """The peer failed: drop the connection, count what it did not get, tell the owner."""
+        lost = self._shut_locked(pending=pending, counted_as="connection_dropped")
         self._log.warning(
             f"dropping TCPROS connection to {self.peer} on {self.topic}: {reason}; "
             f"{lost} message(s) undelivered"
@@ -209,17 +203,21 @@ class OutboundConnection:
         threading.Thread(target=self._on_closed, args=(self,), daemon=True).start()
 
     def close(self) -> None:
+        """The bridge is closing: queued messages are counted as ``connection_closed``."""
         with self._cond:
-            if self._closed:
-                return
-            lost = len(self._queue)
-            self._queue.clear()
-            self._closed = True
-            self._cond.notify_all()
-            with contextlib.suppress(OSError):
-                self.sock.close()
-            if lost:
-                self._undelivered("connection_closed", lost)
+            if not self._closed:
+                self._shut_locked(pending=0, counted_as="connection_closed")
+
+    def _shut_locked(self, *, pending: int, counted_as: str) -> int:
+        lost = pending + len(self._queue)
+        self._queue.clear()
+        self._closed = True
+        self._cond.notify_all()
+        with contextlib.suppress(OSError):
+            self.sock.close()
+        if lost:
+            self._undelivered(counted_as, lost)
+        return lost
 
 
 def _peer_closed(sock: socket.socket) -> bool:
