@@ -257,33 +257,30 @@ def test_serialized_length_is_exact(msg: Any) -> None:
 
 
 def test_timer_pacer_holds_the_writer_back_around_deadlines() -> None:
-    """The pacer reads the container's timer heap: hold back from 2 ms before the next
-    deadline until 1 ms after it, else go."""
-    from types import SimpleNamespace
+    """The pacer reads the executor's next timer deadline: hold back from 2 ms before it
+    until 1 ms after it, else go."""
+    from efficient_comm import Container, ManualClock
+    from robot_recorder.recorder import _pacer, _timer_pacer
 
-    from robot_recorder.recorder import _timer_pacer
-
-    class Clock:
-        now = 0
-
-        def now_ns(self) -> int:
-            return self.now
-
-    clock = Clock()
-    timers: list[tuple[int, ...]] = [(10_000_000,)]
-    executor = SimpleNamespace(_timers=timers, clock=clock)
-    node: Any = SimpleNamespace(_container=SimpleNamespace(executor=executor))
-    pace = _timer_pacer(node, 0.002, 0.001)
-    assert pace is not None
-    clock.now = 7_000_000
+    container = test_container()
+    clock = container.executor.clock
+    assert isinstance(clock, ManualClock)
+    ticks: list[int] = []
+    TestHandle("loop", container=container).create_timer(0.01, lambda: ticks.append(1))
+    pace = _pacer(container.executor, 2_000_000, 1_000_000)
+    clock.set_ns(7_000_000)
     assert pace() == 0.0  # 3 ms ahead: go
-    clock.now = 8_500_000
+    clock.set_ns(8_500_000)
     assert pace() == pytest.approx(0.0025)  # until 1 ms after the deadline
-    timers[0] = (20_000_000,)  # the timer ran and was rescheduled
-    clock.now = 10_400_000
+    container.advance(0.0015)  # the timer runs and is rescheduled to 20 ms
+    assert ticks == [1] and container.executor.next_timer_due_ns() == 20_000_000
+    clock.set_ns(10_400_000)
     assert pace() == pytest.approx(0.0006)  # still inside the round after the deadline
-    clock.now = 11_100_000
+    clock.set_ns(11_100_000)
     assert pace() == 0.0
-    timers.clear()
-    assert pace() == 0.0
+    assert _pacer(test_container().executor, 2_000_000, 1_000_000)() == 0.0  # no timers
     assert _timer_pacer(TestHandle("manual"), 0.002, 0.001) is None  # manual clock: no pacing
+    with Container("real", dds=False, serve=False) as real:
+        node = TestHandle("paced", container=real)
+        assert _timer_pacer(node, 0.002, 0.001) is not None  # composed on a real clock
+        assert _timer_pacer(node, 0.0, 0.0) is None  # turned off

@@ -180,6 +180,15 @@ class Bus:
     def topics(self) -> dict[str, type]:
         return {name: t.msg_type for name, t in self._topics.items()}
 
+    def publisher_qos(self, name: str) -> list[QoSProfile]:
+        """The QoS profiles of this process's publishers on topic ``name`` (none: ``[]``).
+
+        A subscriber created later uses it to match what is offered, e.g. to subscribe best
+        effort when a publisher is best effort (a reliable subscription would get nothing).
+        """
+        topic = self._topics.get(name)
+        return [pub.qos for pub in topic.publishers] if topic is not None else []
+
     def add_publisher(
         self, name: str, msg_type: type, qos: QoSProfile, *, owner: str
     ) -> LocalPublisher:

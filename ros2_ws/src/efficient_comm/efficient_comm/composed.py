@@ -199,6 +199,12 @@ class ComposedHandle(ParameterMethods):
         return self._logger
 
     @property
+    def container(self) -> Container:
+        """The container this component runs in: its ``bus`` (in-process topics) and its
+        ``executor`` (timers), for components that adapt to how they are composed."""
+        return self._container
+
+    @property
     def clock(self) -> Clock:
         return self._container.executor.clock
 

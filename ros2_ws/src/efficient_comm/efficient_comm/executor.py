@@ -195,6 +195,19 @@ class ConsecutiveExecutor:
         timer.next_ns = due_ns
         heapq.heappush(self._timers, (due_ns, next(self._seq), timer._generation, timer))
 
+    def next_timer_due_ns(self) -> int | None:
+        """When the earliest scheduled timer is due (clock ns), or None without timers.
+
+        Safe to call from any thread, but only a hint there: it reads the top of the timer
+        heap without the executor's cooperation, so the answer may belong to a timer that
+        was just canceled or rescheduled. A background thread uses it to keep clear of the
+        executor around timer deadlines (the recorder's writer does), nothing more.
+        """
+        try:
+            return self._timers[0][0]
+        except IndexError:  # no timer (or the last one was just popped by the executor)
+            return None
+
     def post(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the executor thread soon; safe to call from any thread."""
         self._ready.append(_Task(fn))

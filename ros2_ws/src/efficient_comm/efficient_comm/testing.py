@@ -94,9 +94,8 @@ class TestHandle(ComposedHandle):
         remappings: Mapping[str, str] | None = None,
         container: Container | None = None,
     ) -> None:
-        self.container = container or test_container()
         super().__init__(
-            self.container,
+            container or test_container(),
             name=name,
             namespace=namespace,
             remappings=remappings or {},

@@ -107,3 +107,16 @@ def test_published_refuses_topics_it_does_not_record() -> None:
     node = TestHandle()
     with pytest.raises(LookupError):
         node.published("never_published")
+
+
+def test_publisher_qos_lists_the_offered_profiles_of_a_topic() -> None:
+    node = TestHandle()
+    bus = node.container.bus
+    assert bus.publisher_qos("/q") == []
+    node.create_publisher(String, "/q", qos=BEST_EFFORT)
+    node.create_publisher(String, "/q", qos=LATCHED)
+    node.create_subscription(String, "/q", lambda _: None)  # subscriptions offer nothing
+    offered = bus.publisher_qos("/q")
+    assert [q.reliability for q in offered] == [ReliabilityPolicy.BEST_EFFORT,
+                                                ReliabilityPolicy.RELIABLE]
+    assert offered[1].durability == DurabilityPolicy.TRANSIENT_LOCAL

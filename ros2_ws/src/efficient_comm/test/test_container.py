@@ -152,3 +152,12 @@ def test_unload_calls_close_and_frees_the_name() -> None:
         container.add(Closeable, name="closeable")  # the name is free again
         with pytest.raises(ComponentError):
             container.unload(999)
+
+
+def test_a_composed_component_reaches_its_container() -> None:
+    class Probe:
+        def __init__(self, node: NodeHandle) -> None:
+            self.container = getattr(node, "container", None)
+
+    with _container() as container:
+        assert container.add(Probe, name="probe").container is container

@@ -215,3 +215,19 @@ def test_unloaded_components_are_dead() -> None:
         timer.reset()
     container.advance(1.0)
     assert got == []
+
+
+def test_next_timer_due_is_the_earliest_deadline_and_readable_from_another_thread() -> None:
+    container = test_container()
+    executor = container.executor
+    assert executor.next_timer_due_ns() is None
+    node = TestHandle(container=container)
+    node.create_timer(0.5, lambda: None)
+    node.create_timer(0.2, lambda: None)
+    assert executor.next_timer_due_ns() == 200_000_000
+    node.advance(0.2)  # the 0.2 s timer ran and is due again at 0.4 s
+    seen: list[int | None] = []
+    reader = threading.Thread(target=lambda: seen.append(executor.next_timer_due_ns()))
+    reader.start()
+    reader.join(5)
+    assert seen == [400_000_000]

@@ -20,7 +20,8 @@ from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from efficient_comm import ManualClock, to_msg
+from efficient_comm import ConsecutiveExecutor, Container, ManualClock, to_msg
+from efficient_comm.composed import ComposedHandle
 from efficient_comm.handle import NodeHandle, Subscription
 from throttle_publisher import ThrottledSubscription
 
@@ -330,13 +331,17 @@ class Recorder:
         return self.output_dir / f"{self._node.name}_{kind}{stamp}"
 
 
+def _container(node: NodeHandle) -> Container | None:
+    """The container of a composed component (None standalone: no in-process bus)."""
+    return node.container if isinstance(node, ComposedHandle) else None
+
+
 def _graph_types(node: NodeHandle) -> dict[str, str]:
     """Topic name -> ``pkg/msg/Type`` of every topic this process or the DDS graph knows."""
     found: dict[str, str] = {}
-    container = getattr(node, "_container", None)  # composed handles: the in-process bus
-    bus = getattr(container, "bus", None)
-    if bus is not None:
-        for name, msg_type in bus.topics().items():
+    container = _container(node)
+    if container is not None:
+        for name, msg_type in container.bus.topics().items():
             try:
                 found[name] = type_name(msg_type)
             except UnknownTypeError:
@@ -351,17 +356,15 @@ def _graph_types(node: NodeHandle) -> dict[str, str]:
 
 def _record_qos(node: NodeHandle, topic: str) -> QoSProfile:
     """Reliable unless a known publisher is best effort (a reliable reader would miss it)."""
-    reliability = ReliabilityPolicy.RELIABLE
-    container = getattr(node, "_container", None)
-    bus = getattr(container, "bus", None)
-    local = bus._topics.get(topic) if bus is not None else None
-    publishers: list[Any] = [p.qos for p in local.publishers] if local is not None else []
+    container = _container(node)
+    offered = container.bus.publisher_qos(topic) if container is not None else []
     rclpy_node = getattr(node, "rclpy_node", None)
     if rclpy_node is not None:
-        publishers += [i.qos_profile for i in rclpy_node.get_publishers_info_by_topic(topic)]
-    if any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in publishers):
-        reliability = ReliabilityPolicy.BEST_EFFORT
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=reliability,
+        offered += [i.qos_profile for i in rclpy_node.get_publishers_info_by_topic(topic)]
+    best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                      reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
+                                   else ReliabilityPolicy.RELIABLE),
                       durability=DurabilityPolicy.VOLATILE)
 
 
@@ -375,29 +378,28 @@ def _timer_pacer(node: NodeHandle, before_s: float, after_s: float
     ``before_s`` ahead of the next deadline until ``after_s`` after it (the callbacks of that
     round run meanwhile). Only for composed components on a real clock; None otherwise.
     """
-    container = getattr(node, "_container", None)
-    executor = getattr(container, "executor", None)
-    timers = getattr(executor, "_timers", None)
-    clock = getattr(executor, "clock", None)
-    if not isinstance(timers, list) or clock is None or isinstance(clock, ManualClock):
+    container = _container(node)
+    if container is None or isinstance(container.executor.clock, ManualClock):
         return None
     if before_s <= 0 and after_s <= 0:
         return None
-    before_ns, after_ns = int(before_s * 1e9), int(after_s * 1e9)
-    last_due = [0]
+    return _pacer(container.executor, int(before_s * 1e9), int(after_s * 1e9))
+
+
+def _pacer(executor: ConsecutiveExecutor, before_ns: int, after_ns: int) -> Callable[[], float]:
+    """The pacing function of :func:`_timer_pacer` (runs in the writer thread)."""
+    clock, next_due = executor.clock, executor.next_timer_due_ns
+    last_due = -(1 << 62)  # no round of callbacks seen yet
 
     def pace() -> float:
-        now: int = clock.now_ns()
-        if now - last_due[0] < after_ns:  # a round of callbacks has just started
-            return (last_due[0] + after_ns - now) / 1e9
-        try:
-            due: int = timers[0][0]  # the heap's top, read outside the executor's thread
-        except IndexError:
+        nonlocal last_due
+        now = clock.now_ns()
+        if now - last_due < after_ns:  # a round of callbacks has just started
+            return (last_due + after_ns - now) / 1e9
+        due = next_due()  # a hint from another thread: good enough to keep clear
+        if due is None or due - now > before_ns:
             return 0.0
-        ahead = due - now
-        if ahead > before_ns:
-            return 0.0
-        last_due[0] = due
-        return max(0.0, ahead + after_ns) / 1e9
+        last_due = due
+        return max(0, due - now + after_ns) / 1e9
 
     return pace
