@@ -19,7 +19,14 @@ from rf_bridge.adapters.ros1.tcpros import encode_header, read_header
 from rf_bridge.adapters.ros1.xmlrpc import call
 from rf_bridge.testing import Ros1System, wait_for
 
-from .test_rf_bridge_ros1 import NODE, bridge, read_line, spin_until
+from .test_rf_bridge_ros1 import (
+    NODE,
+    bridge,
+    connected_listener,
+    out_and_in,
+    read_line,
+    spin_until,
+)
 
 
 @pytest.fixture
@@ -34,23 +41,14 @@ def drops(b: Any, topic: str, direction: str) -> dict[str, int]:
 
 
 def test_master_restart_reregisters_without_restarting_the_bridge(ros1: Ros1System) -> None:
-    out, inn = unique_topic("out"), unique_topic("in")
-    node, b = bridge(
-        ros1,
-        [
-            {"ros2": out, "type": "std_msgs/msg/String"},
-            {"ros2": inn, "type": "std_msgs/msg/String", "direction": "from_peer"},
-        ],
-    )
+    out, inn, node, b = out_and_in(ros1)
     adapter: Any = b.adapters["ros1"]
     try:
         ros1.stop_master()
         ros1.start_master()
         assert wait_for(lambda: adapter.registrations >= 2, 20), "not registered again"
         assert any("registering" in text for _, text in node.records)
-        listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
-        assert read_line(listener) == "ready"
-        assert wait_for(lambda: bool(adapter._pubs[out].connections), 20)
+        listener = connected_listener(ros1, adapter, out, "std_msgs/String")
         node.inject(out, String(data="after restart"))
         assert json.loads(read_line(listener))["data"] == "after restart"
         ros1.python(NODE, "talk", inn, "std_msgs/String", "m.String(data='t%d' % i)", "3", log="t")
@@ -65,18 +63,14 @@ def test_killed_subscriber_undelivered_counted_then_new_one_served(ros1: Ros1Sys
     node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
     adapter: Any = b.adapters["ros1"]
     try:
-        first = ros1.python(NODE, "listen", topic, "std_msgs/String", log="l1")
-        assert read_line(first) == "ready"
-        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        first = connected_listener(ros1, adapter, topic, "std_msgs/String", log="l1")
         node.inject(topic, String(data="seen"))
         assert json.loads(read_line(first))["data"] == "seen"
         Ros1System.kill(first)
         for i in range(7):
             node.inject(topic, String(data=f"lost {i}"))
         assert sum(drops(b, topic, "to_ros1").values()) == 7
-        second = ros1.python(NODE, "listen", topic, "std_msgs/String", log="l2")
-        assert read_line(second) == "ready"
-        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        second = connected_listener(ros1, adapter, topic, "std_msgs/String", log="l2")
         node.inject(topic, String(data="again"))
         assert json.loads(read_line(second))["data"] == "again"
     finally:
@@ -161,7 +155,6 @@ def test_subscriber_that_stops_reading_is_dropped(ros1: Ros1System) -> None:
         assert wait_for(lambda: len(adapter._pubs[topic].connections) == 2, 10)
         img = Image(height=256, width=1024, encoding="mono8", step=1024)
         img.data = bytes(256 * 1024)
-        got = 0
         for _ in range(20):
             node.inject(topic, img)
         assert wait_for(lambda: len(adapter._pubs[topic].connections) == 1, 10)
@@ -169,12 +162,8 @@ def test_subscriber_that_stops_reading_is_dropped(ros1: Ros1System) -> None:
         assert "/stuck" in logs and "peer stopped reading" in logs
         assert sum(drops(b, topic, "to_ros1").values()) > 0
         node.inject(topic, Image(height=1, width=1, encoding="mono8", step=1, data=b"\x07"))
-        while True:  # the healthy listener got everything, ending with the last one
-            msg = json.loads(read_line(listener))
-            got += 1
-            if msg["height"] == 1:
-                break
-        assert got == 21
+        heights = [json.loads(read_line(listener))["height"] for _ in range(21)]
+        assert heights == [256] * 20 + [1]  # the healthy listener got everything, in order
         stuck.close()
     finally:
         b.close()
@@ -292,9 +281,7 @@ def test_oversize_outgoing_message_counted_and_not_sent(ros1: Ros1System) -> Non
                      ros1={"max_message_bytes": 4096})
     adapter: Any = b.adapters["ros1"]
     try:
-        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
-        assert read_line(listener) == "ready"
-        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        listener = connected_listener(ros1, adapter, topic, "sensor_msgs/Image")
         node.inject(topic, Image(height=100, width=100, encoding="mono8", step=100,
                                  data=bytes(10_000)))
         node.inject(topic, Image(height=1, width=2, encoding="mono8", step=2, data=b"\x01\x02"))
@@ -322,9 +309,7 @@ def test_idle_connections_hold_handshakes_for_a_bounded_time(ros1: Ros1System) -
         assert any("handshakes already in progress" in text for _, text in node.records)
         for s in idle:
             s.close()
-        listener = ros1.python(NODE, "listen", topic, "std_msgs/String", log="l")
-        assert read_line(listener) == "ready"
-        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        listener = connected_listener(ros1, adapter, topic, "std_msgs/String")
         node.inject(topic, String(data="served"))
         assert json.loads(read_line(listener))["data"] == "served"
     finally:
@@ -334,14 +319,7 @@ def test_idle_connections_hold_handshakes_for_a_bounded_time(ros1: Ros1System) -
 
 
 def test_close_ends_every_thread_and_stops_listening(ros1: Ros1System) -> None:
-    out, inn = unique_topic("out"), unique_topic("in")
-    node, b = bridge(
-        ros1,
-        [
-            {"ros2": out, "type": "std_msgs/msg/String"},
-            {"ros2": inn, "type": "std_msgs/msg/String", "direction": "from_peer"},
-        ],
-    )
+    out, inn, node, b = out_and_in(ros1)
     adapter: Any = b.adapters["ros1"]
     listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
     assert read_line(listener) == "ready"

@@ -115,6 +115,29 @@ def bridge(
     return node, b
 
 
+def connected_listener(
+    ros1: Ros1System, adapter: Any, topic: str, type_name: str, *, log: str = "l"
+) -> subprocess.Popen[bytes]:
+    """A rospy listener of a topic the bridge publishes, once the bridge serves it."""
+    listener = ros1.python(NODE, "listen", topic, type_name, log=log)
+    assert read_line(listener) == "ready"
+    assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+    return listener
+
+
+def out_and_in(ros1: Ros1System) -> tuple[str, str, TestHandle, BridgeNode]:
+    """A bridge with one String topic each way: ``out`` to ROS 1, ``inn`` from it."""
+    out, inn = unique_topic("out"), unique_topic("in")
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": out, "type": "std_msgs/msg/String"},
+            {"ros2": inn, "type": "std_msgs/msg/String", "direction": "from_peer"},
+        ],
+    )
+    return out, inn, node, b
+
+
 def spin_until(node: TestHandle, predicate: Any, timeout_s: float = 20.0) -> bool:
     return node.container.executor.spin_until(predicate, timeout_s=timeout_s)
 
@@ -219,10 +242,7 @@ def test_image_ros2_to_ros1(ros1: Ros1System) -> None:
     topic = unique_topic("image")
     node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/Image"}])
     try:
-        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
-        assert read_line(listener) == "ready"
-        pubs = b.adapters["ros1"]._pubs  # type: ignore[attr-defined]
-        assert wait_for(lambda: bool(pubs[topic].connections), 20)
+        listener = connected_listener(ros1, b.adapters["ros1"], topic, "sensor_msgs/Image")
         img = Image(height=1024, width=1024, encoding="mono8", step=1024)
         img.data = bytes(range(256)) * 4096
         node.inject(topic, img)
@@ -402,9 +422,7 @@ def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System) -
     adapter: Any = b.adapters["ros1"]
     try:
         derived = adapter._pubs[topic].md5sum
-        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/NavSatStatus", log="l")
-        assert read_line(listener) == "ready"
-        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        listener = connected_listener(ros1, adapter, topic, "sensor_msgs/NavSatStatus")
         assert adapter._pubs[topic].md5sum != derived
         node.inject(topic, NavSatStatus(status=NavSatStatus.STATUS_SBAS_FIX, service=5))
         assert json.loads(read_line(listener)) == {"status": 1, "service": 5}
@@ -463,9 +481,7 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
         camera = container.add(
             lambda node: node.create_publisher(Image, topic, qos=10), name="camera"
         )
-        listener = ros1.python(NODE, "listen", topic, "sensor_msgs/Image", log="l")
-        assert read_line(listener) == "ready"
-        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
+        listener = connected_listener(ros1, adapter, topic, "sensor_msgs/Image")
         img = Image(height=2, width=2, encoding="mono8", step=2, data=b"\x01\x02\x03\x04")
         camera.publish(img)
         assert sent and sent[0] is img  # by reference up to the adapter
