@@ -50,6 +50,7 @@ ALERT = 0x80  # the status error byte's hardware error bit (the rest is the erro
 #: Consecutive failed reads after which a servo counts as missing (a garbled reply or two
 #: on a noisy line must not take a joint away).
 MISSING_AFTER = 10
+TORQUE_ON_TRIES = 3
 
 
 class ServoDriver:
@@ -106,7 +107,10 @@ class ServoDriver:
             _, result, _ = self._packets.ping(self._port, dxl_id)
             if result != COMM_SUCCESS:
                 continue
-            result, error = self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
+            for _ in range(TORQUE_ON_TRIES):  # a garbled reply: writing 1 again is harmless
+                result, error = self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
+                if result == COMM_SUCCESS:
+                    break
             if result != COMM_SUCCESS or error & ~ALERT:
                 self.comm_errors += 1  # tried again within a second
                 self.node.logger.warning(f"servo {dxl_id} answers but torque on failed "

@@ -70,12 +70,18 @@ class OffscreenCamera:
         backend = gl_backend()
         os.environ.setdefault("PYOPENGL_PLATFORM", backend)
         try:
-            self._gl: Any = importlib.import_module(f"mujoco.{backend}").GLContext(width, height)
-            self._gl.make_current()
-            self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+            gl: Any = importlib.import_module(f"mujoco.{backend}").GLContext(width, height)
         except Exception as exc:
             raise RenderError(f"cannot create a {backend} OpenGL context: {exc}") from exc
-        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
+        try:
+            gl.make_current()
+            context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
+        except Exception as exc:
+            gl.free()
+            raise RenderError(f"cannot set up {backend} rendering: {exc}") from exc
+        self._gl: Any = gl
+        self._context: mujoco.MjrContext | None = context
         self.backend = backend
         self.width, self.height = width, height
         self._model = model
@@ -89,6 +95,8 @@ class OffscreenCamera:
 
     def render(self, data: mujoco.MjData, out: npt.NDArray[np.uint8]) -> None:
         """Draw the camera's view of ``data`` into ``out`` (height x width x 3, uint8)."""
+        if self._context is None:
+            raise RenderError("the camera is closed")
         self._gl.make_current()
         mujoco.mjv_updateScene(self._model, data, self._option, None, self._camera,
                                mujoco.mjtCatBit.mjCAT_ALL, self._scene)
@@ -99,5 +107,9 @@ class OffscreenCamera:
         np.copyto(out, self._flipped[::-1])  # OpenGL's rows run bottom-up
 
     def close(self) -> None:
-        self._context.free()
+        """Free the GL context; a second call does nothing (a double free would crash)."""
+        if self._context is None:
+            return
+        context, self._context = self._context, None
+        context.free()
         self._gl.free()

@@ -5,9 +5,10 @@ pseudo-terminal, so the servo driver runs unchanged against it: the only thing t
 sees of the simulation is a serial port. Every timer tick advances physics by one period:
 
 * on a wall clock (a composed or standalone run), physics follows real time: a late tick
-  steps further to catch up (at most :data:`MAX_CATCH_UP` periods, so a stalled machine
-  slows the world down instead of making it jump), and :attr:`Simulator.real_time_factor`
-  says whether the machine kept up;
+  steps further to catch up, at most :data:`MAX_CATCH_UP` periods; a stalled machine gives
+  the rest up (:attr:`Simulator.skipped_s`), so the world slows down for a moment instead
+  of jumping or racing afterwards, and :attr:`Simulator.real_time_factor` says whether the
+  machine kept up;
 * on a manual clock (``Container(clock=ManualClock())``, ``TestHandle``), everything moves in
   lockstep: ``advance(t)`` steps the physics, the driver and the pipeline by exactly ``t``,
   and the same seed gives the same run.
@@ -26,7 +27,7 @@ import math
 import os
 import random
 import time
-from contextlib import suppress
+from contextlib import ExitStack, suppress
 from typing import Any
 
 import mujoco
@@ -88,40 +89,70 @@ class Simulator:
         self.period_s = 1.0 / step_hz
         self.camera: OffscreenCamera | None = None
         self.camera_period_ns = round(1e9 / camera_hz) if camera_hz > 0 else 0
-        if camera_hz > 0:  # before the pty: a camera error must not leave a bus running
-            self.camera = OffscreenCamera(self.model, camera=CAMERA, width=width, height=height)
-        self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed)
-        self.port = self.pty.port
         self._link = port_link
-        if port_link:
-            with suppress(FileNotFoundError):
-                os.unlink(port_link)
-            os.symlink(self.port, port_link)
-            self.port = port_link
-        self._ball = self.model.joint("ball")
-        self.roll_ball(position=(ball_position[0], ball_position[1]),
-                       velocity=(ball_velocity[0], ball_velocity[1]))
+        # What is opened here is closed again if a later step fails: the container never
+        # sees a half-built simulator, so its close() would not run.
+        with ExitStack() as opened:
+            if camera_hz > 0:
+                self.camera = OffscreenCamera(self.model, camera=CAMERA, width=width,
+                                              height=height)
+                opened.callback(self.camera.close)
+            self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed)
+            opened.callback(self.pty.close)
+            self.port = self.pty.port
+            if port_link:
+                self._make_link(port_link)
+                opened.callback(self._remove_link)
+                self.port = port_link
+            self._ball = self.model.joint("ball")
+            self.roll_ball(position=(ball_position[0], ball_position[1]),
+                           velocity=(ball_velocity[0], ball_velocity[1]))
 
-        self.image_pub = node.create_publisher(Image, "camera/image_raw", qos=2)
-        info_pub = node.create_publisher(CameraInfo, "camera/camera_info", qos=TRANSIENT_LOCAL)
-        info_pub.publish(self.camera_info(width, height))
-        self.imu_pub = node.create_publisher(Imu, "imu/data", qos=10)
-        self.truth_pubs = {
-            what: node.create_publisher(PoseStamped, f"ground_truth/{what}", qos=10)
-            for what in ("robot", "ball", "camera")
-        }
-        self.frames = 0
-        self.render_ns = 0
-        self.steps = 0
-        self._next_frame_ns: int | None = None
-        self._next_kick_s = self.kick_period_s
-        self._wall_start: float | None = None
-        self._lockstep = bool(getattr(node.clock, "is_manual", False))
-        node.create_timer(self.period_s, self.tick)
+            self.image_pub = node.create_publisher(Image, "camera/image_raw", qos=2)
+            info_pub = node.create_publisher(CameraInfo, "camera/camera_info",
+                                             qos=TRANSIENT_LOCAL)
+            info_pub.publish(self.camera_info(width, height))
+            self.imu_pub = node.create_publisher(Imu, "imu/data", qos=10)
+            self.truth_pubs = {
+                what: node.create_publisher(PoseStamped, f"ground_truth/{what}", qos=10)
+                for what in ("robot", "ball", "camera")
+            }
+            self.frames = 0
+            self.render_ns = 0
+            self.steps = 0
+            #: Simulated time given up because the machine fell behind (real time only).
+            self.skipped_s = 0.0
+            self._next_frame_ns: int | None = None
+            self._next_kick_s = self.kick_period_s
+            self._wall_start: float | None = None  # wall time that sim time 0 stands for
+            self._wall_first: float | None = None  # wall time of the first tick
+            self._lockstep = bool(getattr(node.clock, "is_manual", False))
+            node.create_timer(self.period_s, self.tick)
+            self._opened = opened.pop_all()
         node.logger.info(
             f"servos on {self.port}; physics {step_hz:g} Hz, camera {camera_hz:g} Hz "
             f"({self.camera.backend if self.camera else 'off'})"
         )
+
+    def _make_link(self, link: str) -> None:
+        """Point ``link`` at the pty; only a symlink (a stale one from an earlier run) is
+        replaced, never a file or device someone else owns."""
+        if os.path.lexists(link) and not os.path.islink(link):
+            raise SimConfigError(f"port_link {link!r} exists and is not a symlink")
+        staging = f"{link}.{os.getpid()}.new"
+        try:
+            os.symlink(self.pty.port, staging)
+            os.replace(staging, link)  # atomic: a driver never sees the link missing
+        except OSError as exc:
+            with suppress(OSError):
+                os.unlink(staging)
+            raise SimConfigError(f"cannot make port_link {link!r}: {exc}") from exc
+
+    def _remove_link(self) -> None:
+        """Remove the link if it is still ours (a newer simulator may have taken the path)."""
+        with suppress(OSError):
+            if os.readlink(self._link) == self.pty.port:
+                os.unlink(self._link)
 
     # -- the world ------------------------------------------------------------------------
 
@@ -163,22 +194,31 @@ class Simulator:
     @property
     def real_time_factor(self) -> float:
         """Simulated seconds per wall-clock second since the first tick."""
-        if self._wall_start is None:
+        if self._wall_first is None:
             return 0.0
-        wall = time.monotonic() - self._wall_start
+        wall = time.monotonic() - self._wall_first
         return self.sim_time_s / wall if wall > 0 else 0.0
 
     def _step_s(self) -> float:
-        """How far to step now: one period in lockstep, up to the wall clock otherwise."""
+        """How far to step now: one period in lockstep, up to the wall clock otherwise.
+
+        A machine that falls further behind than :data:`MAX_CATCH_UP` periods gives the
+        rest up (counted in :attr:`skipped_s`): the world slows down for a moment instead
+        of racing through the backlog afterwards.
+        """
         if self._lockstep or self._wall_start is None:
             return self.period_s
+        limit = MAX_CATCH_UP * self.period_s
         behind = time.monotonic() - self._wall_start - self.sim_time_s
-        return min(max(behind, self.period_s / 2), MAX_CATCH_UP * self.period_s)
+        if behind > limit:
+            self._wall_start += behind - limit
+            self.skipped_s += behind - limit
+        return min(max(behind, self.period_s / 2), limit)
 
     def tick(self) -> None:
         step = self._step_s()
         if self._wall_start is None:
-            self._wall_start = time.monotonic() - self.period_s
+            self._wall_first = self._wall_start = time.monotonic() - self.period_s
         if self.kick_period_s > 0 and self.sim_time_s >= self._next_kick_s:
             self._next_kick_s += self.kick_period_s
             self._kick()
@@ -246,15 +286,12 @@ class Simulator:
             "frames": self.frames,
             "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
             "bus_errors": len(self.pty.errors),
+            "skipped_s": self.skipped_s,
         }
 
     def close(self) -> None:
-        if self.camera is not None:
-            self.camera.close()
-        self.pty.close()
-        if self._link:
-            with suppress(FileNotFoundError):
-                os.unlink(self._link)
+        """Close the camera, the pty and the port link (each once)."""
+        self._opened.close()
 
 
 #: ``ros2 run humanoid_sim simulator --ros-args -p port_link:=/tmp/ttyDXL``: the simulator in

@@ -140,3 +140,14 @@ class Parser:
             crc_ok = crc16(raw[:-2]) == int.from_bytes(raw[-2:], "little")
             body = unstuff(raw[7:-2])
             packets.append(Packet(raw[4], body[0], bytes(body[1:]), crc_ok))
+
+    @property
+    def pending(self) -> bool:
+        """Whether bytes of an incomplete packet (or of a header) are waiting."""
+        return bool(self._buf)
+
+    def discard(self) -> int:
+        """Drop a packet cut short; the number of bytes dropped."""
+        dropped = len(self._buf)
+        self._buf.clear()
+        return dropped

@@ -3,7 +3,8 @@
 The driver opens :attr:`PtyBus.port` (e.g. ``/dev/pts/5``) where it would open
 /dev/ttyUSB0; dynamixel-sdk's PortHandler runs unchanged. The emulator reads the master
 side in a thread of its own and answers like the servos on the bus; malformed bytes are
-skipped until the next header, and nothing a driver sends can stop the thread.
+skipped until the next header, a packet cut short is dropped after
+:data:`PACKET_TIMEOUT_S`, and nothing a driver sends can stop the thread.
 
 A write the driver does not wait on (sync write has no reply) reaches the emulator some
 time later: the kernel moves pty data through a work queue. A lockstep simulation must not
@@ -19,6 +20,7 @@ import os
 import random
 import select
 import threading
+import time
 import tty
 
 from efficient_comm import Closing
@@ -29,6 +31,9 @@ from .protocol import BROADCAST_ID, Parser, encode
 #: Not a Protocol 2.0 instruction: the emulator's own in-band marker for :meth:`PtyBus.sync`
 #: (a real bus would ignore it: broadcast packets of unknown instructions get no status).
 SYNC_INSTRUCTION = 0x7F
+#: A packet not complete this long after its first bytes is dropped (long enough that a
+#: loaded machine never splits one write of the driver's by that much).
+PACKET_TIMEOUT_S = 0.5
 
 
 class PtyBus(Closing):
@@ -40,10 +45,22 @@ class PtyBus(Closing):
         self.corrupt = corrupt
         self._rng = random.Random(seed)
         self._master, self._slave = os.openpty()
-        tty.setraw(self._master)
-        tty.setraw(self._slave)
-        self.port = os.ttyname(self._slave)
+        try:
+            tty.setraw(self._master)
+            tty.setraw(self._slave)
+            # Replies nobody reads must not block the emulator: they are dropped and counted.
+            os.set_blocking(self._master, False)
+            self.port = os.ttyname(self._slave)
+        except BaseException:
+            os.close(self._master)
+            os.close(self._slave)
+            raise
         self.errors: list[BaseException] = []
+        #: Bytes of packets that did not complete within :data:`PACKET_TIMEOUT_S`.
+        self.discarded_bytes = 0
+        #: Replies, or their tails, that did not fit into the pty (nobody was reading).
+        self.dropped_replies = 0
+        self._closed = False
         self._lock = threading.Lock()
         self._synced = threading.Condition()
         self._sync_sent = itertools.count(1)
@@ -59,8 +76,18 @@ class PtyBus(Closing):
 
     def _serve(self) -> None:
         parser = Parser()
+        partial_since: float | None = None
         while not self._stop.is_set():
             ready, _, _ = select.select([self._master], [], [], 0.05)
+            # A servo drops a packet that does not complete in time rather than wait for
+            # the rest forever: a corrupted length must not swallow the packets after it.
+            if not parser.pending:
+                partial_since = None
+            elif partial_since is None:
+                partial_since = time.monotonic()
+            elif time.monotonic() - partial_since > PACKET_TIMEOUT_S:
+                self.discarded_bytes += parser.discard()
+                partial_since = None
             if not ready:
                 continue
             try:
@@ -84,7 +111,7 @@ class PtyBus(Closing):
                         noisy = bytearray(reply)
                         noisy[self._rng.randrange(len(noisy))] ^= 1 << self._rng.randrange(8)
                         reply = bytes(noisy)
-                    os.write(self._master, reply)
+                    self._send(reply)
 
     def sync(self, *, timeout_s: float = 5.0) -> bool:
         """Wait until every byte written to the port before this call has been handled.
@@ -96,7 +123,19 @@ class PtyBus(Closing):
         with self._synced:
             return self._synced.wait_for(lambda: self._sync_seen >= number, timeout=timeout_s)
 
+    def _send(self, reply: bytes) -> None:
+        try:
+            written = os.write(self._master, reply)
+        except BlockingIOError:
+            written = 0
+        if written < len(reply):
+            self.dropped_replies += 1
+
     def close(self) -> None:
+        """Stop answering and close the pty; a second call does nothing."""
+        if self._closed:
+            return
+        self._closed = True
         self._stop.set()
         self._thread.join(timeout=2)
         os.close(self._master)

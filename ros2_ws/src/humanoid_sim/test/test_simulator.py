@@ -1,0 +1,75 @@
+"""The simulator component alone: what it opens is closed, on close and when it fails."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from efficient_comm.testing import TestHandle
+from humanoid_sim.errors import SimConfigError
+from humanoid_sim.simulator import MAX_CATCH_UP, Simulator
+
+
+def _open_fds() -> set[str]:
+    return set(os.listdir("/proc/self/fd"))
+
+
+def _simulator(**parameters: Any) -> Simulator:
+    return Simulator(TestHandle("sim", parameters={"camera_hz": 0.0, **parameters}))
+
+
+def test_port_link_points_at_the_pty_and_goes_with_the_simulator(tmp_path: Path) -> None:
+    link = tmp_path / "ttyDXL"
+    link.symlink_to("/dev/pts/does-not-exist")  # stale, from a run that was killed
+    before = _open_fds()
+    sim = _simulator(port_link=str(link))
+    assert sim.port == str(link) and os.readlink(link) == sim.pty.port
+    sim.close()
+    sim.close()  # twice is harmless
+    assert not link.is_symlink()
+    assert _open_fds() == before  # the pty's two fds are closed
+
+
+def test_a_newer_simulators_link_is_left_alone(tmp_path: Path) -> None:
+    link = str(tmp_path / "ttyDXL")
+    old, new = _simulator(port_link=link), _simulator(port_link=link)
+    old.close()
+    assert os.readlink(link) == new.pty.port
+    new.close()
+    assert not os.path.lexists(link)
+
+
+@pytest.mark.parametrize("make", ["file", "no_dir"])
+def test_a_bad_port_link_is_refused_and_nothing_is_left_open(tmp_path: Path, make: str) -> None:
+    target = tmp_path / "ttyUSB0"
+    if make == "file":
+        target.write_text("not ours")
+    else:
+        target = tmp_path / "missing" / "ttyDXL"
+    before = _open_fds()
+    with pytest.raises(SimConfigError, match="port_link"):
+        _simulator(port_link=str(target))
+    assert _open_fds() == before
+    if make == "file":
+        assert target.read_text() == "not ours"  # never replaced
+
+
+def test_a_stalled_machine_gives_the_backlog_up() -> None:
+    sim = _simulator()
+    try:
+        sim._lockstep = False  # as on a wall clock
+        sim.tick()
+        assert sim._wall_start is not None
+        sim._wall_start -= 5.0  # as if the machine had stalled for five seconds
+        before = sim.sim_time_s
+        sim.tick()
+        assert sim.sim_time_s - before == pytest.approx(MAX_CATCH_UP * sim.period_s, abs=2e-3)
+        assert sim.skipped_s == pytest.approx(5.0, abs=0.1)
+        before = sim.sim_time_s
+        sim.tick()  # no racing through the backlog afterwards
+        assert sim.sim_time_s - before <= sim.period_s + 2e-3
+    finally:
+        sim.close()
