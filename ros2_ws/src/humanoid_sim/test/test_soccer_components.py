@@ -64,18 +64,48 @@ def test_detector_skips_images_it_cannot_read_and_says_why() -> None:
     assert sum("skipping" in text for level, text in node.records if level == "warning") == 2
 
 
-def test_ball_model_adds_the_neck_angles_and_estimates_distance() -> None:
+def _rotation(axis: int, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    m = np.eye(3)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]  # rotation in the plane of the other two axes
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return m
+
+
+@pytest.mark.parametrize(("neck_yaw", "neck_pitch"), [(0.0, 0.0), (0.5, 0.3), (-1.2, 0.9)])
+def test_ball_model_turns_the_detection_by_the_neck_into_the_torso_frame(
+        neck_yaw: float, neck_pitch: float) -> None:
+    # A ball 40° left and 25° below the torso's forward axis (x forward, y left, z up).
+    yaw, pitch = math.radians(40), math.radians(25)
+    ball = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw),
+                     -math.sin(pitch)])
+    head = _rotation(2, neck_yaw) @ _rotation(1, neck_pitch)  # yaw joint, then pitch joint
+    x, y, z = head.T @ ball  # the ball seen from the head
     node = TestHandle("model")
     model = BallModel(node)
     node.inject("joint_states", JointState(name=["neck_yaw", "neck_pitch"],
-                                           position=[0.5, 0.3]))
+                                           position=[neck_yaw, neck_pitch]))
     detection = PointStamped()
-    detection.point.x, detection.point.y, detection.point.z = 0.1, 0.05, 0.035
+    detection.point.x, detection.point.y, detection.point.z = (
+        math.atan2(y, x), math.atan2(-z, x), 0.035)  # image angles, as the detector gives
     node.inject("ball/detection", detection)
     (estimate,) = node.published("ball/estimate")
-    assert (estimate.point.x, estimate.point.y) == pytest.approx((0.6, 0.35))
+    assert (estimate.point.x, estimate.point.y) == pytest.approx((yaw, pitch), abs=1e-9)
     assert estimate.point.z == pytest.approx(BALL_RADIUS_M / math.sin(0.035))
     assert model.yaw.rate == 0.0
+
+
+def test_ball_model_takes_the_neck_angle_at_the_image_time() -> None:
+    node = TestHandle("model")
+    BallModel(node)
+    state = JointState(name=["neck_yaw", "neck_pitch"], position=[0.2, 0.0],
+                       velocity=[1.0, 0.0])
+    state.header.stamp = to_msg(1_000_000_000)
+    node.inject("joint_states", state)
+    detection = PointStamped()
+    detection.header.stamp = to_msg(1_010_000_000)  # 10 ms later the neck is at 0.21
+    node.inject("ball/detection", detection)
+    assert node.published("ball/estimate")[-1].point.x == pytest.approx(0.21)
 
 
 def test_behaviour_tracks_then_searches_when_the_ball_is_gone() -> None:
