@@ -284,3 +284,27 @@ def test_timer_pacer_holds_the_writer_back_around_deadlines() -> None:
         node = TestHandle("paced", container=real)
         assert _timer_pacer(node, 0.002, 0.001) is not None  # composed on a real clock
         assert _timer_pacer(node, 0.0, 0.0) is None  # turned off
+
+
+def test_switch_interval_is_shared_by_recorders_and_given_back(tmp_path: Path) -> None:
+    """The interval is process-wide: the shortest asked for applies while recorders live,
+    the interpreter's own comes back when the last closes (or construction fails)."""
+    import sys
+
+    before = sys.getswitchinterval()
+    assert before > 0.001
+    first = Recorder(TestHandle("first"), output_dir=tmp_path, topics=[])  # 0.2 ms default
+    second = Recorder(TestHandle("second", parameters={"gil_switch_interval_s": 0.001}),
+                      output_dir=tmp_path, topics=[])
+    assert sys.getswitchinterval() == pytest.approx(0.0002)
+    first.close()
+    assert sys.getswitchinterval() == pytest.approx(0.001)
+    second.close()
+    assert sys.getswitchinterval() == before
+    with pytest.raises(RecorderConfigError):
+        Recorder(TestHandle("broken"), output_dir=tmp_path, topics=["/a", "/a"])
+    assert sys.getswitchinterval() == before
+    off = Recorder(TestHandle("off", parameters={"gil_switch_interval_s": 0.0}),
+                   output_dir=tmp_path, topics=[])
+    assert sys.getswitchinterval() == before
+    off.close()

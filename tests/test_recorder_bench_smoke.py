@@ -11,18 +11,15 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 BENCH = Path(__file__).resolve().parents[1] / "bench" / "recorder_bench.py"
 
 
-@pytest.mark.timeout(180)
 def test_recorder_bench_smoke(tmp_path: Path) -> None:
     out = tmp_path / "recorder.json"
     result = subprocess.run(
         [sys.executable, str(BENCH), "--seconds", "2", "--repeat", "1",
          "--modes", "none,recorder,inline", "--out", str(out)],
-        capture_output=True, text=True, timeout=170,
+        capture_output=True, text=True, timeout=110,  # within the suite's 120 s per test
     )
     assert result.returncode == 0, result.stdout + result.stderr
     data = json.loads(out.read_text())

@@ -142,19 +142,21 @@ class _Stream:
         self.inner.close()
 
 
-def _robot(tmp_path: Path, **options: Any) -> tuple[Any, Camera, Controller, Recorder, Any]:
+def _robot(tmp_path: Path, *, min_free_bytes: int = 0, **options: Any
+           ) -> tuple[Any, Camera, Controller, Recorder, Any]:
     topic = unique_topic("camera")
     container = test_container()
     camera = Camera(TestHandle("camera", container=container), topic)
     controller = Controller(TestHandle("controller", container=container))
     handle = TestHandle("recorder", container=container,
-                        parameters={"chunk_bytes": 200_000, "min_free_bytes": 0})
+                        parameters={"chunk_bytes": 200_000, "min_free_bytes": min_free_bytes})
     recorder = Recorder(handle, topics=[topic], output_dir=tmp_path, **options)
     return container, camera, controller, recorder, handle
 
 
 def test_full_disk_stops_recording_cleanly_and_the_robot_keeps_running(tmp_path: Path) -> None:
-    container, camera, controller, recorder, handle = _robot(tmp_path, fs=_FullAfter(1_000_000))
+    fs = _FullAfter(1_000_000)
+    container, camera, controller, recorder, handle = _robot(tmp_path, fs=fs)
     bag = recorder.start(tmp_path / "bag").result(10)
     for _ in range(40):  # 2.6 MB of images onto a 1 MB disk
         camera.shoot()
@@ -167,8 +169,8 @@ def test_full_disk_stops_recording_cleanly_and_the_robot_keeps_running(tmp_path:
     numbers = _numbers(bag)
     assert numbers and numbers == list(range(len(numbers)))  # complete chunks stay readable
     assert len(numbers) < 40
-    # A new recording on a healthy disk starts again.
-    recorder.writer._fs = None
+    # A new recording starts again once there is space.
+    fs.left = 1 << 30
     recorder.start(tmp_path / "again").result(10)
     camera.shoot()
     recorder.close()
@@ -185,8 +187,7 @@ class _Shrinking(FileSystem):
 
 def test_free_space_guard_closes_the_bag_before_the_disk_is_full(tmp_path: Path) -> None:
     fs = _Shrinking(10 << 30)
-    container, camera, _, recorder, _ = _robot(tmp_path, fs=fs)
-    recorder.writer._bag_options["min_free_bytes"] = 1 << 30
+    container, camera, _, recorder, _ = _robot(tmp_path, fs=fs, min_free_bytes=1 << 30)
     bag = recorder.start(tmp_path / "bag").result(10)
     for i in range(10):
         if i == 5:
@@ -225,8 +226,7 @@ def _tmpfs(where: Path, size: str) -> Iterator[Path]:
 @pytest.mark.parametrize("guard", [0, 600_000], ids=["disk-full", "guard"])
 def test_real_small_file_system(tmp_path: Path, guard: int) -> None:
     with _tmpfs(tmp_path / f"disk_{uuid.uuid4().hex[:6]}", "2m") as disk:
-        container, camera, controller, recorder, _ = _robot(disk)
-        recorder.writer._bag_options["min_free_bytes"] = guard
+        container, camera, controller, recorder, _ = _robot(disk, min_free_bytes=guard)
         bag = recorder.start(disk / "bag").result(10)
         for _ in range(60):
             camera.shoot()
@@ -318,3 +318,45 @@ def test_snapshot_when_off_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(RecorderConfigError):
         recorder.snapshot(tmp_path / "x").result(10)
     recorder.close()
+
+
+class _Broken(_FullAfter):
+    """Writes fail with an error no one foresaw (not an OSError) while ``broken``."""
+
+    def __init__(self) -> None:
+        super().__init__(1 << 30)
+        self.broken = True
+
+    def open_new(self, path: Path) -> IO[bytes]:
+        return _Raising(FileSystem.open_new(self, path), self)  # type: ignore[return-value]
+
+
+class _Raising(_Stream):
+    fs: _Broken
+
+    def write(self, data: Any) -> int:
+        if self.fs.broken:
+            raise ValueError("unforeseen")
+        return super().write(data)
+
+
+def test_an_unforeseen_error_stops_the_recording_and_the_writer_lives_on(
+        tmp_path: Path) -> None:
+    fs = _Broken()
+    container, camera, controller, recorder, handle = _robot(tmp_path, fs=fs)
+    recorder.start(tmp_path / "bag").result(10)
+    camera.shoot()
+    container.advance(0.05)
+    drained(recorder.writer)
+    status = recorder.status()
+    assert status.state == FAILED and "ValueError('unforeseen')" in status.error, status.error
+    assert status.drops == 1  # the message that met the error is counted, not lost quietly
+    container.advance(0.0)  # the writer thread's status publish is queued to the executor
+    assert handle.published("~/status")[-1].state == FAILED
+    assert controller.ticks == 5
+    # The writer thread survived: the next recording, on a working disk, is written.
+    fs.broken = False
+    recorder.start(tmp_path / "again").result(10)
+    camera.shoot()
+    recorder.close()
+    assert _numbers(tmp_path / "again") == [1]

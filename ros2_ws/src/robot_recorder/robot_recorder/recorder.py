@@ -13,8 +13,11 @@ Remote control (services, relative to the node: ``~/start``, ``~/stop``, ``~/spl
 from __future__ import annotations
 
 import datetime
+import math
 import sys
+import threading
 from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
@@ -88,20 +91,23 @@ class Recorder:
         }
         # The writer thread holds the GIL while it serializes; a thread waking up meanwhile
         # (the control loop's timer) waits for it up to the switch interval, 5 ms by
-        # default. A shorter interval bounds that wait (see docs/RECORDER.md).
-        self._switch_interval = p("gil_switch_interval_s", 0.0002)
-        self._previous_interval = sys.getswitchinterval()
-        if 0 < self._switch_interval < self._previous_interval:
-            sys.setswitchinterval(self._switch_interval)
+        # default. A shorter interval bounds that wait (see docs/RECORDER.md). It is
+        # process-wide: applied once construction succeeded, restored by close().
+        switch_interval = float(p("gil_switch_interval_s", 0.0002))
+        if switch_interval < 0:
+            raise RecorderConfigError(
+                f"gil_switch_interval_s must be >= 0 (0: leave it alone), not {switch_interval}")
+        self._switch_interval: float | None = None
         selections = [s if isinstance(s, TopicSelection) else parse_selection(s)
                       for s in (topics if topics is not None else [n for n in names if n])]
+        self._clock_name = self._resolve(self.clock_topic) if self.clock_topic else ""
         self.writer = RecordWriter(
             queue_depth=p("queue_depth", 1000),
             snapshot_bytes=p("snapshot_bytes", 0),
             snapshot_seconds=p("snapshot_seconds", 10.0),
             bag_options=bag_options,
             fs=fs,
-            clock_topic=self._resolve(self.clock_topic) if self.clock_topic else "",
+            clock_topic=self._clock_name,
             on_state=self._state_changed,
             pacer=_timer_pacer(node, p("pace_before_timers_s", 0.002),
                                p("pace_after_timers_s", 0.001)),
@@ -114,29 +120,37 @@ class Recorder:
         try:
             self.set_topics(selections)
             self._serve(node)
+            node.create_timer(p("status_period_s", 1.0), self._on_timer)
+            if switch_interval > 0:
+                _SWITCH_INTERVAL.request(switch_interval)
+                self._switch_interval = switch_interval
+            if start:
+                self.start().result(SERVICE_WAIT_S)
         except BaseException:
-            self.writer.close()
+            self.close()
             raise
-        node.create_timer(p("status_period_s", 1.0), self._on_timer)
-        if start:
-            self.start().result(SERVICE_WAIT_S)
 
     # -- Python API ----------------------------------------------------------------------
 
-    def start(self, bag: str | Path | None = None) -> Any:
+    def start(self, bag: str | Path | None = None) -> Future[Path]:
         """Start recording into ``bag`` (default: a new directory under ``output_dir``).
 
         Returns a future of the bag path (completed by the writer thread).
         """
         return self.writer.start(Path(bag) if bag else self._new_bag_path(""))
 
-    def stop(self) -> Any:
+    def stop(self) -> Future[Path | None]:
+        """Close the bag once every message received so far is written; a future of its
+        path (None if nothing was recording)."""
         return self.writer.stop()
 
-    def split(self) -> Any:
+    def split(self) -> Future[Path | None]:
+        """Close the current file and go on in the next; a future of the closed file."""
         return self.writer.split()
 
-    def snapshot(self, bag: str | Path | None = None) -> Any:
+    def snapshot(self, bag: str | Path | None = None) -> Future[tuple[Path, int]]:
+        """Write the ring buffer (the last ``snapshot_seconds``) as bag ``bag`` (default: a
+        new ``snapshot_`` directory under ``output_dir``); a future of it and its count."""
         return self.writer.snapshot(Path(bag) if bag else self._new_bag_path("snapshot_"))
 
     def set_topics(self, selections: Iterable[TopicSelection]) -> None:
@@ -154,13 +168,21 @@ class Recorder:
         self._subscribe_known()
 
     def topic_states(self) -> dict[str, TopicState]:
+        """The counters of every subscribed topic, by resolved name."""
         return {name: a.state for name, a in self._active.items()}
 
     def close(self) -> None:
-        """Finish the recording (every queued message is written); called on unload."""
-        self.writer.close()
-        if sys.getswitchinterval() == self._switch_interval:
-            sys.setswitchinterval(self._previous_interval)
+        """Finish the recording (every queued message is written); called on unload.
+
+        Raises :class:`StorageError` if the bag could not be finished; the switch interval
+        is given back either way.
+        """
+        try:
+            self.writer.close()
+        finally:
+            if self._switch_interval is not None:
+                _SWITCH_INTERVAL.release(self._switch_interval)
+                self._switch_interval = None
 
     # -- subscriptions -------------------------------------------------------------------
 
@@ -175,7 +197,7 @@ class Recorder:
 
     def _subscribe_known(self) -> None:
         pending = {n: s for n, s in self._selections.items() if n not in self._active}
-        clock = self.writer._clock_topic
+        clock = self._clock_name
         if clock and clock not in self._selections and clock not in self._active:
             pending[clock] = TopicSelection(name=clock)
         if not pending:
@@ -329,6 +351,46 @@ class Recorder:
     def _new_bag_path(self, kind: str) -> Path:
         stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%d_%H%M%S_%f")
         return self.output_dir / f"{self._node.name}_{kind}{stamp}"
+
+
+class _SwitchInterval:
+    """The interpreter's switch interval, shared by every recorder of the process.
+
+    ``sys.setswitchinterval`` is process-wide, so recorders ask for an interval and give it
+    back: while any recorder lives the shortest one asked for applies, and when the last one
+    closes the interval from before the first is restored (unless someone else changed it
+    meanwhile; then it is left alone).
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._asked: list[float] = []
+        self._before = 0.0
+        self._applied = 0.0
+
+    def request(self, seconds: float) -> None:
+        with self._lock:
+            if not self._asked:
+                self._before = sys.getswitchinterval()
+            self._asked.append(seconds)
+            self._apply(min([self._before, *self._asked]))
+
+    def release(self, seconds: float) -> None:
+        with self._lock:
+            self._asked.remove(seconds)
+            self._apply(min([self._before, *self._asked]))
+
+    def _apply(self, seconds: float) -> None:
+        current = sys.getswitchinterval()
+        if not self._applied or math.isclose(current, self._applied):  # else: theirs wins
+            if current != seconds:
+                sys.setswitchinterval(seconds)
+            self._applied = sys.getswitchinterval()
+        if not self._asked:
+            self._applied = 0.0
+
+
+_SWITCH_INTERVAL = _SwitchInterval()
 
 
 def _container(node: NodeHandle) -> Container | None:

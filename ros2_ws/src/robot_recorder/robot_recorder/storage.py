@@ -274,6 +274,9 @@ class BagWriter:
         except OSError as exc:
             _close_quietly(f.stream)
             self._fail(f"closing {f.info.path}: {exc}", exc, metadata=True)
+        except BaseException:  # unforeseen: still give the file descriptor back
+            _close_quietly(f.stream)
+            raise
         self._write_metadata()
 
     def _check_free(self) -> None:

@@ -37,13 +37,20 @@ _PACE_MAX_S = 0.005
 
 @dataclass(eq=False)
 class TopicState:
-    """One recorded topic; counters are written by one thread each and read by any."""
+    """One recorded topic; each counter is written by one thread only and read by any
+    (two threads incrementing one counter could lose counts)."""
 
     name: str
     type_name: str
     messages: int = 0  # written to the current recording (writer thread)
     bytes: int = 0  # serialized bytes written (writer thread)
-    drops: int = 0  # queue full (callback thread)
+    queue_drops: int = 0  # queue full (callback thread)
+    write_drops: int = 0  # could not be serialized or written (writer thread)
+
+    @property
+    def drops(self) -> int:
+        """Messages received but not recorded, for whatever reason."""
+        return self.queue_drops + self.write_drops
 
 
 @dataclass
@@ -114,7 +121,7 @@ class RecordWriter:
         queue = self._queue
         length = len(queue)
         if length >= self._depth:
-            topic.drops += 1
+            topic.queue_drops += 1
             return
         if length >= self.high_water:
             self.high_water = length + 1
@@ -128,14 +135,15 @@ class RecordWriter:
         """Open ``bag``; messages enqueued from now on are recorded.
 
         Call it from the thread that runs the subscription callbacks (or before they run):
-        it resets the drop counters those callbacks increment.
+        it resets the drop counters those callbacks increment (the writer thread resets its
+        own when the start command reaches it).
         """
         if self.state == RECORDING:
             raise RecorderError(f"already recording into {self.bag_path}")
         if bag.exists():
             raise RecorderConfigError(f"bag directory {bag} exists already")
         for topic in self.topics.values():
-            topic.drops = 0
+            topic.queue_drops = 0
         self.accepting = True
         return self._command(lambda: self._start(bag))
 
@@ -162,16 +170,28 @@ class RecordWriter:
         bag = self._bag
         return bag.current_file if bag is not None else None
 
-    def close(self, timeout_s: float = 10.0) -> None:
-        """Finish the recording (every queued message is written) and end the thread."""
+    def close(self, *, timeout_s: float = 10.0) -> None:
+        """Finish the recording (every queued message is written) and end the thread.
+
+        Raises :class:`StorageError` if the bag could not be closed, or if the thread did
+        not finish within ``timeout_s`` (a stalled disk): what was queued then is lost, and
+        the caller is told so instead of the loss going unnoticed.
+        """
         if self._closing:
             return
         stopped = self.stop()
         self._closing = True
         self._wake.set()
         self._thread.join(timeout_s)
-        if not stopped.done():
+        self.accepting = False  # nobody takes messages off the queue any more
+        if self._thread.is_alive():
             stopped.cancel()
+            raise StorageError(
+                f"the writer thread did not finish within {timeout_s} s; "
+                f"{len(self._queue)} queued items are not written")
+        error = stopped.exception()
+        if error is not None:
+            raise error
 
     def _command(self, action: Callable[[], Any]) -> Future[Any]:
         future: Future[Any] = Future()
@@ -210,31 +230,40 @@ class RecordWriter:
             if isinstance(item, _Command):
                 self._execute(item)
                 continue
-            topic, msg, receive_ns = item
             try:
-                data = trim(msg, serialize_message(msg))
-            except Exception as exc:  # a message rclpy cannot serialize: count, report
-                topic.drops += 1
-                self.error = f"cannot serialize a message of {topic.name}: {exc!r}"
-                continue
-            if topic.name == self._clock_topic:
-                self._clock_msg = msg
-            if self._snapshot_bytes:
-                self._keep(topic, data, receive_ns)
-            bag = self._bag
-            if bag is not None:
-                try:
-                    bag.write(topic.name, topic.type_name, data, receive_ns)
-                except StorageError as exc:
-                    self._failed(str(exc))
-                    continue
-                except RecorderError as exc:  # a topic changed its type: keep the rest
-                    topic.drops += 1
-                    self.error = str(exc)
-                    continue
-                topic.messages += 1
-                topic.bytes += len(data)
-                self._tick()
+                self._record(*item)
+            except Exception as exc:  # unforeseen (a library's bug): stop and say so
+                item[0].write_drops += 1
+                self._failed(f"recording a message of {item[0].name} failed: {exc!r}")
+
+    def _record(self, topic: TopicState, msg: Any, receive_ns: int) -> None:
+        """Serialize one message, keep it for snapshots, write it if recording."""
+        try:
+            data = trim(msg, serialize_message(msg))
+        except Exception as exc:  # a message rclpy cannot serialize: count, report
+            topic.write_drops += 1
+            self.error = f"cannot serialize a message of {topic.name}: {exc!r}"
+            return
+        if topic.name == self._clock_topic:
+            self._clock_msg = msg
+        if self._snapshot_bytes:
+            self._keep(topic, data, receive_ns)
+        bag = self._bag
+        if bag is None:
+            return
+        try:
+            bag.write(topic.name, topic.type_name, data, receive_ns)
+        except StorageError as exc:
+            topic.write_drops += 1
+            self._failed(str(exc))
+            return
+        except RecorderError as exc:  # a topic changed its type: keep the rest
+            topic.write_drops += 1
+            self.error = str(exc)
+            return
+        topic.messages += 1
+        topic.bytes += len(data)
+        self._tick()
 
     def _pace(self) -> None:
         """Hold back while the pacer asks, at most ``_PACE_MAX_S`` in a row (no starvation)."""
@@ -253,8 +282,8 @@ class RecordWriter:
         if bag is not None:
             try:
                 bag.tick()
-            except StorageError as exc:
-                self._failed(str(exc))
+            except Exception as exc:  # StorageError, or anything unforeseen: stop, report
+                self._failed(str(exc) if isinstance(exc, StorageError) else repr(exc))
 
     def _execute(self, command: _Command) -> None:
         if not command.future.set_running_or_notify_cancel():
@@ -298,7 +327,7 @@ class RecordWriter:
             self.accepting = self._snapshot_bytes > 0
             raise
         for topic in self.topics.values():
-            topic.messages = topic.bytes = 0
+            topic.messages = topic.bytes = topic.write_drops = 0
         self.bag_path = bag
         self.state, self.error = RECORDING, ""
         self.accepting = True
@@ -340,7 +369,13 @@ class RecordWriter:
         return path, count
 
     def _failed(self, message: str) -> None:
-        self._bag = None
+        """Stop recording after an error; what the bag holds so far stays readable."""
+        bag, self._bag = self._bag, None
+        if bag is not None and not bag.closed:  # not closed by a StorageError already
+            try:
+                bag.close()
+            except Exception as exc:  # the first error is the one to report
+                message += f" (closing the bag failed too: {exc!r})"
         self.accepting = self._snapshot_bytes > 0
         self.state, self.error = FAILED, message
         if self._on_state is not None:
