@@ -7,7 +7,11 @@ set -euo pipefail
 packages=(libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6)
 
 have_all() {
-  ldconfig -p | grep -q 'libEGL_mesa\.so\.0' && ldconfig -p | grep -q 'libOSMesa\.so'
+  # Not `ldconfig -p | grep -q`: grep leaving early can kill ldconfig with SIGPIPE, which
+  # pipefail turns into "missing".
+  local libs
+  libs=$(ldconfig -p)
+  grep -q 'libEGL_mesa\.so\.0' <<<"$libs" && grep -q 'libOSMesa\.so' <<<"$libs"
 }
 
 if have_all; then

@@ -52,6 +52,8 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
     totals = robot.monitor.totals()
     s = totals.summary()
     sim = robot.simulator.status()
+    skipped = (f" ({sim['skipped_s']:.2f} s of simulated time given up while behind)"
+               if sim["skipped_s"] else "")
     lines = [
         "# Soccer demo report",
         "",
@@ -62,7 +64,7 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         "| figure | value |",
         "|---|---|",
         f"| simulated time | {sim['sim_time_s']:.1f} s in {wall_s:.1f} s wall |",
-        f"| real-time factor | {sim['real_time_factor']:.2f} |",
+        f"| real-time factor | {sim['real_time_factor']:.2f}{skipped} |",
         f"| camera frames | {totals.frames} ({s['camera_fps']:.1f} fps, "
         f"render {sim['render_ms_mean']:.1f} ms each) |",
         f"| ball detections | {totals.detections} ({s['detection_rate_hz']:.1f} Hz) |",
@@ -77,7 +79,10 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         f"p99 {_f(s['latency_p99_ms'], '.2f')} ms"
         f"{' (lockstep: no wall time passes)' if args.lockstep else ''} |",
         f"| servos answering | {len(robot.driver.present)} of {len(robot.driver.ids)}, "
-        f"{robot.driver.comm_errors} bus errors |",
+        f"{robot.driver.comm_errors} bus errors seen by the driver |",
+        f"| emulated bus | {sim['bus_crc_errors']} requests with a bad CRC, "
+        f"{sim['bus_discarded_bytes']} bytes of unfinished packets dropped, "
+        f"{sim['bus_dropped_replies']} replies nobody read |",
         f"| head behaviour | {robot.behaviour.state}, {robot.behaviour.switches} switches |",
         "",
         "## Callbacks",
@@ -136,7 +141,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             print("interrupted")
         text = report(robot, container, args, time.monotonic() - started)
         failures = sum(s.exceptions for s in container.stats())
-        ok = robot.monitor.totals().detections > 0 and failures == 0
+        # A failing callback or an exception inside the emulator is a bug: exit status 1.
+        ok = (robot.monitor.totals().detections > 0 and failures == 0
+              and not robot.simulator.pty.errors)
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(text)
     print(f"\n{text}\nreport written to {args.report.resolve()}")

@@ -1,4 +1,11 @@
-"""The exceptions of humanoid_sim: catch :class:`HumanoidSimError` for all of them."""
+"""The exceptions of humanoid_sim: catch :class:`HumanoidSimError` for all of them.
+
+::
+
+    HumanoidSimError
+    ├── RenderError       no offscreen OpenGL, or a camera the model cannot render
+    └── SimConfigError    a parameter a component cannot work with (also a ValueError)
+"""
 
 from __future__ import annotations
 
@@ -12,4 +19,4 @@ class RenderError(HumanoidSimError):
 
 
 class SimConfigError(HumanoidSimError, ValueError):
-    """A parameter the simulator or a soccer component cannot work with."""
+    """A parameter the simulator, the driver or a soccer component cannot work with."""

@@ -119,7 +119,6 @@ class Simulator:
             }
             self.frames = 0
             self.render_ns = 0
-            self.steps = 0
             #: Simulated time given up because the machine fell behind (real time only).
             self.skipped_s = 0.0
             self._next_frame_ns: int | None = None
@@ -226,7 +225,6 @@ class Simulator:
             self.node.logger.error("servo bus emulator did not answer a sync within 5 s")
         with self.pty.lock:
             self.plant.step(step)
-        self.steps += 1
         now = self.node.clock.now_ns()
         self._publish_imu(now)
         self._publish_truth(now)
@@ -285,8 +283,12 @@ class Simulator:
             "real_time_factor": self.real_time_factor,
             "frames": self.frames,
             "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
-            "bus_errors": len(self.pty.errors),
             "skipped_s": self.skipped_s,
+            # What the emulated bus received that a real one would have refused or lost.
+            "bus_exceptions": len(self.pty.errors),
+            "bus_crc_errors": self.pty.bus.crc_errors,
+            "bus_discarded_bytes": self.pty.discarded_bytes,
+            "bus_dropped_replies": self.pty.dropped_replies,
         }
 
     def close(self) -> None:

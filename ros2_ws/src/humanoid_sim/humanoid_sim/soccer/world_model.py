@@ -25,7 +25,7 @@ NECK = ("neck_yaw", "neck_pitch")
 MAX_EXTRAPOLATION_S = 0.05
 
 
-def torso_bearing(neck_yaw: float, neck_pitch: float, yaw: float, pitch: float
+def torso_bearing(yaw: float, pitch: float, *, neck_yaw: float, neck_pitch: float
                   ) -> tuple[float, float]:
     """(yaw left, pitch down) from the torso of what the camera sees at (yaw, pitch).
 
@@ -93,9 +93,9 @@ class BallModel:
         stamp = from_msg(detection.header.stamp)
         dt = (stamp - self._last_ns) / 1e9 if self._last_ns is not None else 0.0
         self._last_ns = stamp
-        yaw, pitch = torso_bearing(self.neck_at("neck_yaw", stamp),
-                                   self.neck_at("neck_pitch", stamp),
-                                   detection.point.x, detection.point.y)
+        yaw, pitch = torso_bearing(detection.point.x, detection.point.y,
+                                   neck_yaw=self.neck_at("neck_yaw", stamp),
+                                   neck_pitch=self.neck_at("neck_pitch", stamp))
         self.yaw.update(yaw, dt)
         self.pitch.update(pitch, dt)
         if detection.point.z > 0:
