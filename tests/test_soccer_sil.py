@@ -32,7 +32,7 @@ from humanoid_sim.soccer.compose import SoccerRobot, compose
 from humanoid_sim.soccer.motion import STANCE
 
 #: The promise: with the ball rolling, the head keeps it this close to the image centre
-#: in 95 % of frames, and never lets it out of this cone (the image is 70° x 93°).
+#: in 95 % of frames, and never lets it out of this cone (the image is 86° x 70°).
 TRACKING_P95_DEG = 3.0
 TRACKING_MAX_DEG = 6.0
 

@@ -15,7 +15,7 @@ from efficient_comm import to_msg
 from efficient_comm.testing import TestHandle
 from humanoid_sim.soccer.behaviour import SEARCH_PITCH_RAD, HeadBehaviour
 from humanoid_sim.soccer.motion import NECK_LIMITS, STANCE, Motion
-from humanoid_sim.soccer.vision import BallDetector
+from humanoid_sim.soccer.vision import FALLBACK_FOVY_DEG, BallDetector
 from humanoid_sim.soccer.world_model import BALL_RADIUS_M, BallModel
 
 W, H, F = 320, 240, 200.0
@@ -49,6 +49,16 @@ def test_detector_reports_the_ball_as_angles_from_the_image_centre() -> None:
     node.inject("camera/image_raw", _image(None))
     assert len(node.published("ball/detection")) == 1  # no ball, no detection
     assert (detector.frames, detector.detections) == (2, 1)
+
+
+def test_before_camera_info_the_detector_assumes_the_head_cameras_view() -> None:
+    node = TestHandle("detector")
+    BallDetector(node)
+    node.inject("camera/image_raw", _image((250, 60), radius=12))
+    (found,) = node.published("ball/detection")
+    f = (H / 2) / math.tan(math.radians(FALLBACK_FOVY_DEG / 2))  # 70° over the image height
+    assert found.point.x == pytest.approx(math.atan2(W / 2 - 250, f), abs=0.01)
+    assert found.point.y == pytest.approx(math.atan2(60 - H / 2, f), abs=0.01)
 
 
 def test_detector_skips_images_it_cannot_read_and_says_why() -> None:

@@ -19,6 +19,9 @@ from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
 
+#: Vertical field of view assumed before ``camera_info`` arrives (the head camera's).
+FALLBACK_FOVY_DEG = 70.0
+
 
 class BallDetector:
     def __init__(self, node: NodeHandle) -> None:
@@ -52,8 +55,8 @@ class BallDetector:
                 f"{len(image.data)} bytes: need rgb8 with height * step bytes"
             )
             return
-        if self.fx <= 0:
-            self.fx = self.fy = image.width / (2 * math.tan(math.radians(35)))  # until info
+        if self.fx <= 0:  # until camera_info arrives: the head camera's 70° vertical view
+            self.fx = self.fy = image.height / (2 * math.tan(math.radians(FALLBACK_FOVY_DEG / 2)))
             self.cx, self.cy = image.width / 2, image.height / 2
         pixels = np.frombuffer(image.data, dtype=np.uint8).reshape(
             image.height, image.step // 3, 3)[:, : image.width]
