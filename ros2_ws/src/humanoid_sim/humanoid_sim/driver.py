@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import termios
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -51,6 +52,9 @@ ALERT = 0x80  # the status error byte's hardware error bit (the rest is the erro
 #: on a noisy line must not take a joint away).
 MISSING_AFTER = 10
 TORQUE_ON_TRIES = 3
+#: What the port raises when the device goes away: pyserial's SerialException (an OSError),
+#: or termios.error from flushing a pty whose other side has closed.
+PORT_GONE = (OSError, termios.error)
 
 
 class ServoDriver:
@@ -143,24 +147,24 @@ class ServoDriver:
             if self._port is not None and self.present:
                 self._read(now)
                 self._write()
-        except OSError as exc:  # pyserial's SerialException too: the device went away
+        except PORT_GONE as exc:
             self._lose_port(exc)
         if now - self._last_diag_ns >= RETRY_NS:
             self._last_diag_ns = now
             try:
                 if self._port is not None and self.present:
                     self._read_hardware_errors()
-            except OSError as exc:
+            except PORT_GONE as exc:
                 self._lose_port(exc)
             self._publish_diagnostics(now)
 
-    def _lose_port(self, exc: OSError) -> None:
+    def _lose_port(self, exc: Exception) -> None:
         self.node.logger.error(f"lost {self.port_name}: {exc}; reopening within a second")
         self.comm_errors += 1
         port, self._port = self._port, None
         self.present.clear()
         if port is not None:
-            with contextlib.suppress(OSError):
+            with contextlib.suppress(*PORT_GONE):
                 port.closePort()
 
     def _sync_read(self, address: int, length: int, order: list[int]

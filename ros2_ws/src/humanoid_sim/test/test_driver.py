@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -129,3 +130,25 @@ def test_a_missing_port_is_reported_not_fatal() -> None:
     assert status.level == DiagnosticStatus.ERROR and status.message == "port not open"
     assert driver.cycles > 100
     assert any("cannot open" in text for level, text in node.records if level == "error")
+
+
+def test_a_port_that_goes_away_is_reopened(tmp_path: Path) -> None:
+    link = tmp_path / "ttyDXL"  # as udev names an adapter: the device behind it changes
+    plant = IdealPlant()
+    first = PtyBus(Bus(IDS, plant))
+    link.symlink_to(first.port)
+    node = TestHandle("driver", parameters={"port": str(link), "ids": IDS})
+    driver = ServoDriver(node)
+    node.advance(0.01)
+    assert driver.status()["present"] == IDS
+    first.close()  # the adapter is unplugged
+    node.advance(0.05)
+    assert any("lost" in text for level, text in node.records if level == "error")
+    assert driver.status()["present"] == []
+    with PtyBus(Bus(IDS, plant)) as second:  # and plugged in again
+        link.unlink()
+        link.symlink_to(second.port)
+        node.advance(1.0)
+        assert driver.status()["present"] == IDS
+        assert len(node.published("joint_states")[-1].name) == len(IDS)
+        driver.close()
