@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -71,5 +72,27 @@ def test_a_stalled_machine_gives_the_backlog_up() -> None:
         before = sim.sim_time_s
         sim.tick()  # no racing through the backlog afterwards
         assert sim.sim_time_s - before <= sim.period_s + 2e-3
+    finally:
+        sim.close()
+
+
+def test_imu_ground_truth_and_camera_info_describe_the_same_world() -> None:
+    node = TestHandle("sim", parameters={"camera_hz": 0.0, "ball_position": [2.0, 1.0]})
+    sim = Simulator(node)
+    try:
+        node.advance(2.0)  # no driver: the limp robot sinks to the ground and lies still
+        assert len(node.published("imu/data")) == 200  # every physics tick
+        imu, robot = node.published("imu/data")[-1], node.published("ground_truth/robot")[-1]
+        assert imu.header.stamp == robot.header.stamp
+        q, r = imu.orientation, robot.pose.orientation  # the IMU sits square on the torso
+        assert abs(q.w * r.w + q.x * r.x + q.y * r.y + q.z * r.z) == pytest.approx(1, abs=1e-6)
+        a = imu.linear_acceleration
+        assert math.sqrt(a.x**2 + a.y**2 + a.z**2) == pytest.approx(9.81, abs=0.5)  # at rest
+        ball = node.published("ground_truth/ball")[-1].pose.position
+        assert (ball.x, ball.y, ball.z) == pytest.approx((2.0, 1.0, 0.07), abs=1e-3)
+        (info,) = node.published("camera/camera_info")
+        f = (240 / 2) / math.tan(math.radians(70 / 2))  # the head camera's vertical view
+        assert list(info.k) == pytest.approx([f, 0, 160, 0, f, 120, 0, 0, 1])
+        assert robot.header.frame_id == "field"
     finally:
         sim.close()
