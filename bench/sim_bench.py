@@ -46,6 +46,7 @@ def bus_cycles(cycles: int) -> dict[str, float]:
         PortHandler,
     )
 
+    from humanoid_sim.driver import ADDR_GOAL, ADDR_TORQUE, ADDR_VELOCITY, READ_LENGTH
     from humanoid_sim.dynamixel.bus import Bus
     from humanoid_sim.dynamixel.pty import PtyBus
     from humanoid_sim.mujoco_plant import JOINTS, MujocoPlant
@@ -54,9 +55,9 @@ def bus_cycles(cycles: int) -> dict[str, float]:
         port, packets = PortHandler(pty.port), PacketHandler(2.0)
         assert port.openPort() and port.setBaudRate(1_000_000)
         for dxl_id in JOINTS:
-            packets.write1ByteTxRx(port, dxl_id, 64, 1)
-        reader = GroupSyncRead(port, packets, 128, 8)
-        writer = GroupSyncWrite(port, packets, 116, 4)
+            packets.write1ByteTxRx(port, dxl_id, ADDR_TORQUE, 1)
+        reader = GroupSyncRead(port, packets, ADDR_VELOCITY, READ_LENGTH)
+        writer = GroupSyncWrite(port, packets, ADDR_GOAL, 4)
         for dxl_id in JOINTS:
             reader.addParam(dxl_id)
             writer.addParam(dxl_id, list((2048).to_bytes(4, "little")))
@@ -74,8 +75,6 @@ def bus_cycles(cycles: int) -> dict[str, float]:
 def _pty_echo(cycles: int, *, request: int, reply: int) -> float:
     """Round trips per second on a bare pty: ``request`` bytes out, ``reply`` bytes back."""
     master, slave = os.openpty()
-
-
     tty.setraw(master)
     tty.setraw(slave)
     stop = threading.Event()
