@@ -144,6 +144,7 @@ def test_line_noise_is_counted_and_the_robot_keeps_tracking() -> None:
         container.advance(4.0)
         figures = bot.monitor.window()
         assert bot.driver.comm_errors > 0  # garbled replies were seen and counted
+        assert bot.simulator.pty.bus.crc_errors > 0  # and garbled requests refused
         assert bot.driver.status()["present"] == sorted(JOINTS)  # no servo given up
         assert figures.summary()["tracking_error_p95_deg"] < TRACKING_P95_DEG
         assert not bot.simulator.pty.errors

@@ -104,7 +104,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--kick-period", type=float, default=4.0,
                         help="seconds between kicks that set the ball rolling (0: never)")
     parser.add_argument("--line-noise", type=float, default=0.0,
-                        help="share of servo replies with a flipped bit")
+                        help="share of servo bus packets (either way) with a flipped bit")
     parser.add_argument("--no-dds", action="store_true", help="no DDS: nothing leaves the process")
     parser.add_argument("--stats-period", type=float, default=2.0)
     parser.add_argument("--report", type=Path, default=Path("soccer_report.md"))

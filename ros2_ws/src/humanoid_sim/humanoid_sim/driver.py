@@ -111,9 +111,9 @@ class ServoDriver:
             _, result, _ = self._packets.ping(self._port, dxl_id)
             if result != COMM_SUCCESS:
                 continue
-            for _ in range(TORQUE_ON_TRIES):  # a garbled reply: writing 1 again is harmless
+            for _ in range(TORQUE_ON_TRIES):  # line noise either way: writing 1 again is harmless
                 result, error = self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
-                if result == COMM_SUCCESS:
+                if result == COMM_SUCCESS and not error & ~ALERT:
                     break
             if result != COMM_SUCCESS or error & ~ALERT:
                 self.comm_errors += 1  # tried again within a second

@@ -117,6 +117,7 @@ def test_line_noise_is_counted_and_survived() -> None:
         for _ in range(100):
             node.advance(0.01)
         assert driver.comm_errors > 0 and pty.bus.packets > 100
+        assert pty.bus.crc_errors > 0  # noise both ways: garbled requests refused too
         assert len(node.published("joint_states")) > 50  # most cycles still got through
         assert pty.errors == []
         driver.close()

@@ -15,6 +15,7 @@ written before it has then been handled, whatever the machine's load.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import os
 import random
@@ -40,7 +41,7 @@ class PtyBus(Closing):
     """A context manager: the bus answers on a pty until closed."""
 
     def __init__(self, bus: Bus, *, corrupt: float = 0.0, seed: int = 0) -> None:
-        """``corrupt``: the share of replies in which one byte is flipped (line noise)."""
+        """``corrupt``: line noise, the share of packets either way with one bit flipped."""
         self.bus = bus
         self.corrupt = corrupt
         self._rng = random.Random(seed)
@@ -100,6 +101,8 @@ class PtyBus(Closing):
                         self._sync_seen = int.from_bytes(packet.params, "little")
                         self._synced.notify_all()
                     continue
+                if self._noisy():  # a flipped bit on the way in: the servos' CRC check fails
+                    packet = dataclasses.replace(packet, crc_ok=False)
                 try:
                     with self._lock:
                         reply = self.bus.handle(packet)
@@ -107,7 +110,7 @@ class PtyBus(Closing):
                     self.errors.append(exc)
                     continue
                 if reply:
-                    if self.corrupt and self._rng.random() < self.corrupt:
+                    if self._noisy():
                         noisy = bytearray(reply)
                         noisy[self._rng.randrange(len(noisy))] ^= 1 << self._rng.randrange(8)
                         reply = bytes(noisy)
@@ -122,6 +125,10 @@ class PtyBus(Closing):
         os.write(self._slave, encode(BROADCAST_ID, SYNC_INSTRUCTION, number.to_bytes(8, "little")))
         with self._synced:
             return self._synced.wait_for(lambda: self._sync_seen >= number, timeout=timeout_s)
+
+    def _noisy(self) -> bool:
+        """Whether line noise hits this packet (drawn in bus order: lockstep stays exact)."""
+        return bool(self.corrupt) and self._rng.random() < self.corrupt
 
     def _send(self, reply: bytes) -> None:
         try:
