@@ -190,6 +190,8 @@ def test_bad_input_is_refused_with_a_reason(tmp_path: Path) -> None:
         _player(bag, stamps="local")
     with pytest.raises(RecorderConfigError, match="rate"):
         _player(bag, rate=-1.0)
+    with pytest.raises(RecorderConfigError, match="tick_s"):
+        Player(TestHandle("player", parameters={"tick_s": 0.0}), bag=bag)
 
 
 # -- a recorded camera replaces the live camera as the live ball detector's input --------------
@@ -241,8 +243,10 @@ def test_recorded_camera_feeds_the_live_ball_detector(tmp_path: Path) -> None:
     _run(live, 1.2)
     assert len(live_frames.got) >= 30  # the live camera kept running
     assert detector.frames == 30 and detector.detections == 30  # every recorded frame
-    fx = 160 / (2 * math.tan(math.radians(35)))
-    left = math.atan2(80 - 40, fx)  # the recorded ball; the live one would be negative
+    # The bearing of the recorded ball (u = 40) with the detector's own intrinsics; the live
+    # ball (u = 120) would be as far on the other side.
+    left = math.atan2(detector.cx - 40, detector.fx)
+    assert left > 0.1
     assert all(abs(m.point.x - left) < 0.02 for _, m in sink.got), sink.got[0][1].point
 
 

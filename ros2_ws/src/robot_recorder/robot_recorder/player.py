@@ -117,7 +117,10 @@ class Player:
         self.paused = bool(start_paused if start_paused is not None else p("start_paused", False))
         self._anchor()
         self._serve(node)
-        node.create_timer(p("tick_s", 0.001), self._on_timer)
+        tick_s = float(p("tick_s", 0.001))
+        if not tick_s > 0:
+            raise RecorderConfigError(f"tick_s must be > 0, not {tick_s}")
+        node.create_timer(tick_s, self._on_timer)
 
     # -- control ---------------------------------------------------------------------------
 

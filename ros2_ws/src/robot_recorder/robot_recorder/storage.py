@@ -317,10 +317,11 @@ class BagWriter:
         raise StorageError(message) from exc
 
     def _write_metadata(self) -> None:
-        files = [f for f in self.files if f is not (self._open.info if self._open else None)]
+        # Called only when no file is open (after a close, split or failure), so every
+        # file listed is complete and every topic count is of listed files.
+        files = self.files
         start = min((f.start_ns for f in files if f.messages), default=0)
         end = max((f.end_ns for f in files if f.messages), default=0)
-        counts = _count_per_topic(self)
         info: dict[str, Any] = {
             "version": METADATA_VERSION,
             "storage_identifier": "mcap",
@@ -336,7 +337,7 @@ class BagWriter:
                         "offered_qos_profiles": [],
                         "type_description_hash": "",
                     },
-                    "message_count": counts.get(t.name, 0),
+                    "message_count": t.messages,
                 }
                 for t in self.topics.values()
             ],
@@ -358,11 +359,6 @@ class BagWriter:
         }
         text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False)
         self._fs.write_text(self.path / "metadata.yaml", text)
-
-
-def _count_per_topic(bag: BagWriter) -> dict[str, int]:
-    # Messages of closed files only are listed; TopicMetadata counts include the open file.
-    return {t.name: t.messages for t in bag.topics.values()}
 
 
 def _close_quietly(stream: IO[bytes]) -> None:
