@@ -270,3 +270,22 @@ def test_malformed_input_never_stops_the_bus(rig, garbage: bytes) -> None:
         port.clearPort()
     assert pty.errors == []
     assert (pty.discarded_bytes > 0) == garbage.startswith(b"\xff\xff\xfd\x00\x01\xf4")
+
+
+def test_factory_reset_and_clear() -> None:
+    bus = Bus(IDS, IdealPlant())
+    servo = bus.servos[2]
+    servo.write(36, (500).to_bytes(2, "little"))  # PWM limit
+    assert servo.get("pwm_limit") == 500
+    (status,) = _ask(bus, 2, Instruction.FACTORY_RESET, b"\x01")  # all but the ID
+    assert status.params[0] == Error.NONE
+    assert servo.get("pwm_limit") == 885 and servo.dxl_id == 2
+    servo.write(36, (500).to_bytes(2, "little"))
+    assert _ask(bus, 0xFE, Instruction.FACTORY_RESET, b"\xff") == []  # never by broadcast
+    assert servo.get("pwm_limit") == 500
+    assert _ask(bus, 0xFE, Instruction.FACTORY_RESET, b"\x02") == []  # but keeping IDs
+    assert servo.get("pwm_limit") == 885 and [s.dxl_id for s in bus.servos.values()] == IDS
+    assert _ask(bus, 2, Instruction.FACTORY_RESET, b"\x07")[0].params[0] == Error.DATA_RANGE
+    clear = b"\x01\x44\x58\x4c\x22"
+    assert _ask(bus, 2, Instruction.CLEAR, clear)[0].params[0] == Error.NONE  # standing still
+    assert _ask(bus, 2, Instruction.CLEAR, b"\x02")[0].params[0] == Error.DATA_RANGE

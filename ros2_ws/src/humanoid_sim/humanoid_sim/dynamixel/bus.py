@@ -1,8 +1,9 @@
 """The instructions of Protocol 2.0, answered the way servos on one bus answer them.
 
 Broadcast rules (e-Manual, Protocol 2.0): a broadcast PING is answered by every servo, in
-ID order; other broadcasts (WRITE, REG_WRITE, ACTION, REBOOT, SYNC_WRITE, BULK_WRITE) are
-obeyed silently; a broadcast READ is ignored. SYNC_READ and BULK_READ are answered by each
+ID order; other broadcasts (WRITE, REG_WRITE, ACTION, REBOOT, SYNC_WRITE, BULK_WRITE, and
+FACTORY_RESET unless it would reset the IDs too) are obeyed silently; a broadcast READ is
+ignored. SYNC_READ and BULK_READ are answered by each
 listed servo in the order listed. A packet with a bad CRC gets a CRC error from the servo it
 names (none for broadcasts); an unknown instruction, or ACTION with nothing registered, gets
 an instruction error. Status return level 0 answers only PING, 1 also the reads, 2
@@ -139,6 +140,9 @@ class Bus:
         elif inst == Instruction.REBOOT:
             for s in present:
                 s.reset(keep=(), ram_only=True)
+        elif inst == Instruction.FACTORY_RESET and len(p) == 1 and p[0] in (0x01, 0x02):
+            for s in present:  # "reset all" (0xFF) is refused by broadcast: IDs would clash
+                s.reset(keep=_FACTORY_RESET_KEEP[p[0]])
         elif inst == Instruction.SYNC_WRITE and len(p) >= 4:
             address, size = int.from_bytes(p[:2], "little"), int.from_bytes(p[2:4], "little")
             for i in range(4, len(p) - size, size + 1):
