@@ -32,7 +32,7 @@ class Sample:
     attachment: Bytes | None
 
 
-def setup(limit: int) -> tuple[TeamAdapter, Route, RecordingLogger, list[Any]]:
+def setup(limit: int) -> tuple[TeamAdapter, Route, RecordingLogger]:
     config = parse_config(
         {
             "team": {"robot_id": "b", "max_message_bytes": limit},
@@ -43,9 +43,7 @@ def setup(limit: int) -> tuple[TeamAdapter, Route, RecordingLogger, list[Any]]:
     records = RecordingLogger("/rf_bridge_test")
     spec = config.topics[0]
     route = Route(spec, String, TopicStats("/t", "to_team"), TopicStats("/t", "from_team"))
-    delivered: list[Any] = []
-    adapter = TeamAdapter(config.team, records)
-    return adapter, route, records, delivered
+    return TeamAdapter(config.team, records), route, records
 
 
 def sample(seq: int, payload: bytes, *, flags: int = 0) -> Sample:
@@ -53,7 +51,8 @@ def sample(seq: int, payload: bytes, *, flags: int = 0) -> Sample:
 
 
 def test_samples_counted_and_a_decompression_bomb_stopped_at_the_limit() -> None:
-    adapter, route, records, delivered = setup(limit=4096)
+    adapter, route, records = setup(limit=4096)
+    delivered: list[Any] = []
 
     def deliver(route: Route, msg: Any, received_ns: int, nbytes: int) -> None:
         delivered.append(msg)
@@ -68,3 +67,14 @@ def test_samples_counted_and_a_decompression_bomb_stopped_at_the_limit() -> None
     assert [m.data for m in delivered] == ["hello", "hello"]
     assert route.stats_in.snapshot().drops == {"oversize": 1, "malformed": 2, "lost": 2}
     assert any("over max_message_bytes (4096)" in text for _, text in records.records)
+
+
+def test_sender_table_is_bounded() -> None:
+    from rf_bridge.adapters import team
+
+    adapter, route, _ = setup(limit=4096)
+    small = serialize_message(String(data="x"))
+    for robot in range(team._MAX_SENDERS + 10):
+        attachment = _ATTACHMENT.pack(1, 0, 1) + f"robot{robot}".encode()
+        adapter._on_sample(route, Sample(Bytes(small), Bytes(attachment)), lambda *a: None)
+    assert len(adapter._last_seen) == team._MAX_SENDERS

@@ -33,6 +33,9 @@ from ..errors import LinkError
 _ATTACHMENT = struct.Struct("<QBI")  # sequence number, flags, boot id; then the robot id
 _ZLIB = 1
 _COMPRESS_MIN = 64  # smaller payloads are sent as they are
+#: Senders (topic, robot, boot) whose last sequence number is remembered; the oldest is
+#: forgotten beyond this, so samples with made-up robot ids cannot grow the table forever.
+_MAX_SENDERS = 4096
 
 
 def _key(prefix: str, topic: str) -> str:
@@ -127,8 +130,10 @@ class TeamAdapter:
             return  # our own sample: never bridged back
         key = (id(route), origin, boot)
         with self._lock:
-            last = self._last_seen.get(key)
-            self._last_seen[key] = max(seq, last or 0)
+            last = self._last_seen.pop(key, None)
+            self._last_seen[key] = max(seq, last or 0)  # re-inserted: newest last
+            if len(self._last_seen) > _MAX_SENDERS:
+                del self._last_seen[next(iter(self._last_seen))]
         if last is not None:
             if seq <= last:
                 route.stats_in.dropped("out_of_order")
