@@ -9,6 +9,7 @@
     ├── ProtocolError        a peer sent bytes that break the wire protocol (TCPROS, XML-RPC)
     │   └── OversizeError    a frame larger than the configured limit
     └── LinkError            an external system cannot be reached (master down, peer gone)
+        └── MasterRefusedError   (adapters.ros1.xmlrpc) it answered with an error code
 """
 
 from __future__ import annotations
