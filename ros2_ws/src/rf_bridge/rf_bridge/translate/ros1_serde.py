@@ -16,7 +16,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..errors import ProtocolError
-from .ros1_types import PRIMITIVES, Field, TypeRegistry
+from .ros1_types import BYTE_TYPES, PRIMITIVES, Field, TypeRegistry
 
 Decoder = Callable[[memoryview, int], tuple[Any, int]]
 Encoder = Callable[[Any, list[bytes]], None]
@@ -36,7 +36,6 @@ _CODES = {
     "float32": "f",
     "float64": "d",
 }
-_BYTES_TYPES = {"uint8", "int8", "byte", "char"}
 _U32 = struct.Struct("<I")
 _TIME = {"time": struct.Struct("<II"), "duration": struct.Struct("<ii")}
 
@@ -105,7 +104,7 @@ class Ros1Codec:
         if f.array is None:
             return elem
         fixed = f.array
-        if f.type in _BYTES_TYPES:
+        if f.type in BYTE_TYPES:
 
             def dec_bytes(buf: memoryview, off: int) -> tuple[Any, int]:
                 n = fixed
@@ -223,7 +222,7 @@ class Ros1Codec:
             elif n != fixed:
                 raise ProtocolError(f"{where}: {n} elements for a fixed array of {fixed}")
 
-        if f.type in _BYTES_TYPES:
+        if f.type in BYTE_TYPES:
 
             def enc_bytes(value: Any, out: list[bytes]) -> None:
                 data = value if isinstance(value, bytes) else _as_bytes(value, f.type)

@@ -36,6 +36,8 @@ PRIMITIVES: dict[str, int] = {
     "time": 8,
     "duration": 8,
 }
+#: ROS 1 element types whose arrays travel (and are handed over) as ``bytes``.
+BYTE_TYPES = frozenset({"uint8", "int8", "byte", "char"})
 _SEPARATOR = "=" * 80
 
 

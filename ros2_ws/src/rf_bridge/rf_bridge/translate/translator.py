@@ -15,7 +15,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import TranslationError
-from .ros1_types import ROS2_PRIMITIVES, Field, TypeRegistry, ros2_class, split_ros2_type
+from .ros1_types import (
+    BYTE_TYPES,
+    ROS2_PRIMITIVES,
+    Field,
+    TypeRegistry,
+    ros2_class,
+    ros2_type_name,
+    split_ros2_type,
+)
 
 Convert = Callable[[Any], Any]
 
@@ -92,7 +100,7 @@ class Translator:
     def _pairs(self, ros1_type: str, ros2_cls: type, where: str) -> list[tuple[str, str, Field]]:
         spec = self._registry.get(ros1_type)
         ros2_fields: dict[str, str] = ros2_cls.get_fields_and_field_types()  # type: ignore[attr-defined]
-        rule = self._rules.get((ros1_type, _ros2_name(ros2_cls)))
+        rule = self._rules.get((ros1_type, ros2_type_name(ros2_cls)))
         renames = dict(rule.fields) if rule else {}
         by_name = {f.name: f for f in spec.fields}
         by_lower = {f.name.lower(): f for f in spec.fields}
@@ -147,12 +155,7 @@ class Translator:
         one = self._elem_to_ros2(elem, f, where)
         if arr is None:
             return one
-        if elem in ("uint8", "octet", "char", "byte") and f.type in (
-            "uint8",
-            "int8",
-            "byte",
-            "char",
-        ):
+        if elem in ("uint8", "octet", "char", "byte") and f.type in BYTE_TYPES:
             if elem == "octet" or elem == "byte":
                 return lambda v: [bytes((b,)) for b in v]
             return lambda v: v if arr == -1 else list(v)
@@ -211,7 +214,7 @@ class Translator:
     def _conv_to_ros1(self, ros2_type: str, f: Field, where: str) -> Convert:
         elem, arr = split_ros2_type(ros2_type)
         elem = _base(elem)
-        if arr is not None and f.type in ("uint8", "int8", "byte", "char"):
+        if arr is not None and f.type in BYTE_TYPES:
             if elem in ("octet", "byte"):
                 return lambda v: b"".join(v)
             return _to_bytes
@@ -231,10 +234,10 @@ class Translator:
     def _default(self, f: Field) -> Callable[[], Any]:
         if f.array is not None:
             if f.array < 0:
-                return bytes if f.type in ("uint8", "int8", "byte", "char") else list
-            zero = self._default(Field(f.name, f.type))
-            if f.type in ("uint8", "int8", "byte", "char"):
+                return bytes if f.type in BYTE_TYPES else list
+            if f.type in BYTE_TYPES:
                 return lambda: bytes(f.array or 0)
+            zero = self._default(Field(f.name, f.type))
             return lambda: [zero() for _ in range(f.array or 0)]
         if f.type == "string":
             return str
@@ -264,7 +267,3 @@ def _to_bytes(v: Any) -> bytes:
         return data
     return bytes(v)
 
-
-def _ros2_name(cls: type) -> str:
-    module = cls.__module__.split(".")
-    return f"{module[0]}/{module[1]}/{cls.__name__}"
