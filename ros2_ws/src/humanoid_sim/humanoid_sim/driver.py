@@ -52,6 +52,7 @@ ALERT = 0x80  # the status error byte's hardware error bit (the rest is the erro
 #: on a noisy line must not take a joint away).
 MISSING_AFTER = 10
 TORQUE_ON_TRIES = 3
+SDK_LATENCY_TIMER_MS = float(port_handler.LATENCY_TIMER)  # before any driver changed it
 #: What the port raises when the device goes away: pyserial's SerialException (an OSError),
 #: or termios.error from flushing a pty whose other side has closed.
 PORT_GONE = (OSError, termios.error)
@@ -69,8 +70,9 @@ class ServoDriver:
             raise SimConfigError(f"{len(self.ids)} ids but {len(self.names)} joint_names")
         rate = node.declare_parameter("rate_hz", 100.0)
         # The SDK derives its reply timeouts from the USB-serial adapter's latency timer
-        # (16 ms on a stock FTDI adapter, 1 ms when tuned); it is one setting per process.
-        latency = node.declare_parameter("latency_timer_ms", float(port_handler.LATENCY_TIMER))
+        # (16 ms on a stock FTDI adapter, 1 ms when tuned); it is one setting per process,
+        # so every driver sets it, to the SDK's stock value unless told otherwise.
+        latency = node.declare_parameter("latency_timer_ms", SDK_LATENCY_TIMER_MS)
         if latency <= 0:
             raise SimConfigError(f"latency_timer_ms must be > 0, got {latency}")
         port_handler.LATENCY_TIMER = latency
