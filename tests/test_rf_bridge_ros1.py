@@ -58,9 +58,8 @@ if mode == "listen":
 else:
     expr, count = sys.argv[4], int(sys.argv[5])
     pub = rospy.Publisher(topic, cls, queue_size=1000)
-    while pub.get_num_connections() == 0:
+    while pub.get_num_connections() == 0:  # the handshake is done: what follows is delivered
         time.sleep(0.01)
-    time.sleep(0.2)
     print("ready", flush=True)
     for i in range(count):
         pub.publish(eval(expr, {"i": i, "cls": cls, "m": module,
