@@ -337,3 +337,22 @@ def test_close_ends_every_thread_and_stops_listening(ros1: Ros1System) -> None:
     assert [t.name for t in threads if t.is_alive()] == []
     with pytest.raises(ConnectionRefusedError):
         socket.create_connection(("127.0.0.1", port), timeout=5).close()
+
+
+def test_publisher_update_naming_too_many_publishers_is_cut(ros1: Ros1System) -> None:
+    from rf_bridge.adapters.ros1.adapter import MAX_PUBLISHERS_PER_TOPIC
+
+    topic = unique_topic("in")
+    node, b = bridge(
+        ros1, [{"ros2": topic, "type": "std_msgs/msg/String", "direction": "from_peer"}]
+    )
+    adapter: Any = b.adapters["ros1"]
+    try:
+        uris = [f"http://127.0.0.1:1/{i}" for i in range(MAX_PUBLISHERS_PER_TOPIC + 40)]
+        call(adapter.uri, "publisherUpdate", "/master", topic, uris)
+        assert len(adapter._subs[topic].links) == MAX_PUBLISHERS_PER_TOPIC
+        assert any("publishers named" in text for _, text in node.records)
+        call(adapter.uri, "publisherUpdate", "/master", topic, [])
+        assert adapter._subs[topic].links == {}
+    finally:
+        b.close()

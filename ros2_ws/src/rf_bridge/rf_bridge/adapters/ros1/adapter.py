@@ -33,6 +33,9 @@ from .xmlrpc import MasterRefusedError, SlaveServer, call
 #: header holds one for at most the handshake timeout, further connections are refused.
 MAX_HANDSHAKES = 32
 HANDSHAKE_TIMEOUT_S = 5.0
+#: Publishers of one topic the bridge connects to; a publisherUpdate naming more (a real
+#: system has a handful) is cut to this many, with a log line, instead of a thread each.
+MAX_PUBLISHERS_PER_TOPIC = 64
 #: How long :meth:`Ros1Adapter.close` waits for its threads altogether.
 CLOSE_TIMEOUT_S = 5.0
 
@@ -380,6 +383,13 @@ class Ros1Adapter:
         with self._lock:
             if self._stop.is_set():  # checked under the lock close() takes the links with
                 return
+            if len(wanted) > MAX_PUBLISHERS_PER_TOPIC:
+                self._log.warning(
+                    f"{topic}: {len(wanted)} publishers named; connected to "
+                    f"{MAX_PUBLISHERS_PER_TOPIC} of them (those already connected first)"
+                )
+                ranked = sorted(wanted, key=lambda u: (u not in sub.links, u))
+                wanted = set(ranked[:MAX_PUBLISHERS_PER_TOPIC])
             for uri in list(sub.links):
                 if uri not in wanted:
                     sub.links.pop(uri).stop()
