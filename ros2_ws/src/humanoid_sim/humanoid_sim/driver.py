@@ -68,6 +68,10 @@ class ServoDriver:
         self.names = names if names != [""] else [f"joint_{i}" for i in self.ids]
         if len(self.names) != len(self.ids):
             raise SimConfigError(f"{len(self.ids)} ids but {len(self.names)} joint_names")
+        if len(set(self.ids)) != len(self.ids) or not all(0 <= i <= 252 for i in self.ids):
+            raise SimConfigError(f"ids must be distinct servo IDs 0..252, got {self.ids}")
+        if len(set(self.names)) != len(self.names):
+            raise SimConfigError(f"joint_names must be distinct, got {self.names}")
         rate = node.declare_parameter("rate_hz", 100.0)
         # The SDK derives its reply timeouts from the USB-serial adapter's latency timer
         # (16 ms on a stock FTDI adapter, 1 ms when tuned); it is one setting per process,
@@ -101,9 +105,13 @@ class ServoDriver:
         except Exception as exc:  # pyserial raises for a missing device
             self.node.logger.error(f"cannot open {self.port_name}: {exc}")
             return
-        if opened:
-            self._port = port
-            self.node.logger.info(f"opened {self.port_name} at {self.baud} baud")
+        if not opened:
+            self.node.logger.error(f"cannot open {self.port_name} at {self.baud} baud")
+            if port.is_open:
+                port.closePort()
+            return
+        self._port = port
+        self.node.logger.info(f"opened {self.port_name} at {self.baud} baud")
 
     def _adopt_missing(self) -> None:
         assert self._port is not None

@@ -10,6 +10,7 @@ from humanoid_sim.driver import ServoDriver
 from humanoid_sim.dynamixel.bus import Bus
 from humanoid_sim.dynamixel.pty import PtyBus
 from humanoid_sim.mujoco_plant import JOINTS, MujocoPlant
+from humanoid_sim.soccer.compose import LOCKSTEP_LATENCY_TIMER_MS
 
 DT = 0.01
 
@@ -33,6 +34,7 @@ def test_driver_reaches_commands_and_torque_off_is_limp() -> None:
     with PtyBus(Bus(JOINTS, plant)) as pty:
         node = TestHandle("driver", parameters={
             "port": pty.port, "ids": list(JOINTS), "joint_names": list(JOINTS.values()),
+            "latency_timer_ms": LOCKSTEP_LATENCY_TIMER_MS,  # wall-time replies: see compose
         })
         driver = ServoDriver(node)
         _lockstep(node, pty, plant, 0.05)
