@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
 
 from efficient_comm.testing import TestHandle
+from humanoid_sim import simulator
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.simulator import MAX_CATCH_UP, Simulator
 
@@ -58,20 +61,29 @@ def test_a_bad_port_link_is_refused_and_nothing_is_left_open(tmp_path: Path, mak
         assert target.read_text() == "not ours"  # never replaced
 
 
-def test_a_stalled_machine_gives_the_backlog_up() -> None:
+def test_real_time_catches_up_a_little_and_gives_a_stall_up(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    wall = [100.0]  # the simulator's wall clock, moved by hand
+    monkeypatch.setattr(simulator, "time", SimpleNamespace(
+        monotonic=lambda: wall[0], perf_counter_ns=time.perf_counter_ns))
     sim = _simulator()
     try:
         sim._lockstep = False  # as on a wall clock
-        sim.tick()
-        assert sim._wall_start is not None
-        sim._wall_start -= 5.0  # as if the machine had stalled for five seconds
-        before = sim.sim_time_s
-        sim.tick()
-        assert sim.sim_time_s - before == pytest.approx(MAX_CATCH_UP * sim.period_s, abs=2e-3)
-        assert sim.skipped_s == pytest.approx(5.0, abs=0.1)
-        before = sim.sim_time_s
-        sim.tick()  # no racing through the backlog afterwards
-        assert sim.sim_time_s - before <= sim.period_s + 2e-3
+
+        def tick_after(seconds: float) -> float:
+            wall[0] += seconds
+            before = sim.sim_time_s
+            sim.tick()
+            return sim.sim_time_s - before
+
+        assert tick_after(0.0) == pytest.approx(sim.period_s)  # the first tick
+        assert tick_after(sim.period_s) == pytest.approx(sim.period_s)  # on time
+        assert tick_after(2.5 * sim.period_s) == pytest.approx(2.5 * sim.period_s, abs=2e-3)
+        assert sim.skipped_s == 0
+        assert tick_after(5.0) == pytest.approx(MAX_CATCH_UP * sim.period_s, abs=2e-3)
+        assert sim.skipped_s == pytest.approx(5.0 - MAX_CATCH_UP * sim.period_s, abs=2e-3)
+        assert tick_after(sim.period_s) == pytest.approx(sim.period_s, abs=2e-3)  # no racing
+        assert sim.real_time_factor < 0.1  # the stall shows where it belongs
     finally:
         sim.close()
 
