@@ -42,6 +42,24 @@ def test_standalone_component_with_remaps_and_params_file(tmp_path: Path) -> Non
         assert ("front_cam", "/") in p.node.get_node_names_and_namespaces()
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_idle_standalone_component_exits_cleanly_on_signals(tmp_path: Path, sig: int) -> None:
+    """A component with no timer and no traffic still stops (its wait must wake for it)."""
+    domain = isolated_domain_id()
+    args: list[str | Path] = [
+        executable("efficient_comm", "standalone"), "efficient_comm.examples.pipeline:Monitor",
+        "--ros-args", "-r", "__node:=idle_monitor",
+    ]
+    log = tmp_path / "monitor.log"
+    with peer(domain) as p, child(args, domain_id=domain, log=log) as proc:
+        assert p.wait_for(
+            lambda: ("idle_monitor", "/") in p.node.get_node_names_and_namespaces()
+        ), log.read_text()
+        proc.send_signal(sig)
+        assert proc.wait(timeout=15) == 0, log.read_text()
+        assert "Traceback" not in log.read_text()
+
+
 DEMO_YAML = Path(__file__).resolve().parents[1] / (
     "ros2_ws/src/efficient_comm/efficient_comm/examples/demo.yaml"
 )

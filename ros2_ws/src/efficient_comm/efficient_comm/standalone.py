@@ -51,6 +51,9 @@ from .handle import (
 )
 from .stats import CallbackKind, CallbackStats, StatsRegistry, StatsSnapshot
 
+#: Longest wait of an idle standalone node before Python's signal handlers get to run.
+SIGNAL_CHECK_S = 0.1
+
 
 class _NodeClock:
     __slots__ = ("_clock",)
@@ -215,9 +218,15 @@ class Standalone(Closing):
             raise
 
     def spin(self) -> None:
-        """Run until Ctrl-C, SIGTERM or :meth:`close` from another thread."""
+        """Run until Ctrl-C, SIGTERM or :meth:`close` from another thread.
+
+        Waits are bounded (:data:`SIGNAL_CHECK_S`): rclpy installs no signal handler for a
+        context of our own, so Python's handlers, which run only between waits, are what
+        stop the node; an unbounded wait of an idle node would never let them run.
+        """
         with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
-            self.executor.spin()
+            while self.context.ok():
+                self.executor.spin_once(timeout_sec=SIGNAL_CHECK_S)
 
     def spin_once(self, timeout_s: float | None = None) -> None:
         self.executor.spin_once(timeout_sec=timeout_s)
