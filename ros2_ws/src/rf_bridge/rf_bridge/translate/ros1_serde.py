@@ -16,26 +16,11 @@ from collections.abc import Callable
 from typing import Any
 
 from ..errors import ProtocolError
-from .ros1_types import BYTE_TYPES, PRIMITIVES, Field, TypeRegistry
+from .ros1_types import BYTE_TYPES, PRIMITIVES, STRUCT_CODES, Field, TypeRegistry
 
 Decoder = Callable[[memoryview, int], tuple[Any, int]]
 Encoder = Callable[[Any, list[bytes]], None]
 
-_CODES = {
-    "bool": "?",
-    "int8": "b",
-    "uint8": "B",
-    "byte": "b",
-    "char": "B",
-    "int16": "h",
-    "uint16": "H",
-    "int32": "i",
-    "uint32": "I",
-    "int64": "q",
-    "uint64": "Q",
-    "float32": "f",
-    "float64": "d",
-}
 _U32 = struct.Struct("<I")
 _TIME = {"time": struct.Struct("<II"), "duration": struct.Struct("<ii")}
 
@@ -114,8 +99,8 @@ class Ros1Codec:
                 return bytes(buf[off : off + n]), off + n
 
             return dec_bytes
-        if f.type in _CODES:
-            code = _CODES[f.type]
+        if f.type in STRUCT_CODES:
+            code = STRUCT_CODES[f.type]
             size = struct.calcsize(code)
 
             def dec_numbers(buf: memoryview, off: int) -> tuple[Any, int]:
@@ -178,8 +163,8 @@ class Ros1Codec:
                 return st.unpack_from(buf, off), off + 8
 
             return dec_time
-        if type_name in _CODES:
-            st1 = struct.Struct("<" + _CODES[type_name])
+        if type_name in STRUCT_CODES:
+            st1 = struct.Struct("<" + STRUCT_CODES[type_name])
             size = st1.size
 
             def dec_num(buf: memoryview, off: int) -> tuple[Any, int]:
@@ -230,8 +215,8 @@ class Ros1Codec:
                 out.append(data)
 
             return enc_bytes
-        if f.type in _CODES:
-            code = _CODES[f.type]
+        if f.type in STRUCT_CODES:
+            code = STRUCT_CODES[f.type]
 
             def enc_numbers(value: Any, out: list[bytes]) -> None:
                 n = len(value)
@@ -259,8 +244,8 @@ class Ros1Codec:
         if type_name in _TIME:
             st = _TIME[type_name]
             return lambda value, out: out.append(st.pack(*value))
-        if type_name in _CODES:
-            st1 = struct.Struct("<" + _CODES[type_name])
+        if type_name in STRUCT_CODES:
+            st1 = struct.Struct("<" + STRUCT_CODES[type_name])
             return lambda value, out: out.append(st1.pack(value))
         return lambda value, out: self._encoder(type_name)(value, out)
 

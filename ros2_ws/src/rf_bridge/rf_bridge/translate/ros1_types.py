@@ -38,6 +38,22 @@ PRIMITIVES: dict[str, int] = {
 }
 #: ROS 1 element types whose arrays travel (and are handed over) as ``bytes``.
 BYTE_TYPES = frozenset({"uint8", "int8", "byte", "char"})
+#: ``struct`` codes of the fixed-size ROS 1 primitives (little-endian on the wire).
+STRUCT_CODES: dict[str, str] = {
+    "bool": "?",
+    "int8": "b",
+    "uint8": "B",
+    "byte": "b",
+    "char": "B",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+    "float32": "f",
+    "float64": "d",
+}
 _SEPARATOR = "=" * 80
 
 

@@ -18,6 +18,7 @@ from ..errors import TranslationError
 from .ros1_types import (
     BYTE_TYPES,
     ROS2_PRIMITIVES,
+    STRUCT_CODES,
     Field,
     TypeRegistry,
     ros2_class,
@@ -27,21 +28,15 @@ from .ros1_types import (
 
 Convert = Callable[[Any], Any]
 
-_ARRAY_CODES = {
-    "boolean": None,
-    "int8": "b",
-    "uint8": "B",
-    "int16": "h",
-    "uint16": "H",
-    "int32": "i",
-    "uint32": "I",
-    "int64": "q",
-    "uint64": "Q",
-    "float": "f",
-    "double": "d",
-    "float32": "f",
-    "float64": "d",
-}
+#: ROS 2 element types whose arrays are not ``array.array`` in rclpy (bools, bytes, text).
+_NOT_ARRAY_CODED = frozenset({"boolean", "octet", "char", "byte", "string", "wstring"})
+
+
+def _array_code(elem: str) -> str | None:
+    """The ``array.array`` typecode rclpy uses for an unbounded array of ``elem``, if any."""
+    if elem in _NOT_ARRAY_CODED:
+        return None
+    return STRUCT_CODES.get(ROS2_PRIMITIVES.get(elem, ""))
 _TIME_TYPES = {"builtin_interfaces/Time": "time", "builtin_interfaces/Duration": "duration"}
 
 
@@ -159,7 +154,7 @@ class Translator:
             if elem == "octet" or elem == "byte":
                 return lambda v: [bytes((b,)) for b in v]
             return lambda v: v if arr == -1 else list(v)
-        code = _ARRAY_CODES.get(elem)
+        code = _array_code(elem)
         if code is not None and arr == -1:
             return lambda v: array.array(code, v)
         if one is _identity:
