@@ -7,13 +7,13 @@ source "$(dirname "${BASH_SOURCE[0]}")/_apt.sh"
 
 packages=(
   python3-rosmaster python3-rospy python3-rostopic python3-rosbag
-  python3-std-msgs python3-geometry-msgs python3-sensor-msgs
+  python3-std-msgs python3-geometry-msgs python3-sensor-msgs python3-nav-msgs
 )
 
 have_all() {
   command -v rosmaster >/dev/null && command -v rostopic >/dev/null \
     && command -v rosbag >/dev/null \
-    && /usr/bin/python3 -c 'import rospy, rosbag, std_msgs.msg, geometry_msgs.msg, sensor_msgs.msg' \
+    && /usr/bin/python3 -c 'import rospy, rosbag, std_msgs.msg, geometry_msgs.msg, sensor_msgs.msg, nav_msgs.msg' \
       >/dev/null 2>&1
 }
 
