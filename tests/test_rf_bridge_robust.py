@@ -21,7 +21,9 @@ from rf_bridge.testing import Ros1System, wait_for
 
 from .test_rf_bridge_ros1 import (
     NODE,
+    Logs,
     bridge,
+    close_containers,
     connected_listener,
     out_and_in,
     read_line,
@@ -35,19 +37,31 @@ def ros1() -> Iterator[Ros1System]:
         yield system
 
 
+@pytest.fixture
+def logs(capfd: pytest.CaptureFixture[str]) -> Logs:
+    return Logs(capfd)
+
+
+@pytest.fixture(autouse=True)
+def _close_containers() -> Iterator[None]:
+    yield from close_containers()
+
+
 def drops(b: Any, topic: str, direction: str) -> dict[str, int]:
     snap = next(s for s in b.stats() if s.topic == topic and s.direction == direction)
     return dict(snap.drops)
 
 
-def test_master_restart_reregisters_without_restarting_the_bridge(ros1: Ros1System) -> None:
+def test_master_restart_reregisters_without_restarting_the_bridge(
+    ros1: Ros1System, logs: Logs
+) -> None:
     out, inn, node, b = out_and_in(ros1)
     adapter: Any = b.adapters["ros1"]
     try:
         ros1.stop_master()
         ros1.start_master()
         assert wait_for(lambda: adapter.registrations >= 2, 20), "not registered again"
-        assert any("registering" in text for _, text in node.records)
+        assert logs.wait("registering")
         listener = connected_listener(ros1, adapter, out, "std_msgs/String")
         node.inject(out, String(data="after restart"))
         assert json.loads(read_line(listener))["data"] == "after restart"
@@ -102,7 +116,7 @@ def tcpros_port(adapter: Any, topic: str) -> int:
     return int(value[2])
 
 
-def test_bad_tcpros_headers_dropped_the_rest_keeps_serving(ros1: Ros1System) -> None:
+def test_bad_tcpros_headers_dropped_the_rest_keeps_serving(ros1: Ros1System, logs: Logs) -> None:
     topic = unique_topic("out")
     node, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
     adapter: Any = b.adapters["ros1"]
@@ -127,8 +141,7 @@ def test_bad_tcpros_headers_dropped_the_rest_keeps_serving(ros1: Ros1System) -> 
             with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
                 s.sendall(encode_header(fields))
                 assert expect in read_header(s)["error"]
-        logs = " ".join(text for _, text in node.records)
-        assert "malformed TCPROS header" in logs and "rejecting TCPROS subscriber" in logs
+        assert logs.wait("malformed TCPROS header") and logs.wait("rejecting TCPROS subscriber")
         assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
         node.inject(topic, String(data="still serving"))
         assert json.loads(read_line(listener))["data"] == "still serving"
@@ -237,7 +250,7 @@ STRING_DEF = {
     ids=["malformed_frame", "oversize", "unknown_type"],
 )
 def test_bad_publisher_dropped_the_rest_keeps_serving(
-    ros1: Ros1System, header: dict[str, str], data: bytes, reason: str, log: str
+    ros1: Ros1System, logs: Logs, header: dict[str, str], data: bytes, reason: str, log: str
 ) -> None:
     bad, good = unique_topic("bad"), unique_topic("good")
     node, b = bridge(
@@ -253,7 +266,7 @@ def test_bad_publisher_dropped_the_rest_keeps_serving(
         assert wait_for(lambda: drops(b, bad, "from_ros1").get(reason, 0) >= 1, 20), drops(
             b, bad, "from_ros1"
         )
-        assert wait_for(lambda: any(log in text for _, text in node.records), 10), node.records
+        assert logs.wait(log), logs.text()
         ros1.python(
             NODE, "talk", good, "std_msgs/String", "m.String(data='ok%d' % i)", "3", log="t"
         )
@@ -275,7 +288,7 @@ def test_listeners_bind_loopback_by_default(ros1: Ros1System) -> None:
         b.close()
 
 
-def test_oversize_outgoing_message_counted_and_not_sent(ros1: Ros1System) -> None:
+def test_oversize_outgoing_message_counted_and_not_sent(ros1: Ros1System, logs: Logs) -> None:
     topic = unique_topic("image")
     node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/Image"}],
                      ros1={"max_message_bytes": 4096})
@@ -287,12 +300,12 @@ def test_oversize_outgoing_message_counted_and_not_sent(ros1: Ros1System) -> Non
         node.inject(topic, Image(height=1, width=2, encoding="mono8", step=2, data=b"\x01\x02"))
         assert json.loads(read_line(listener))["width"] == 2  # the big one never went out
         assert drops(b, topic, "to_ros1") == {"oversize": 1}
-        assert any("max_message_bytes" in text for _, text in node.records)
+        assert logs.wait("max_message_bytes")
     finally:
         b.close()
 
 
-def test_idle_connections_hold_handshakes_for_a_bounded_time(ros1: Ros1System) -> None:
+def test_idle_connections_hold_handshakes_for_a_bounded_time(ros1: Ros1System, logs: Logs) -> None:
     """Connections that never send a header take a handshake slot each until it times
     out; beyond the limit they are refused at once, and subscribers are served again
     as soon as slots free up."""
@@ -306,7 +319,7 @@ def test_idle_connections_hold_handshakes_for_a_bounded_time(ros1: Ros1System) -
     try:
         with socket.create_connection(("127.0.0.1", port), timeout=5) as extra:
             assert extra.recv(100) == b""  # refused while the idle ones hold every slot
-        assert any("handshakes already in progress" in text for _, text in node.records)
+        assert logs.wait("handshakes already in progress")
         for s in idle:
             s.close()
         listener = connected_listener(ros1, adapter, topic, "std_msgs/String")
@@ -339,11 +352,11 @@ def test_close_ends_every_thread_and_stops_listening(ros1: Ros1System) -> None:
         socket.create_connection(("127.0.0.1", port), timeout=5).close()
 
 
-def test_publisher_update_naming_too_many_publishers_is_cut(ros1: Ros1System) -> None:
+def test_publisher_update_naming_too_many_publishers_is_cut(ros1: Ros1System, logs: Logs) -> None:
     from rf_bridge.adapters.ros1.adapter import MAX_PUBLISHERS_PER_TOPIC
 
     topic = unique_topic("in")
-    node, b = bridge(
+    _, b = bridge(
         ros1, [{"ros2": topic, "type": "std_msgs/msg/String", "direction": "from_peer"}]
     )
     adapter: Any = b.adapters["ros1"]
@@ -351,7 +364,7 @@ def test_publisher_update_naming_too_many_publishers_is_cut(ros1: Ros1System) ->
         uris = [f"http://127.0.0.1:1/{i}" for i in range(MAX_PUBLISHERS_PER_TOPIC + 40)]
         call(adapter.uri, "publisherUpdate", "/master", topic, uris)
         assert len(adapter._subs[topic].links) == MAX_PUBLISHERS_PER_TOPIC
-        assert any("publishers named" in text for _, text in node.records)
+        assert logs.wait("publishers named")
         call(adapter.uri, "publisherUpdate", "/master", topic, [])
         assert adapter._subs[topic].links == {}
     finally:

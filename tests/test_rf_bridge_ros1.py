@@ -1,7 +1,8 @@
 """rf_bridge against a real ROS 1 system: Debian's rosmaster, rospy, rostopic and rosbag.
 
-The bridge runs in this process on a TestHandle (the ROS 2 side without DDS); ROS 1 programs
-run on the system Python in their own sessions, against a master on a free port.
+The bridge runs in this process on a TestHandle in a container with DDS (an isolated
+domain), so it logs through rclpy's real loggers, whose console output the tests read; ROS 1
+programs run on the system Python in their own sessions, against a master on a free port.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import hashlib
 import json
 import subprocess
 import time
+import uuid
 from collections.abc import Iterator
 from typing import Any
 
@@ -18,8 +20,10 @@ from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
-from efficient_comm.testing import TestHandle, unique_topic
+from efficient_comm import Container
+from efficient_comm.testing import ManualClock, TestHandle, isolated_domain_id, unique_topic
 from rf_bridge import BridgeNode, parse_config
+from rf_bridge.testing import CapturedLogs as Logs
 from rf_bridge.testing import LineReader, Ros1System, wait_for
 
 # A rospy node for the tests: "listen" prints each message as a JSON line; "talk" publishes
@@ -77,6 +81,39 @@ def ros1() -> Iterator[Ros1System]:
         yield system
 
 
+@pytest.fixture
+def logs(capfd: pytest.CaptureFixture[str]) -> Logs:
+    return Logs(capfd)
+
+
+_containers: list[Container] = []
+
+
+def close_containers() -> Iterator[None]:
+    """Close the DDS containers :func:`bridge` made (an autouse fixture in each module)."""
+    yield
+    while _containers:
+        _containers.pop().close()
+
+
+@pytest.fixture(autouse=True)
+def _close_containers() -> Iterator[None]:
+    yield from close_containers()
+
+
+def ros2_handle(name: str = "rf_bridge") -> TestHandle:
+    """A TestHandle whose node is a real rclpy node (DDS, isolated domain, real logger)."""
+    container = Container(
+        f"rf_test_{uuid.uuid4().hex[:8]}",
+        dds=True,
+        domain_id=isolated_domain_id(),
+        clock=ManualClock(),
+        serve=False,
+    )
+    _containers.append(container)
+    return TestHandle(name, container=container)
+
+
 def read_line(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> str:
     reader = _readers.get(proc.pid)
     if reader is None:
@@ -107,7 +144,7 @@ def bridge(
         }
     )
     assert not config.errors
-    node = TestHandle("rf_bridge")
+    node = ros2_handle()
     b = BridgeNode(node, config=config)
     adapter = b.adapters["ros1"]
     assert adapter.wait_registered(10.0)  # type: ignore[attr-defined]
@@ -411,7 +448,7 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
         assert got[:3] == ["r0", "r1", "r2"]
 
 
-def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System) -> None:
+def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System, logs: Logs) -> None:
     """ROS 2's NavSatStatus gained a constant, so the twin derived from it has another md5sum
     than ROS 1's; the bridge adopts the definition the rospy subscriber sends."""
     from sensor_msgs.msg import NavSatStatus
@@ -425,7 +462,7 @@ def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System) -
         assert adapter._pubs[topic].md5sum != derived
         node.inject(topic, NavSatStatus(status=NavSatStatus.STATUS_SBAS_FIX, service=5))
         assert json.loads(read_line(listener)) == {"status": 1, "service": 5}
-        assert any("learned sensor_msgs/NavSatStatus" in t for _, t in node.records)
+        assert logs.wait("learned sensor_msgs/NavSatStatus")
     finally:
         b.close()
 

@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
+from typing import Any, Protocol
 
 from .adapters.ros1.xmlrpc import call
 from .errors import LinkError
@@ -42,6 +43,32 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float, *, poll_s: float =
             return predicate()
         time.sleep(poll_s)
     return True
+
+
+class _Capture(Protocol):
+    def readouterr(self) -> Any: ...
+
+
+class CapturedLogs:
+    """What rclpy's real loggers of this process wrote, read from pytest's ``capfd``.
+
+    rcutils writes every record to the process's stderr; tests of the bridge assert on
+    those lines instead of logging into a recording double, so they see what rclpy's
+    logger does (it refuses, for example, one call site logging at two severities).
+    """
+
+    def __init__(self, capfd: _Capture) -> None:
+        self._capfd = capfd
+        self._text = ""
+
+    def text(self) -> str:
+        """Everything logged so far (stderr of the process since the capture began)."""
+        self._text += self._capfd.readouterr().err
+        return self._text
+
+    def wait(self, needle: str, timeout_s: float = 10.0) -> bool:
+        """True once a logged line contains ``needle``; False after ``timeout_s``."""
+        return wait_for(lambda: needle in self.text(), timeout_s, poll_s=0.05)
 
 
 class LineReader:
