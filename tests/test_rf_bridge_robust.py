@@ -17,11 +17,11 @@ from std_msgs.msg import String
 from efficient_comm.testing import unique_topic
 from rf_bridge.adapters.ros1.tcpros import encode_header, read_header
 from rf_bridge.adapters.ros1.xmlrpc import call
+from rf_bridge.testing import CapturedLogs as Logs
 from rf_bridge.testing import Ros1System, wait_for
 
 from .test_rf_bridge_ros1 import (
     NODE,
-    Logs,
     bridge,
     close_containers,
     connected_listener,
