@@ -448,21 +448,39 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
         assert got[:3] == ["r0", "r1", "r2"]
 
 
-def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System, logs: Logs) -> None:
-    """ROS 2's NavSatStatus gained a constant, so the twin derived from it has another md5sum
-    than ROS 1's; the bridge adopts the definition the rospy subscriber sends."""
-    from sensor_msgs.msg import NavSatStatus
+def test_type_learned_from_a_subscriber_when_definitions_differ(
+    ros1: Ros1System, logs: Logs
+) -> None:
+    """A rule's ROS 1 definition that is out of date (the ROS 1 type gained a field): the
+    bridge adopts the definition the rospy subscriber sends, as ROS 1 defines ROS 1 types."""
+    from geometry_msgs.msg import Vector3
 
-    topic = unique_topic("gps_status")
-    node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/NavSatStatus"}])
+    topic = unique_topic("sightings")
+    node, b = bridge(
+        ros1,
+        [{"ros2": topic, "type": "geometry_msgs/msg/Vector3", "peer_type": "lab_msgs/Sighting"}],
+        types=[
+            {
+                "ros1": "lab_msgs/Sighting",
+                "ros2": "geometry_msgs/msg/Vector3",
+                "fields": {"x": "distance", "y": "bearing"},
+                "ros1_definition": "float64 distance\nfloat64 bearing\n",
+            }
+        ],
+    )
     adapter: Any = b.adapters["ros1"]
     try:
         derived = adapter._pubs[topic].md5sum
-        listener = connected_listener(ros1, adapter, topic, "sensor_msgs/NavSatStatus")
+        listener = ros1.python(NODE, "listen", topic, "lab_msgs/Sighting", "", "0", SIGHTING,
+                               log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
         assert adapter._pubs[topic].md5sum != derived
-        node.inject(topic, NavSatStatus(status=NavSatStatus.STATUS_SBAS_FIX, service=5))
-        assert json.loads(read_line(listener)) == {"status": 1, "service": 5}
-        assert logs.wait("learned sensor_msgs/NavSatStatus")
+        node.inject(topic, Vector3(x=2.5, y=-0.25))
+        assert json.loads(read_line(listener)) == {
+            "label": "", "distance": 2.5, "bearing": -0.25
+        }
+        assert logs.wait("learned lab_msgs/Sighting")
     finally:
         b.close()
 
