@@ -67,7 +67,8 @@ else:
     print("ready", flush=True)
     for i in range(count):
         pub.publish(eval(expr, {"i": i, "cls": cls, "m": module,
-                          "std": importlib.import_module("std_msgs.msg")}))
+                          "std": importlib.import_module("std_msgs.msg"),
+                          "geo": importlib.import_module("geometry_msgs.msg")}))
         time.sleep(0.002)
     print("done", flush=True)
     while True:
@@ -392,15 +393,16 @@ def test_rostopic_echo_hz_and_rosbag_record_and_play(ros1: Ros1System) -> None:
 
 
 def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any) -> None:
-    """The bridge as its own process (``ros2 run rf_bridge rf_bridge``): a ROS 2 peer over
-    DDS on one side, rospy on the other, both directions."""
+    """The README's example as a user runs it (``ros2 run rf_bridge rf_bridge``): a String
+    to ROS 1 and nav_msgs/Odometry from a rospy publisher, a ROS 2 peer over DDS."""
     import yaml
+    from nav_msgs.msg import Odometry
 
     from efficient_comm.testing import isolated_domain_id
 
     from ._ros import child, executable, peer
 
-    out, back = unique_topic("out"), unique_topic("back")
+    out, back = unique_topic("chatter"), unique_topic("odom")
     config = tmp_path / "bridge.yaml"
     config.write_text(
         yaml.safe_dump(
@@ -408,7 +410,7 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
                 "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge")},
                 "topics": [
                     {"ros2": out, "type": "std_msgs/msg/String"},
-                    {"ros2": back, "type": "std_msgs/msg/String", "direction": "from_peer"},
+                    {"ros2": back, "type": "nav_msgs/msg/Odometry", "direction": "from_peer"},
                 ],
             }
         )
@@ -424,12 +426,8 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
         peer(domain) as p,
     ):
         pub = p.node.create_publisher(String, out, 10)
-        got: list[str] = []
-
-        def on_back(msg: Any) -> None:
-            got.append(msg.data)
-
-        p.node.create_subscription(String, back, on_back, 10)
+        got: list[Any] = []
+        p.node.create_subscription(Odometry, back, got.append, 10)
         listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
         assert read_line(listener) == "ready"
         assert p.wait_for(lambda: pub.get_subscription_count() > 0, 30)
@@ -443,9 +441,21 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
 
         assert p.wait_for(arrived, 30), (tmp_path / "bridge.log").read_text()
         assert json.loads(seen[0])["data"] == "over dds"
-        ros1.python(NODE, "talk", back, "std_msgs/String", "m.String(data='r%d' % i)", "3", log="t")
+        ros1.python(
+            NODE,
+            "talk",
+            back,
+            "nav_msgs/Odometry",
+            "m.Odometry(header=std.Header(frame_id='odom'), child_frame_id='base_link',"
+            " pose=geo.PoseWithCovariance(covariance=[float(i)] * 36))",
+            "3",
+            log="t",
+        )
         assert p.wait_for(lambda: len(got) >= 3, 30)
-        assert got[:3] == ["r0", "r1", "r2"]
+        assert [(m.header.frame_id, m.child_frame_id) for m in got[:3]] == [
+            ("odom", "base_link")
+        ] * 3
+        assert [list(m.pose.covariance) for m in got[:3]] == [[float(i)] * 36 for i in range(3)]
 
 
 def test_type_learned_from_a_subscriber_when_definitions_differ(
@@ -542,3 +552,18 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
         got = json.loads(read_line(listener))
         assert got["width"] == 2 and got["data"]["len"] == 4
         bridge_node.close()
+
+
+def test_help_prints_usage_and_exits_0() -> None:
+    """``ros2 run rf_bridge rf_bridge --help`` as a user types it (the program it runs)."""
+    from ._ros import executable
+
+    program = executable("rf_bridge", "rf_bridge")
+    done = subprocess.run([program, "--help"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert "config:=bridge.yaml" in done.stdout and done.stderr == ""
+    wrong = subprocess.run([program, "--bogus"], capture_output=True, text=True, timeout=60)
+    assert wrong.returncode == 2
+    assert wrong.stderr.strip().splitlines()[-1] == (
+        "rf_bridge: error: unrecognized arguments: --bogus"
+    )

@@ -10,7 +10,7 @@ executor queues such messages and runs subscribers in its own thread.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from efficient_comm.handle import NodeHandle, Publisher
@@ -161,7 +161,23 @@ class BridgeNode:
                 self._node.logger.error(f"closing the {name} adapter raised {exc!r}")
 
 
-def main() -> int:
+def main(argv: Sequence[str] | None = None) -> int:
+    """``rf_bridge --ros-args -p config:=bridge.yaml``: the bridge as its own process."""
+    import argparse
+    import sys
+
+    from rclpy.utilities import remove_ros_args
+
+    args = list(sys.argv if argv is None else argv)
+    parser = argparse.ArgumentParser(
+        prog="rf_bridge",
+        usage="rf_bridge [-h] --ros-args -p config:=bridge.yaml",
+        description="Bridge ROS 2 topics to a ROS 1 system and to other robots "
+        "(docs/RF_BRIDGE.md).",
+        epilog="The bridge file lists the topics, the ROS 1 master and the team link "
+        "(format: docs/RF_BRIDGE.md, rf_bridge/config.py).",
+    )
+    parser.parse_args(remove_ros_args(args)[1:])
     from efficient_comm.standalone import run
 
-    return run(BridgeNode, name="rf_bridge")
+    return run(BridgeNode, name="rf_bridge", args=args)
