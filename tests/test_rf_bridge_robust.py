@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import socket
 import struct
+import subprocess
 import threading
 from collections.abc import Iterator
 from typing import Any
@@ -17,8 +18,8 @@ from std_msgs.msg import String
 from efficient_comm.testing import unique_topic
 from rf_bridge.adapters.ros1.tcpros import encode_header, read_header
 from rf_bridge.adapters.ros1.xmlrpc import call
+from rf_bridge.testing import SYSTEM_PYTHON, Ros1System, wait_for
 from rf_bridge.testing import CapturedLogs as Logs
-from rf_bridge.testing import Ros1System, wait_for
 
 from .test_rf_bridge_ros1 import (
     NODE,
@@ -68,6 +69,63 @@ def test_master_restart_reregisters_without_restarting_the_bridge(
         ros1.python(NODE, "talk", inn, "std_msgs/String", "m.String(data='t%d' % i)", "3", log="t")
         assert spin_until(node, lambda: len(node.published(inn)) >= 3)
         assert [m.data for m in node.published(inn)] == ["t0", "t1", "t2"]
+    finally:
+        b.close()
+
+
+BAG = r"""
+import sys
+import genpy, rosbag
+from std_msgs.msg import String
+with rosbag.Bag(sys.argv[1], "w") as bag:
+    for i in range(20):
+        bag.write(sys.argv[2], String(data="roscpp %d" % i), genpy.Time(1, i * 50_000_000))
+"""
+
+
+def test_publishers_running_across_a_master_restart_keep_flowing(
+    ros1: Ros1System, logs: Logs
+) -> None:
+    """rospy (``rostopic pub``) and roscpp (``rosbag play``) publishers never register with
+    a restarted master; the bridge registers again and keeps its links to them, and lets a
+    link go only when its publisher is gone."""
+    from_rospy, from_roscpp = unique_topic("rospy"), unique_topic("roscpp")
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": t, "type": "std_msgs/msg/String", "direction": "from_peer"}
+            for t in (from_rospy, from_roscpp)
+        ],
+    )
+    adapter: Any = b.adapters["ros1"]
+    bag = ros1.workdir / "loop.bag"
+    subprocess.run([SYSTEM_PYTHON, "-c", BAG, str(bag), from_roscpp], env=ros1.env,
+                   check=True, timeout=60)
+    try:
+        rospy_pub = ros1.spawn(
+            ["rostopic", "pub", "-r", "50", from_rospy, "std_msgs/String", "data: rospy"],
+            log="pub",
+        )
+        ros1.spawn(["rosbag", "play", "-l", "-q", str(bag)], log="play")
+
+        def counts() -> tuple[int, int]:
+            return len(node.published(from_rospy)), len(node.published(from_roscpp))
+
+        assert spin_until(node, lambda: min(counts()) >= 5, 30), counts()
+        ros1.stop_master()
+        ros1.start_master()
+        assert wait_for(lambda: adapter.registrations >= 2, 20), "not registered again"
+        assert logs.wait("registering")
+        before = counts()
+        assert spin_until(
+            node, lambda: all(n >= m + 20 for n, m in zip(counts(), before, strict=True)), 30
+        ), (before, counts(), ros1.log_text("play"))
+        assert node.published(from_roscpp)[-1].data.startswith("roscpp ")
+        assert drops(b, from_rospy, "from_ros1") == {}
+        Ros1System.kill(rospy_pub)  # gone, and the new master never knew it
+        assert wait_for(lambda: not adapter._subs[from_rospy].links, 20)
+        assert logs.wait("is gone; link closed")
+        assert len(adapter._subs[from_roscpp].links) == 1
     finally:
         b.close()
 

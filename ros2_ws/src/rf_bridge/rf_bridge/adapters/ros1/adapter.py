@@ -4,6 +4,10 @@ It registers the bridge's publications and subscriptions with the master, serves
 ROS 1 subscribers and connects to ROS 1 publishers. A watchdog asks the master every
 ``master_check_s`` whether it still knows the bridge; after a master restart it registers
 everything again, so ROS 1 nodes started later find the bridged topics without a restart.
+rospy and roscpp nodes never register again after a restart, so the new master does not
+name the publishers that were already running: the bridge keeps its links to them (they
+still serve their topics) until one of them is gone, instead of dropping what the new
+master does not list.
 
 Every thread it starts ends when it is closed: :meth:`Ros1Adapter.close` unregisters, stops
 the links, shuts the listener (closing alone does not wake a thread blocked in ``accept``)
@@ -57,6 +61,9 @@ class _Subscription:
     route: Route
     ros1_type: str  # "*" when the type is learned from the publisher
     links: dict[str, InboundLink] = field(default_factory=dict)
+    #: Publishers linked before a master restart that the new master does not list (they
+    #: never register again): kept until their link fails, whatever the master says.
+    unlisted: set[str] = field(default_factory=set)
 
 
 class Ros1Adapter:
@@ -180,10 +187,14 @@ class Ros1Adapter:
     def _register_all(self) -> None:
         for topic, pub in self._pubs.items():
             call(self._master, "registerPublisher", self._caller_id, topic, pub.ros1_type, self.uri)
+        restarted = self.registrations > 0
         for topic, sub in self._subs.items():
             uris = call(
                 self._master, "registerSubscriber", self._caller_id, topic, sub.ros1_type, self.uri
             )
+            if restarted:
+                with self._lock:
+                    sub.unlisted |= set(sub.links) - set(uris)
             self._on_publishers(topic, list(uris))
         self.registrations += 1
         self._registered.set()
@@ -383,6 +394,8 @@ class Ros1Adapter:
         with self._lock:
             if self._stop.is_set():  # checked under the lock close() takes the links with
                 return
+            sub.unlisted -= wanted  # the master knows it (again)
+            wanted |= sub.unlisted & set(sub.links)
             if len(wanted) > MAX_PUBLISHERS_PER_TOPIC:
                 self._log.warning(
                     f"{topic}: {len(wanted)} publishers named; connected to "
@@ -396,12 +409,31 @@ class Ros1Adapter:
             for uri in wanted - set(sub.links):
                 sub.links[uri] = self._link(sub, uri)
 
+    def _forget_unlisted(self, sub: _Subscription, uri: str) -> None:
+        """A publisher the master does not list cannot be reached: it is gone, and no
+        ``publisherUpdate`` will say so, so its link ends here."""
+        with self._lock:
+            if uri not in sub.unlisted:
+                return
+            sub.unlisted.discard(uri)
+            link = sub.links.pop(uri, None)
+        if link is not None:
+            link.stop()
+            self._log.info(
+                f"{sub.route.peer_topic}: publisher {uri}, unknown to the restarted master, "
+                "is gone; link closed"
+            )
+
     def _link(self, sub: _Subscription, uri: str) -> InboundLink:
         route = sub.route
         state: dict[str, Any] = {}
 
         def request() -> tuple[str, int]:
-            value = call(uri, "requestTopic", self._caller_id, route.peer_topic, [["TCPROS"]])
+            try:
+                value = call(uri, "requestTopic", self._caller_id, route.peer_topic, [["TCPROS"]])
+            except LinkError:
+                self._forget_unlisted(sub, uri)
+                raise
             if not isinstance(value, list) or len(value) != 3 or value[0] != "TCPROS":
                 raise ProtocolError(f"publisher {uri} offered {value!r}, not TCPROS")
             return str(value[1]), int(value[2])
