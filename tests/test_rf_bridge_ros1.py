@@ -7,11 +7,11 @@ programs run on the system Python in their own sessions, against a master on a f
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import subprocess
 import time
-import uuid
 from collections.abc import Iterator
 from typing import Any
 
@@ -20,11 +20,10 @@ from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
-from efficient_comm import Container
-from efficient_comm.testing import ManualClock, TestHandle, isolated_domain_id, unique_topic
+from efficient_comm.testing import TestHandle, unique_topic
 from rf_bridge import BridgeNode, parse_config
 from rf_bridge.testing import CapturedLogs as Logs
-from rf_bridge.testing import LineReader, Ros1System, wait_for
+from rf_bridge.testing import LineReader, Ros1System, rclpy_test_handle, wait_for
 
 # A rospy node for the tests: "listen" prints each message as a JSON line; "talk" publishes
 # eval(expr) for i in range(count) once a subscriber is connected, then waits.
@@ -68,7 +67,8 @@ else:
     for i in range(count):
         pub.publish(eval(expr, {"i": i, "cls": cls, "m": module,
                           "std": importlib.import_module("std_msgs.msg"),
-                          "geo": importlib.import_module("geometry_msgs.msg")}))
+                          "geo": importlib.import_module("geometry_msgs.msg"),
+                          "rospy": rospy}))
         time.sleep(0.002)
     print("done", flush=True)
     while True:
@@ -87,32 +87,18 @@ def logs(capfd: pytest.CaptureFixture[str]) -> Logs:
     return Logs(capfd)
 
 
-_containers: list[Container] = []
+_handles = contextlib.ExitStack()
 
 
 def close_containers() -> Iterator[None]:
     """Close the DDS containers :func:`bridge` made (an autouse fixture in each module)."""
     yield
-    while _containers:
-        _containers.pop().close()
+    _handles.close()
 
 
 @pytest.fixture(autouse=True)
 def _close_containers() -> Iterator[None]:
     yield from close_containers()
-
-
-def ros2_handle(name: str = "rf_bridge") -> TestHandle:
-    """A TestHandle whose node is a real rclpy node (DDS, isolated domain, real logger)."""
-    container = Container(
-        f"rf_test_{uuid.uuid4().hex[:8]}",
-        dds=True,
-        domain_id=isolated_domain_id(),
-        clock=ManualClock(),
-        serve=False,
-    )
-    _containers.append(container)
-    return TestHandle(name, container=container)
 
 
 def read_line(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> str:
@@ -145,7 +131,7 @@ def bridge(
         }
     )
     assert not config.errors
-    node = ros2_handle()
+    node = _handles.enter_context(rclpy_test_handle())
     b = BridgeNode(node, config=config)
     adapter = b.adapters["ros1"]
     assert adapter.wait_registered(10.0)  # type: ignore[attr-defined]
@@ -502,6 +488,7 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
     import yaml
 
     from efficient_comm import Container
+    from efficient_comm.testing import isolated_domain_id
 
     topic = unique_topic("camera")
     bridge_file = tmp_path / "bridge.yaml"
@@ -529,7 +516,7 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
             }
         )
     )
-    with Container("robot", dds=False) as container:
+    with Container("robot", domain_id=isolated_domain_id()) as container:
         report = container.load_file(container_file)
         assert not report.errors, report.errors
         bridge_node: BridgeNode = report.loaded[0].instance
@@ -552,6 +539,70 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
         got = json.loads(read_line(listener))
         assert got["width"] == 2 and got["data"]["len"] == 4
         bridge_node.close()
+
+
+def test_values_the_other_side_cannot_hold(ros1: Ros1System, logs: Logs) -> None:
+    """One rule: an 8-bit ``byte`` crosses as the same octet (what the wire carries: ROS 2's
+    byte 200 is ROS 1's int8 -56 and back); any other value the receiving type cannot hold
+    (a ROS 1 time beyond 2^31 s, a negative ROS 2 time) drops that message, counted as
+    ``out_of_range`` and logged, and the connection carries on."""
+    from std_msgs.msg import Byte, Char, Header
+
+    byte_out, char_out, header_out = (unique_topic(n) for n in ("byte", "char", "header"))
+    byte_in, header_in = unique_topic("byte_in"), unique_topic("header_in")
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": byte_out, "type": "std_msgs/msg/Byte"},
+            {"ros2": char_out, "type": "std_msgs/msg/Char"},
+            {"ros2": header_out, "type": "std_msgs/msg/Header"},
+            {"ros2": byte_in, "type": "std_msgs/msg/Byte", "direction": "from_peer"},
+            {"ros2": header_in, "type": "std_msgs/msg/Header", "direction": "from_peer"},
+        ],
+    )
+    adapter: Any = b.adapters["ros1"]
+    try:
+        lb = connected_listener(ros1, adapter, byte_out, "std_msgs/Byte", log="lb")
+        lc = connected_listener(ros1, adapter, char_out, "std_msgs/Char", log="lc")
+        lh = connected_listener(ros1, adapter, header_out, "std_msgs/Header", log="lh")
+        node.inject(byte_out, Byte(data=b"\xc8"), Byte(data=b"\x05"))
+        node.inject(char_out, Char(data=200))
+        assert [json.loads(read_line(lb))["data"] for _ in range(2)] == [-56, 5]
+        assert json.loads(read_line(lc))["data"] == 200
+        late = Header(frame_id="before 1970")
+        late.stamp.sec = -5
+        node.inject(header_out, late, Header(frame_id="fine"))
+        assert json.loads(read_line(lh))["frame_id"] == "fine"
+        assert drops(b, header_out, "to_ros1") == {"out_of_range": 1}
+        assert logs.wait(f"not sent to ROS 1 {header_out}")
+
+        ros1.python(NODE, "talk", byte_in, "std_msgs/Byte", "m.Byte(data=-56 + i)", "2",
+                    log="tb")
+        ros1.python(
+            NODE,
+            "talk",
+            header_in,
+            "std_msgs/Header",
+            "m.Header(frame_id=str(i), stamp=rospy.Time(2**31 + 5 if i == 1 else 7, 0))",
+            "3",
+            log="th",
+        )
+        assert spin_until(
+            node, lambda: len(node.published(byte_in)) >= 2 and len(node.published(header_in)) >= 2
+        )
+        assert [m.data for m in node.published(byte_in)] == [b"\xc8", b"\xc9"]
+        assert [m.frame_id for m in node.published(header_in)] == [
+            "0", "2"
+        ]
+        assert drops(b, header_in, "from_ros1") == {"out_of_range": 1}
+        assert logs.wait(f"not delivered from ROS 1 {header_in}")
+    finally:
+        b.close()
+
+
+def drops(b: BridgeNode, topic: str, direction: str) -> dict[str, int]:
+    snap = next(s for s in b.stats() if s.topic == topic and s.direction == direction)
+    return dict(snap.drops)
 
 
 def test_help_prints_usage_and_exits_0() -> None:

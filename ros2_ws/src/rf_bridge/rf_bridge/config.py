@@ -23,7 +23,8 @@
         direction: to_peer             # to_peer | from_peer | both
         qos: {depth: 10, reliability: reliable, durability: volatile}
         throttle: {max_rate_hz: 5.0, every_nth: 1, mode: local}   # mode: local | publisher
-    types:                             # rules where names do not match
+    types:                             # rules where names do not match; a rule applies to
+                                       # the topics whose peer_type is its ros1 type
       - ros1: lab_msgs/Sighting
         ros2: geometry_msgs/msg/Vector3
         fields: {x: distance, y: bearing}   # ROS 2 field: ROS 1 field

@@ -59,7 +59,7 @@ class TeamAdapter:
         self._last_seen: dict[tuple[int, bytes, int], int] = {}
         self._lock = threading.Lock()
 
-    def start(self, routes: Sequence[Route], deliver: Deliver) -> None:
+    def start(self, routes: Sequence[Route], deliver: Deliver) -> Sequence[Route]:
         import zenoh
 
         conf = zenoh.Config()
@@ -94,6 +94,7 @@ class TeamAdapter:
                     )
                 )
         self._log.info(f"team link up as {self.options.robot_id}: {len(routes)} topic(s)")
+        return routes
 
     def send(self, route: Route, msg: Any, received_ns: int) -> None:
         pub = self._pubs.get(id(route))

@@ -28,7 +28,13 @@ from ..._log import Logger, RateLimitedLog
 from ...config import Ros1Options
 from ...core.adapter import Deliver, Route
 from ...core.qos import ros1_latch
-from ...errors import LinkError, ProtocolError, RfBridgeError, TranslationError
+from ...errors import (
+    LinkError,
+    OutOfRangeError,
+    ProtocolError,
+    RfBridgeError,
+    TranslationError,
+)
 from ...translate import Translator, TranslatorSet
 from .tcpros import InboundLink, OutboundConnection, encode_header, frame, read_header
 from .xmlrpc import MasterRefusedError, SlaveServer, call
@@ -89,7 +95,7 @@ class Ros1Adapter:
 
     # --- lifecycle ---------------------------------------------------------------------
 
-    def start(self, routes: Sequence[Route], deliver: Deliver) -> None:
+    def start(self, routes: Sequence[Route], deliver: Deliver) -> Sequence[Route]:
         self._deliver = deliver
         host = self.options.bind
         advertise = self.options.advertise_host or (host if host != "0.0.0.0" else "127.0.0.1")
@@ -106,18 +112,29 @@ class Ros1Adapter:
             subscriptions=lambda: [[t, s.ros1_type] for t, s in self._subs.items()],
             log=self._log,
         )
+        served: list[Route] = []
         for route in routes:
             try:
-                if route.spec.outbound:
-                    self._add_publication(route)
+                if (route.spec.outbound and route.peer_topic in self._pubs) or (
+                    route.spec.inbound and route.peer_topic in self._subs
+                ):
+                    raise RfBridgeError("another entry bridges it the same way")
+                publication = self._publication(route) if route.spec.outbound else None
                 if route.spec.inbound:
                     self._add_subscription(route)
+                if publication is not None:
+                    self._pubs[route.peer_topic] = publication
             except RfBridgeError as exc:
-                self._log.error(f"ROS 1 topic {route.peer_topic} not bridged: {exc}")
+                self._log.error(
+                    f"topic {route.spec.ros2_topic} not bridged: ROS 1 {route.peer_topic}: {exc}"
+                )
+                continue
+            served.append(route)
         for target, name in ((self._accept, "tcpros-accept"), (self._watch_master, "ros1-master")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
             self._threads.append(thread)
+        return served
 
     @property
     def uri(self) -> str:
@@ -165,10 +182,10 @@ class Ros1Adapter:
 
     # --- master --------------------------------------------------------------------------
 
-    def _add_publication(self, route: Route) -> None:
+    def _publication(self, route: Route) -> _Publication:
         ros1_type = self._translators.ros1_type_for(route.ros2_cls, route.spec.peer_type)
         registry = self._translators.registry
-        pub = _Publication(
+        return _Publication(
             route=route,
             ros1_type=ros1_type,
             md5sum=registry.md5sum(ros1_type),
@@ -176,7 +193,6 @@ class Ros1Adapter:
             translator=self._translators.translator(ros1_type, route.ros2_cls),
             latch=ros1_latch(route.spec.qos),
         )
-        self._pubs[route.peer_topic] = pub
 
     def _add_subscription(self, route: Route) -> None:
         ros1_type = route.spec.peer_type
@@ -237,6 +253,10 @@ class Ros1Adapter:
             return
         try:
             payload = self._translators.codec.encode(pub.ros1_type, pub.translator.to_ros1(msg))
+        except OutOfRangeError as exc:
+            route.stats_out.dropped("out_of_range")
+            self._log.warning(f"not sent to ROS 1 {route.peer_topic}: {exc}")
+            return
         except (TranslationError, ProtocolError, TypeError, ValueError, KeyError) as exc:
             route.stats_out.dropped("untranslatable")
             self._log.error(f"cannot translate a message for ROS 1 {route.peer_topic}: {exc}")
@@ -466,15 +486,23 @@ class Ros1Adapter:
         codec = self._translators.codec
 
         def on_frame(payload: bytes) -> None:
+            """One message: a malformed frame drops the connection (the stream may be out
+            of step); a message that does not translate is dropped and counted, and the
+            connection carries on with the next one."""
             received = time.perf_counter_ns()
             try:
                 msg = state["translator"].to_ros2(codec.decode(state["type"], payload))
             except ProtocolError:
                 route.stats_in.dropped("malformed")
                 raise
-            except TranslationError:
+            except OutOfRangeError as exc:
+                route.stats_in.dropped("out_of_range")
+                self._log.warning(f"not delivered from ROS 1 {route.peer_topic}: {exc}")
+                return
+            except TranslationError as exc:
                 route.stats_in.dropped("untranslatable")
-                raise
+                self._log.error(f"cannot translate a message from ROS 1 {route.peer_topic}: {exc}")
+                return
             deliver(route, msg, received, len(payload))
 
         def on_oversize() -> None:
