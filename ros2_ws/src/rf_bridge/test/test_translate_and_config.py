@@ -89,7 +89,7 @@ def test_defaults_bind_loopback() -> None:
     [
         ("ros1", "max_message_bytes", 0),
         ("ros1", "queue_size", -1),
-        ("ros1", "send_timeout_s", 0.0),
+        ("ros1", "queue_size", 0),
         ("ros1", "master_check_s", 0),
         ("ros1", "advertise_host", 5),
         ("team", "lease_s", 0),

@@ -350,7 +350,6 @@ class Ros1Adapter:
             peer=peer,
             topic=topic,
             queue_size=self.options.queue_size,
-            send_timeout_s=self.options.send_timeout_s,
             on_undelivered=stats.dropped,
             on_closed=lambda c: self._remove(pub, c),
             log=self._log,
