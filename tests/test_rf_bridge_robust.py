@@ -236,7 +236,7 @@ def test_subscriber_that_stops_reading_gets_data_again_when_it_reads(
         assert logs.wait("is not keeping up")
         os.killpg(slow.pid, signal.SIGCONT)
         node.inject(topic, Image(height=1, width=1, encoding="mono8", step=1, data=b"\x07"))
-        seen = []
+        seen: list[int] = []
         while not seen or seen[-1] != 1:
             seen.append(json.loads(read_line(slow, 30))["height"])
         assert set(seen[:-1]) <= {512} and len(seen) < 41  # what it missed was dropped
