@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import signal
 import socket
 import struct
 import subprocess
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 from xmlrpc.server import SimpleXMLRPCServer
@@ -394,6 +396,38 @@ def test_idle_connections_hold_handshakes_for_a_bounded_time(ros1: Ros1System, l
     finally:
         for s in idle:
             s.close()
+        b.close()
+
+
+def test_a_header_trickled_a_byte_at_a_time_is_cut_off(
+    ros1: Ros1System, logs: Logs, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A byte every 200 ms resets every per-read timeout; the handshake's total deadline
+    closes the connection anyway."""
+    from rf_bridge.adapters.ros1 import adapter as ros1_adapter
+
+    monkeypatch.setattr(ros1_adapter, "HANDSHAKE_TIMEOUT_S", 1.0)
+    topic = unique_topic("out")
+    _, b = bridge(ros1, [{"ros2": topic, "type": "std_msgs/msg/String"}])
+    header = encode_header({"topic": topic, "md5sum": "*", "callerid": "/slow"})
+    try:
+        start = time.monotonic()
+        with socket.create_connection(("127.0.0.1", tcpros_port(b.adapters["ros1"], topic)),
+                                      timeout=5) as slow:
+            closed = False
+            for byte in header:
+                try:
+                    slow.sendall(bytes((byte,)))
+                except OSError:
+                    closed = True
+                    break
+                readable, _, _ = select.select([slow], [], [], 0.2)
+                if readable:
+                    closed = slow.recv(100) == b""
+                    break
+        assert closed and 0.9 < time.monotonic() - start < 3.0
+        assert logs.wait("no header within 1 s")
+    finally:
         b.close()
 
 

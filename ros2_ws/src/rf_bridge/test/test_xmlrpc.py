@@ -4,8 +4,10 @@ connections closed, replies of unbounded size refused (no ROS 1 system needed)."
 from __future__ import annotations
 
 import http.client
+import select
 import socket
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -119,3 +121,32 @@ def test_reply_larger_than_the_limit_is_a_link_error() -> None:
         with pytest.raises(LinkError, match="reply larger than"):
             xmlrpc.call(f"http://127.0.0.1:{port}/", "getPid", "/m")
         thread.join(timeout=10)
+
+
+def test_a_trickling_client_is_cut_off_at_the_total_deadline(
+    server: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A byte every 200 ms never trips the idle timeout (5 s); the total deadline closes
+    the connection anyway, and its slot serves others again."""
+    slave, records, _ = server
+    monkeypatch.setattr(xmlrpc, "XMLRPC_DEADLINE_S", 1.0)
+    port = int(slave.uri.rsplit(":", 1)[1].strip("/"))
+    request = b"POST /RPC2 HTTP/1.0\r\nContent-Type: text/xml\r\nX-Slow: " + b"a" * 100
+    start = time.monotonic()
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as slow:
+        closed = False
+        for byte in request:
+            try:
+                slow.sendall(bytes((byte,)))
+            except OSError:  # reset by the server
+                closed = True
+                break
+            readable, _, _ = select.select([slow], [], [], 0.2)
+            if readable:
+                closed = slow.recv(100) == b""
+                break
+        elapsed = time.monotonic() - start
+    assert closed, "the server kept the trickling connection open"
+    assert 0.9 < elapsed < 3.0, elapsed
+    assert records.wait("not done within 1 s")
+    assert xmlrpc.call(slave.uri, "getPid", "/m") > 0

@@ -36,11 +36,13 @@ from ...errors import (
     TranslationError,
 )
 from ...translate import Translator, TranslatorSet
+from ._deadline import deadline
 from .tcpros import InboundLink, OutboundConnection, encode_header, frame, read_header
 from .xmlrpc import MasterRefusedError, SlaveServer, call
 
 #: TCPROS handshakes in progress at once; a peer opening connections without sending a
-#: header holds one for at most the handshake timeout, further connections are refused.
+#: header (or trickling it) holds one for at most the handshake timeout in all, further
+#: connections are refused.
 MAX_HANDSHAKES = 32
 HANDSHAKE_TIMEOUT_S = 5.0
 #: Publishers of one topic the bridge connects to; a publisherUpdate naming more (a real
@@ -302,9 +304,11 @@ class Ros1Adapter:
     def _handshake(self, sock: socket.socket, addr: Any) -> None:
         sock.settimeout(HANDSHAKE_TIMEOUT_S)
         try:
-            header = read_header(sock)
+            with deadline(sock, HANDSHAKE_TIMEOUT_S) as expired:
+                header = read_header(sock)
         except (OSError, LinkError, ProtocolError) as exc:
-            self._log.warning(f"rejecting TCPROS connection from {addr[0]}:{addr[1]}: {exc}")
+            reason = f"no header within {HANDSHAKE_TIMEOUT_S:g} s" if expired.is_set() else exc
+            self._log.warning(f"rejecting TCPROS connection from {addr[0]}:{addr[1]}: {reason}")
             sock.close()
             return
         finally:
