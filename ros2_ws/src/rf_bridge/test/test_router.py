@@ -182,3 +182,28 @@ def test_a_topic_the_ros1_side_refuses_is_not_counted_as_bridged(
         assert refused not in dict(_handles[0].rclpy_node.get_topic_names_and_types())
     finally:
         bridge.close()
+
+
+class EagerAdapter(FakeAdapter):
+    """A peer that sends at once: a sample arrives while the adapter is still starting
+    (the team link's subscribers are live as soon as they are declared)."""
+
+    def start(self, routes: Sequence[Route], deliver: Deliver) -> Sequence[Route]:
+        for route in routes:
+            deliver(route, String(data="early"), 0, 5)
+        return super().start(routes, deliver)
+
+
+def test_samples_arriving_while_the_adapters_start_are_published() -> None:
+    topic = unique_topic()
+    config = parse_config(
+        {
+            "ros1": {"master_uri": "http://127.0.0.1:1/"},
+            "topics": [{"ros2": topic, "type": "std_msgs/msg/String", "direction": "from_peer"}],
+        }
+    )
+    node = _handles[0]
+    bridge = BridgeNode(node, config=config, adapters={"ros1": EagerAdapter()})
+    node.spin_some()
+    assert [m.data for m in node.published(topic)] == ["early"]
+    assert bridge.stats()[0].messages == 1
