@@ -79,7 +79,7 @@ class BridgeNode:
             self.router.add(route)
             if route.spec.outbound:
                 self._subscribe(route)
-        skipped = len(config.topics) - len(self.routes)
+        skipped = len(config.errors) + len(config.topics) - len(self.routes)
         node.logger.info(
             f"rf_bridge: {len(self.routes)} topic(s) bridged with {sorted(self.adapters)}"
             + (f"; {skipped} not bridged (see above)" if skipped else "")
