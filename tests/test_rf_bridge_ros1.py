@@ -1,11 +1,13 @@
 """rf_bridge against a real ROS 1 system: Debian's rosmaster, rospy, rostopic and rosbag.
 
-The bridge runs in this process on a TestHandle (the ROS 2 side without DDS); ROS 1 programs
-run on the system Python in their own sessions, against a master on a free port.
+The bridge runs in this process on a TestHandle in a container with DDS (an isolated
+domain), so it logs through rclpy's real loggers, whose console output the tests read; ROS 1
+programs run on the system Python in their own sessions, against a master on a free port.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import subprocess
@@ -20,7 +22,8 @@ from std_msgs.msg import String
 
 from efficient_comm.testing import TestHandle, unique_topic
 from rf_bridge import BridgeNode, parse_config
-from rf_bridge.testing import LineReader, Ros1System, wait_for
+from rf_bridge.testing import CapturedLogs as Logs
+from rf_bridge.testing import LineReader, Ros1System, rclpy_test_handle, wait_for
 
 # A rospy node for the tests: "listen" prints each message as a JSON line; "talk" publishes
 # eval(expr) for i in range(count) once a subscriber is connected, then waits.
@@ -63,7 +66,9 @@ else:
     print("ready", flush=True)
     for i in range(count):
         pub.publish(eval(expr, {"i": i, "cls": cls, "m": module,
-                          "std": importlib.import_module("std_msgs.msg")}))
+                          "std": importlib.import_module("std_msgs.msg"),
+                          "geo": importlib.import_module("geometry_msgs.msg"),
+                          "rospy": rospy}))
         time.sleep(0.002)
     print("done", flush=True)
     while True:
@@ -75,6 +80,25 @@ else:
 def ros1() -> Iterator[Ros1System]:
     with Ros1System() as system:
         yield system
+
+
+@pytest.fixture
+def logs(capfd: pytest.CaptureFixture[str]) -> Logs:
+    return Logs(capfd)
+
+
+_handles = contextlib.ExitStack()
+
+
+def close_containers() -> Iterator[None]:
+    """Close the DDS containers :func:`bridge` made (an autouse fixture in each module)."""
+    yield
+    _handles.close()
+
+
+@pytest.fixture(autouse=True)
+def _close_containers() -> Iterator[None]:
+    yield from close_containers()
 
 
 def read_line(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> str:
@@ -107,7 +131,7 @@ def bridge(
         }
     )
     assert not config.errors
-    node = TestHandle("rf_bridge")
+    node = _handles.enter_context(rclpy_test_handle())
     b = BridgeNode(node, config=config)
     adapter = b.adapters["ros1"]
     assert adapter.wait_registered(10.0)  # type: ignore[attr-defined]
@@ -355,15 +379,16 @@ def test_rostopic_echo_hz_and_rosbag_record_and_play(ros1: Ros1System) -> None:
 
 
 def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any) -> None:
-    """The bridge as its own process (``ros2 run rf_bridge rf_bridge``): a ROS 2 peer over
-    DDS on one side, rospy on the other, both directions."""
+    """The README's example as a user runs it (``ros2 run rf_bridge rf_bridge``): a String
+    to ROS 1 and nav_msgs/Odometry from a rospy publisher, a ROS 2 peer over DDS."""
     import yaml
+    from nav_msgs.msg import Odometry  # type: ignore[import-untyped]
 
     from efficient_comm.testing import isolated_domain_id
 
     from ._ros import child, executable, peer
 
-    out, back = unique_topic("out"), unique_topic("back")
+    out, back = unique_topic("chatter"), unique_topic("odom")
     config = tmp_path / "bridge.yaml"
     config.write_text(
         yaml.safe_dump(
@@ -371,7 +396,7 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
                 "ros1": {"master_uri": ros1.master_uri, "node_name": unique_topic("rf_bridge")},
                 "topics": [
                     {"ros2": out, "type": "std_msgs/msg/String"},
-                    {"ros2": back, "type": "std_msgs/msg/String", "direction": "from_peer"},
+                    {"ros2": back, "type": "nav_msgs/msg/Odometry", "direction": "from_peer"},
                 ],
             }
         )
@@ -387,12 +412,8 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
         peer(domain) as p,
     ):
         pub = p.node.create_publisher(String, out, 10)
-        got: list[str] = []
-
-        def on_back(msg: Any) -> None:
-            got.append(msg.data)
-
-        p.node.create_subscription(String, back, on_back, 10)
+        got: list[Any] = []
+        p.node.create_subscription(Odometry, back, got.append, 10)
         listener = ros1.python(NODE, "listen", out, "std_msgs/String", log="l")
         assert read_line(listener) == "ready"
         assert p.wait_for(lambda: pub.get_subscription_count() > 0, 30)
@@ -406,26 +427,56 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
 
         assert p.wait_for(arrived, 30), (tmp_path / "bridge.log").read_text()
         assert json.loads(seen[0])["data"] == "over dds"
-        ros1.python(NODE, "talk", back, "std_msgs/String", "m.String(data='r%d' % i)", "3", log="t")
+        ros1.python(
+            NODE,
+            "talk",
+            back,
+            "nav_msgs/Odometry",
+            "m.Odometry(header=std.Header(frame_id='odom'), child_frame_id='base_link',"
+            " pose=geo.PoseWithCovariance(covariance=[float(i)] * 36))",
+            "3",
+            log="t",
+        )
         assert p.wait_for(lambda: len(got) >= 3, 30)
-        assert got[:3] == ["r0", "r1", "r2"]
+        assert [(m.header.frame_id, m.child_frame_id) for m in got[:3]] == [
+            ("odom", "base_link")
+        ] * 3
+        assert [list(m.pose.covariance) for m in got[:3]] == [[float(i)] * 36 for i in range(3)]
 
 
-def test_type_learned_from_a_subscriber_when_ros2_changed_it(ros1: Ros1System) -> None:
-    """ROS 2's NavSatStatus gained a constant, so the twin derived from it has another md5sum
-    than ROS 1's; the bridge adopts the definition the rospy subscriber sends."""
-    from sensor_msgs.msg import NavSatStatus
+def test_type_learned_from_a_subscriber_when_definitions_differ(
+    ros1: Ros1System, logs: Logs
+) -> None:
+    """A rule's ROS 1 definition that is out of date (the ROS 1 type gained a field): the
+    bridge adopts the definition the rospy subscriber sends, as ROS 1 defines ROS 1 types."""
+    from geometry_msgs.msg import Vector3
 
-    topic = unique_topic("gps_status")
-    node, b = bridge(ros1, [{"ros2": topic, "type": "sensor_msgs/msg/NavSatStatus"}])
+    topic = unique_topic("sightings")
+    node, b = bridge(
+        ros1,
+        [{"ros2": topic, "type": "geometry_msgs/msg/Vector3", "peer_type": "lab_msgs/Sighting"}],
+        types=[
+            {
+                "ros1": "lab_msgs/Sighting",
+                "ros2": "geometry_msgs/msg/Vector3",
+                "fields": {"x": "distance", "y": "bearing"},
+                "ros1_definition": "float64 distance\nfloat64 bearing\n",
+            }
+        ],
+    )
     adapter: Any = b.adapters["ros1"]
     try:
         derived = adapter._pubs[topic].md5sum
-        listener = connected_listener(ros1, adapter, topic, "sensor_msgs/NavSatStatus")
+        listener = ros1.python(NODE, "listen", topic, "lab_msgs/Sighting", "", "0", SIGHTING,
+                               log="l")
+        assert read_line(listener) == "ready"
+        assert wait_for(lambda: bool(adapter._pubs[topic].connections), 20)
         assert adapter._pubs[topic].md5sum != derived
-        node.inject(topic, NavSatStatus(status=NavSatStatus.STATUS_SBAS_FIX, service=5))
-        assert json.loads(read_line(listener)) == {"status": 1, "service": 5}
-        assert any("learned sensor_msgs/NavSatStatus" in t for _, t in node.records)
+        node.inject(topic, Vector3(x=2.5, y=-0.25))
+        assert json.loads(read_line(listener)) == {
+            "label": "", "distance": 2.5, "bearing": -0.25
+        }
+        assert logs.wait("learned lab_msgs/Sighting")
     finally:
         b.close()
 
@@ -437,6 +488,7 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
     import yaml
 
     from efficient_comm import Container
+    from efficient_comm.testing import isolated_domain_id
 
     topic = unique_topic("camera")
     bridge_file = tmp_path / "bridge.yaml"
@@ -464,7 +516,7 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
             }
         )
     )
-    with Container("robot", dds=False) as container:
+    with Container("robot", domain_id=isolated_domain_id()) as container:
         report = container.load_file(container_file)
         assert not report.errors, report.errors
         bridge_node: BridgeNode = report.loaded[0].instance
@@ -487,3 +539,82 @@ def test_composed_from_a_container_file(ros1: Ros1System, tmp_path: Any) -> None
         got = json.loads(read_line(listener))
         assert got["width"] == 2 and got["data"]["len"] == 4
         bridge_node.close()
+
+
+def test_values_the_other_side_cannot_hold(ros1: Ros1System, logs: Logs) -> None:
+    """One rule: an 8-bit ``byte`` crosses as the same octet (what the wire carries: ROS 2's
+    byte 200 is ROS 1's int8 -56 and back); any other value the receiving type cannot hold
+    (a ROS 1 time beyond 2^31 s, a negative ROS 2 time) drops that message, counted as
+    ``out_of_range`` and logged, and the connection carries on."""
+    from std_msgs.msg import Byte, Char, Header
+
+    byte_out, char_out, header_out = (unique_topic(n) for n in ("byte", "char", "header"))
+    byte_in, header_in = unique_topic("byte_in"), unique_topic("header_in")
+    node, b = bridge(
+        ros1,
+        [
+            {"ros2": byte_out, "type": "std_msgs/msg/Byte"},
+            {"ros2": char_out, "type": "std_msgs/msg/Char"},
+            {"ros2": header_out, "type": "std_msgs/msg/Header"},
+            {"ros2": byte_in, "type": "std_msgs/msg/Byte", "direction": "from_peer"},
+            {"ros2": header_in, "type": "std_msgs/msg/Header", "direction": "from_peer"},
+        ],
+    )
+    adapter: Any = b.adapters["ros1"]
+    try:
+        lb = connected_listener(ros1, adapter, byte_out, "std_msgs/Byte", log="lb")
+        lc = connected_listener(ros1, adapter, char_out, "std_msgs/Char", log="lc")
+        lh = connected_listener(ros1, adapter, header_out, "std_msgs/Header", log="lh")
+        node.inject(byte_out, Byte(data=b"\xc8"), Byte(data=b"\x05"))
+        node.inject(char_out, Char(data=200))
+        assert [json.loads(read_line(lb))["data"] for _ in range(2)] == [-56, 5]
+        assert json.loads(read_line(lc))["data"] == 200
+        late = Header(frame_id="before 1970")
+        late.stamp.sec = -5
+        node.inject(header_out, late, Header(frame_id="fine"))
+        assert json.loads(read_line(lh))["frame_id"] == "fine"
+        assert drops(b, header_out, "to_ros1") == {"out_of_range": 1}
+        assert logs.wait(f"not sent to ROS 1 {header_out}")
+
+        ros1.python(NODE, "talk", byte_in, "std_msgs/Byte", "m.Byte(data=-56 + i)", "2",
+                    log="tb")
+        ros1.python(
+            NODE,
+            "talk",
+            header_in,
+            "std_msgs/Header",
+            "m.Header(frame_id=str(i), stamp=rospy.Time(2**31 + 5 if i == 1 else 7, 0))",
+            "3",
+            log="th",
+        )
+        assert spin_until(
+            node, lambda: len(node.published(byte_in)) >= 2 and len(node.published(header_in)) >= 2
+        )
+        assert [m.data for m in node.published(byte_in)] == [b"\xc8", b"\xc9"]
+        assert [m.frame_id for m in node.published(header_in)] == [
+            "0", "2"
+        ]
+        assert drops(b, header_in, "from_ros1") == {"out_of_range": 1}
+        assert logs.wait(f"not delivered from ROS 1 {header_in}")
+    finally:
+        b.close()
+
+
+def drops(b: BridgeNode, topic: str, direction: str) -> dict[str, int]:
+    snap = next(s for s in b.stats() if s.topic == topic and s.direction == direction)
+    return dict(snap.drops)
+
+
+def test_help_prints_usage_and_exits_0() -> None:
+    """``ros2 run rf_bridge rf_bridge --help`` as a user types it (the program it runs)."""
+    from ._ros import executable
+
+    program = executable("rf_bridge", "rf_bridge")
+    done = subprocess.run([program, "--help"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert "config:=bridge.yaml" in done.stdout and done.stderr == ""
+    wrong = subprocess.run([program, "--bogus"], capture_output=True, text=True, timeout=60)
+    assert wrong.returncode == 2
+    assert wrong.stderr.strip().splitlines()[-1] == (
+        "rf_bridge: error: unrecognized arguments: --bogus"
+    )

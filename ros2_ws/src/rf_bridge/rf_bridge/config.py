@@ -7,6 +7,7 @@
       node_name: /rf_bridge
       bind: 127.0.0.1                  # listeners (XML-RPC, TCPROS); 0.0.0.0 to open up
       max_message_bytes: 67108864      # larger frames drop that connection
+      queue_size: 100                  # per ROS 1 subscriber; older messages dropped beyond
     team:                              # optional: robot-to-robot link (Zenoh)
       robot_id: robot1
       listen: [tcp/127.0.0.1:7447]
@@ -23,7 +24,8 @@
         direction: to_peer             # to_peer | from_peer | both
         qos: {depth: 10, reliability: reliable, durability: volatile}
         throttle: {max_rate_hz: 5.0, every_nth: 1, mode: local}   # mode: local | publisher
-    types:                             # rules where names do not match
+    types:                             # rules where names do not match; a rule applies to
+                                       # the topics whose peer_type is its ros1 type
       - ros1: lab_msgs/Sighting
         ros2: geometry_msgs/msg/Vector3
         fields: {x: distance, y: bearing}   # ROS 2 field: ROS 1 field
@@ -63,7 +65,6 @@ class Ros1Options:
     bind: str = "127.0.0.1"
     advertise_host: str | None = None  # what peers are told to connect to; default: bind
     max_message_bytes: int = 64 << 20
-    send_timeout_s: float = 2.0
     queue_size: int = 100
     master_check_s: float = 0.5
 
@@ -201,7 +202,6 @@ def _ros1(value: Any, where: str) -> Ros1Options:
         bind=_typed(m.get("bind", "127.0.0.1"), str, f"{where}.bind"),
         advertise_host=advertise,
         max_message_bytes=_positive(m, "max_message_bytes", 64 << 20, int, where),
-        send_timeout_s=_positive(m, "send_timeout_s", 2.0, float, where),
         queue_size=_positive(m, "queue_size", 100, int, where),
         master_check_s=_positive(m, "master_check_s", 0.5, float, where),
     )

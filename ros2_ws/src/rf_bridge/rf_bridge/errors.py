@@ -5,7 +5,8 @@
     RfBridgeError
     ├── ConfigError          a bridge file or option is wrong (names the file and entry)
     ├── TranslationError     a message cannot be mapped between two systems' types
-    │   └── UnknownTypeError no definition (ROS 1) or no importable class (ROS 2) for a type
+    │   ├── UnknownTypeError no definition (ROS 1) or no importable class (ROS 2) for a type
+    │   └── OutOfRangeError  a value the other side's type cannot hold (dropped, counted)
     ├── ProtocolError        a peer sent bytes that break the wire protocol (TCPROS, XML-RPC)
     │   └── OversizeError    a frame larger than the configured limit
     └── LinkError            an external system cannot be reached (master down, peer gone)
@@ -28,6 +29,10 @@ class TranslationError(RfBridgeError):
 
 
 class UnknownTypeError(TranslationError):
+    pass
+
+
+class OutOfRangeError(TranslationError):
     pass
 
 

@@ -1,4 +1,5 @@
-"""Test helpers: a real ROS 1 system (Debian's rosmaster and rospy) for bridge tests.
+"""Test helpers: a real ROS 1 system (Debian's rosmaster and rospy) for bridge tests, a
+test handle on a real rclpy node, and the log lines rclpy's loggers wrote.
 
 ROS 1 runs on the system Python (``/usr/bin/python3``) with a clean environment, never in
 the ROS 2 virtual environment; its master listens on 127.0.0.1 on a free ephemeral port.
@@ -17,9 +18,14 @@ import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+import uuid
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from types import TracebackType
+from typing import Any, Protocol
+
+from efficient_comm import Container
+from efficient_comm.testing import ManualClock, TestHandle, isolated_domain_id
 
 from .adapters.ros1.xmlrpc import call
 from .errors import LinkError
@@ -42,6 +48,47 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float, *, poll_s: float =
             return predicate()
         time.sleep(poll_s)
     return True
+
+
+@contextlib.contextmanager
+def rclpy_test_handle(name: str = "rf_bridge") -> Iterator[TestHandle]:
+    """A :class:`TestHandle` whose node is a real rclpy node (DDS in an isolated domain,
+    manual clock): what the bridge logs goes through rclpy's real logger, as in production.
+    """
+    with Container(
+        f"rf_test_{uuid.uuid4().hex[:8]}",
+        dds=True,
+        domain_id=isolated_domain_id(),
+        clock=ManualClock(),
+        serve=False,
+    ) as container:
+        yield TestHandle(name, container=container)
+
+
+class _Capture(Protocol):
+    def readouterr(self) -> Any: ...
+
+
+class CapturedLogs:
+    """What rclpy's real loggers of this process wrote, read from pytest's ``capfd``.
+
+    rcutils writes every record to the process's stderr; tests of the bridge assert on
+    those lines instead of logging into a recording double, so they see what rclpy's
+    logger does (it refuses, for example, one call site logging at two severities).
+    """
+
+    def __init__(self, capfd: _Capture) -> None:
+        self._capfd = capfd
+        self._text = ""
+
+    def text(self) -> str:
+        """Everything logged so far (stderr of the process since the capture began)."""
+        self._text += self._capfd.readouterr().err
+        return self._text
+
+    def wait(self, needle: str, timeout_s: float = 10.0) -> bool:
+        """True once a logged line contains ``needle``; False after ``timeout_s``."""
+        return wait_for(lambda: needle in self.text(), timeout_s, poll_s=0.05)
 
 
 class LineReader:

@@ -8,14 +8,16 @@ import zlib
 from dataclasses import dataclass
 from typing import Any
 
+import pytest
+import rclpy.logging
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
-from efficient_comm.composed import RecordingLogger
 from rf_bridge import parse_config
 from rf_bridge.adapters.team import _ATTACHMENT, _ZLIB, TeamAdapter
 from rf_bridge.core.adapter import Route
 from rf_bridge.core.stats import TopicStats
+from rf_bridge.testing import CapturedLogs
 
 
 @dataclass
@@ -32,7 +34,7 @@ class Sample:
     attachment: Bytes | None
 
 
-def setup(limit: int) -> tuple[TeamAdapter, Route, RecordingLogger]:
+def setup(limit: int) -> tuple[TeamAdapter, Route]:
     config = parse_config(
         {
             "team": {"robot_id": "b", "max_message_bytes": limit},
@@ -40,18 +42,20 @@ def setup(limit: int) -> tuple[TeamAdapter, Route, RecordingLogger]:
         }
     )
     assert config.team is not None
-    records = RecordingLogger("/rf_bridge_test")
     spec = config.topics[0]
     route = Route(spec, String, TopicStats("/t", "to_team"), TopicStats("/t", "from_team"))
-    return TeamAdapter(config.team, records), route, records
+    return TeamAdapter(config.team, rclpy.logging.get_logger("rf_bridge_test")), route
 
 
 def sample(seq: int, payload: bytes, *, flags: int = 0) -> Sample:
     return Sample(Bytes(payload), Bytes(_ATTACHMENT.pack(seq, flags, 1) + b"a"))
 
 
-def test_samples_counted_and_a_decompression_bomb_stopped_at_the_limit() -> None:
-    adapter, route, records = setup(limit=4096)
+def test_samples_counted_and_a_decompression_bomb_stopped_at_the_limit(
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    records = CapturedLogs(capfd)
+    adapter, route = setup(limit=4096)
     delivered: list[Any] = []
 
     def deliver(route: Route, msg: Any, received_ns: int, nbytes: int) -> None:
@@ -66,13 +70,13 @@ def test_samples_counted_and_a_decompression_bomb_stopped_at_the_limit() -> None
     adapter._on_sample(route, sample(6, small), deliver)
     assert [m.data for m in delivered] == ["hello", "hello"]
     assert route.stats_in.snapshot().drops == {"oversize": 1, "malformed": 2, "lost": 2}
-    assert any("over max_message_bytes (4096)" in text for _, text in records.records)
+    assert records.wait("over max_message_bytes (4096)")
 
 
 def test_sender_table_is_bounded() -> None:
     from rf_bridge.adapters import team
 
-    adapter, route, _ = setup(limit=4096)
+    adapter, route = setup(limit=4096)
     small = serialize_message(String(data="x"))
     for robot in range(team._MAX_SENDERS + 10):
         attachment = _ATTACHMENT.pack(1, 0, 1) + f"robot{robot}".encode()

@@ -18,7 +18,8 @@ def test_rule_renames_fields_both_ways() -> None:
     rule = TypeRule(ros1="lab/Sighting", ros2="geometry_msgs/msg/Vector3",
                     fields={"x": "distance", "y": "bearing"}, ros1_definition=SIGHTING)
     ts = TranslatorSet([rule])
-    assert ts.ros1_type_for(Vector3) == "lab/Sighting"
+    assert ts.ros1_type_for(Vector3, "lab/Sighting") == "lab/Sighting"
+    assert ts.ros1_type_for(Vector3) == "geometry_msgs/Vector3"  # a topic naming no type
     assert ts.ros2_class_for("lab/Sighting") is Vector3
     tr = ts.translator("lab/Sighting", Vector3)
     msg = tr.to_ros2({"label": "ball", "distance": 2.0, "bearing": 0.5})
@@ -89,7 +90,7 @@ def test_defaults_bind_loopback() -> None:
     [
         ("ros1", "max_message_bytes", 0),
         ("ros1", "queue_size", -1),
-        ("ros1", "send_timeout_s", 0.0),
+        ("ros1", "queue_size", 0),
         ("ros1", "master_check_s", 0),
         ("ros1", "advertise_host", 5),
         ("team", "lease_s", 0),

@@ -4,23 +4,27 @@ connections closed, replies of unbounded size refused (no ROS 1 system needed)."
 from __future__ import annotations
 
 import http.client
+import select
 import socket
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
+import rclpy.logging
 
-from efficient_comm.composed import RecordingLogger
 from rf_bridge._log import RateLimitedLog
 from rf_bridge.adapters.ros1 import xmlrpc
 from rf_bridge.errors import LinkError
-from rf_bridge.testing import wait_for
+from rf_bridge.testing import CapturedLogs, wait_for
 
 
 @pytest.fixture
-def server() -> Iterator[tuple[xmlrpc.SlaveServer, RecordingLogger, list[Any]]]:
-    records = RecordingLogger("/rf_bridge_test")
+def server(
+    capfd: pytest.CaptureFixture[str],
+) -> Iterator[tuple[xmlrpc.SlaveServer, CapturedLogs, list[Any]]]:
+    records = CapturedLogs(capfd)
     updates: list[Any] = []
     slave = xmlrpc.SlaveServer(
         host="127.0.0.1",
@@ -30,7 +34,7 @@ def server() -> Iterator[tuple[xmlrpc.SlaveServer, RecordingLogger, list[Any]]]:
         on_request=lambda topic, protocols: ["TCPROS", "127.0.0.1", 1],
         publications=list,
         subscriptions=list,
-        log=RateLimitedLog(records),
+        log=RateLimitedLog(rclpy.logging.get_logger("rf_bridge_test")),
     )
     try:
         yield slave, records, updates
@@ -47,7 +51,7 @@ def test_arguments_are_checked_before_the_adapter_sees_them(server: Any) -> None
     with pytest.raises(xmlrpc.MasterRefusedError, match="bad arguments"):
         xmlrpc.call(slave.uri, "requestTopic", "/m", ["/t"], [["TCPROS"]])
     assert updates == [("/t", ["http://127.0.0.1:2/"])]
-    assert any("refusing an XML-RPC call from '/m'" in text for _, text in records.records)
+    assert records.wait("refusing an XML-RPC call from '/m'")
 
 
 def test_oversize_request_refused_before_it_is_read(server: Any) -> None:
@@ -59,7 +63,7 @@ def test_oversize_request_refused_before_it_is_read(server: Any) -> None:
     conn.endheaders()  # no body follows: the answer must not wait for it
     assert conn.getresponse().status == 413
     conn.close()
-    assert any("refusing an XML-RPC request" in text for _, text in records.records)
+    assert records.wait("refusing an XML-RPC request")
     assert xmlrpc.call(slave.uri, "getPid", "/m") > 0  # still serving
 
 
@@ -82,7 +86,7 @@ def test_connections_beyond_the_limit_are_refused(server: Any) -> None:
     try:  # the server accepts in order: the held ones took every slot before this one
         with socket.create_connection(("127.0.0.1", port), timeout=5) as extra:
             assert extra.recv(100) == b""
-        assert any("already open" in text for _, text in records.records)
+        assert records.wait("already open")
     finally:
         for s in held:
             s.close()
@@ -117,3 +121,32 @@ def test_reply_larger_than_the_limit_is_a_link_error() -> None:
         with pytest.raises(LinkError, match="reply larger than"):
             xmlrpc.call(f"http://127.0.0.1:{port}/", "getPid", "/m")
         thread.join(timeout=10)
+
+
+def test_a_trickling_client_is_cut_off_at_the_total_deadline(
+    server: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A byte every 200 ms never trips the idle timeout (5 s); the total deadline closes
+    the connection anyway, and its slot serves others again."""
+    slave, records, _ = server
+    monkeypatch.setattr(xmlrpc, "XMLRPC_DEADLINE_S", 1.0)
+    port = int(slave.uri.rsplit(":", 1)[1].strip("/"))
+    request = b"POST /RPC2 HTTP/1.0\r\nContent-Type: text/xml\r\nX-Slow: " + b"a" * 100
+    start = time.monotonic()
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as slow:
+        closed = False
+        for byte in request:
+            try:
+                slow.sendall(bytes((byte,)))
+            except OSError:  # reset by the server
+                closed = True
+                break
+            readable, _, _ = select.select([slow], [], [], 0.2)
+            if readable:
+                closed = slow.recv(100) == b""
+                break
+        elapsed = time.monotonic() - start
+    assert closed, "the server kept the trickling connection open"
+    assert 0.9 < elapsed < 3.0, elapsed
+    assert records.wait("not done within 1 s")
+    assert xmlrpc.call(slave.uri, "getPid", "/m") > 0

@@ -10,7 +10,7 @@ executor queues such messages and runs subscribers in its own thread.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from efficient_comm.handle import NodeHandle, Publisher
@@ -53,21 +53,36 @@ class BridgeNode:
         # Throttling shapes traffic on real links, so it runs on the monotonic clock even
         # when the node's clock is simulated or manual.
         self.router = Router(self.adapters, publish=self._publish, now_ns=time.monotonic_ns)
+        wanted: list[Route] = []
         for spec in config.topics:
             try:
                 route = self._route(spec)
-            except RfBridgeError as exc:
+                if spec.inbound:  # before any adapter starts: a peer may send at once
+                    self._publishers[id(route)] = node.create_publisher(
+                        route.ros2_cls, spec.ros2_topic, qos=spec.qos
+                    )
+            except (RfBridgeError, ValueError, TypeError) as exc:
                 node.logger.error(f"topic {spec.ros2_topic} not bridged: {exc}")
                 continue
-            self.routes.append(route)
-            self.router.add(route)
+            wanted.append(route)
         for name, adapter in self.adapters.items():
-            adapter.start([r for r in self.routes if r.spec.peer == name], self.router.from_peer)
+            mine = [r for r in wanted if r.spec.peer == name]
+            served = {id(r) for r in adapter.start(mine, self.router.from_peer)}
+            self.routes += [r for r in mine if id(r) in served]
         self._throttled: list[Any] = []
+        refused = [r for r in wanted if r not in self.routes]
+        for route in refused:  # the adapter said why
+            publisher = self._publishers.pop(id(route), None)
+            if publisher is not None:
+                node.destroy_publisher(publisher)
         for route in self.routes:
-            self._connect_ros2(route)
+            self.router.add(route)
+            if route.spec.outbound:
+                self._subscribe(route)
+        skipped = len(config.errors) + len(config.topics) - len(self.routes)
         node.logger.info(
             f"rf_bridge: {len(self.routes)} topic(s) bridged with {sorted(self.adapters)}"
+            + (f"; {skipped} not bridged (see above)" if skipped else "")
         )
         if config.stats_period_s > 0:
             node.create_timer(config.stats_period_s, self.log_stats)
@@ -101,37 +116,30 @@ class BridgeNode:
             stats_in=TopicStats(spec.ros2_topic, f"from_{spec.peer}"),
         )
 
-    def _connect_ros2(self, route: Route) -> None:
+    def _subscribe(self, route: Route) -> None:
         spec = route.spec
-        if spec.inbound:
-            self._publishers[id(route)] = self._node.create_publisher(
-                route.ros2_cls, spec.ros2_topic, qos=spec.qos
+
+        def callback(msg: Any, route: Route = route) -> None:
+            self.router.from_ros2(route, msg)
+
+        if spec.throttle is not None and spec.throttle_mode == "publisher":
+            from throttle_publisher import ThrottledSubscription
+
+            self._throttled.append(
+                ThrottledSubscription(
+                    self._node,
+                    route.ros2_cls,
+                    spec.ros2_topic,
+                    callback,
+                    options=spec.throttle,
+                    qos=spec.qos,
+                )
             )
-        if spec.outbound:
-
-            def callback(msg: Any, route: Route = route) -> None:
-                self.router.from_ros2(route, msg)
-
-            if spec.throttle is not None and spec.throttle_mode == "publisher":
-                from throttle_publisher import ThrottledSubscription
-
-                self._throttled.append(
-                    ThrottledSubscription(
-                        self._node,
-                        route.ros2_cls,
-                        spec.ros2_topic,
-                        callback,
-                        options=spec.throttle,
-                        qos=spec.qos,
-                    )
-                )
-            else:
-                self._node.create_subscription(
-                    route.ros2_cls, spec.ros2_topic, callback, qos=spec.qos
-                )
+        else:
+            self._node.create_subscription(route.ros2_cls, spec.ros2_topic, callback, qos=spec.qos)
 
     def _publish(self, route: Route, msg: Any) -> None:
-        self._publishers[id(route)].publish(msg)
+        self._publishers[id(route)].publish(msg)  # created before the adapters started
 
     def stats(self) -> list[TopicStatsSnapshot]:
         """Messages, bytes, drops by reason and latency, per topic and direction."""
@@ -161,7 +169,23 @@ class BridgeNode:
                 self._node.logger.error(f"closing the {name} adapter raised {exc!r}")
 
 
-def main() -> int:
+def main(argv: Sequence[str] | None = None) -> int:
+    """``rf_bridge --ros-args -p config:=bridge.yaml``: the bridge as its own process."""
+    import argparse
+    import sys
+
+    from rclpy.utilities import remove_ros_args
+
+    args = list(sys.argv if argv is None else argv)
+    parser = argparse.ArgumentParser(
+        prog="rf_bridge",
+        usage="rf_bridge [-h] --ros-args -p config:=bridge.yaml",
+        description="Bridge ROS 2 topics to a ROS 1 system and to other robots "
+        "(docs/RF_BRIDGE.md).",
+        epilog="The bridge file lists the topics, the ROS 1 master and the team link "
+        "(format: docs/RF_BRIDGE.md, rf_bridge/config.py).",
+    )
+    parser.parse_args(remove_ros_args(args)[1:])
     from efficient_comm.standalone import run
 
-    return run(BridgeNode, name="rf_bridge")
+    return run(BridgeNode, name="rf_bridge", args=args)

@@ -5,8 +5,10 @@ discovery, reconnection after an outage, and reliability over TCP or UDP links. 
 adds what the bridge needs on top: a compact payload (the ROS 2 CDR bytes, zlib-compressed
 when that helps), an attachment with the sending robot's id (loop prevention: a robot never
 takes its own samples back) and a per-topic sequence number, so every sample lost on the way
-is counted at the receiver (``lost``). Throttling happens in the core before anything is
-sent. Publishers never block the executor: congestion drops, and is counted by the receiver.
+is counted at the receiver (``lost``); what is sent while no peer subscribes (a peer
+restarting) is counted at the sender (``no_subscriber``), so a loss is counted on one side
+or the other. Throttling happens in the core before anything is sent. Publishers never
+block the executor: congestion drops, and is counted by the receiver.
 A received sample is decompressed at most to ``max_message_bytes``: a few kilobytes of zlib
 can claim gigabytes, so the limit applies to what decompression produces.
 """
@@ -59,7 +61,7 @@ class TeamAdapter:
         self._last_seen: dict[tuple[int, bytes, int], int] = {}
         self._lock = threading.Lock()
 
-    def start(self, routes: Sequence[Route], deliver: Deliver) -> None:
+    def start(self, routes: Sequence[Route], deliver: Deliver) -> Sequence[Route]:
         import zenoh
 
         conf = zenoh.Config()
@@ -94,11 +96,18 @@ class TeamAdapter:
                     )
                 )
         self._log.info(f"team link up as {self.options.robot_id}: {len(routes)} topic(s)")
+        return routes
 
     def send(self, route: Route, msg: Any, received_ns: int) -> None:
         pub = self._pubs.get(id(route))
         if pub is None:
             route.stats_out.dropped("not_bridged")
+            return
+        if not pub.matching_status.matching:
+            # Nobody listens (a peer restarting, or not there yet): counted here, since a
+            # receiver that starts afresh cannot know what it missed. No sequence number is
+            # used up, so a receiver that stays never counts these as lost too.
+            route.stats_out.dropped("no_subscriber")
             return
         payload = serialize_message(msg)
         flags = 0

@@ -37,8 +37,13 @@ Deliver = Callable[[Route, Any, int, int], None]
 class ChannelAdapter(Protocol):
     name: str
 
-    def start(self, routes: Sequence[Route], deliver: Deliver) -> None:
-        """Connect and begin serving ``routes``; returns without waiting for peers."""
+    def start(self, routes: Sequence[Route], deliver: Deliver) -> Sequence[Route]:
+        """Connect and begin serving ``routes``; returns without waiting for peers.
+
+        Returns the routes it serves: one it refuses (a type it cannot carry, say) is
+        logged with the reason and left out, and the bridge does not count it as bridged.
+        ``deliver`` may be called before this returns.
+        """
         ...
 
     def send(self, route: Route, msg: Any, received_ns: int) -> None:

@@ -41,10 +41,12 @@ class TranslatorSet:
                 self.registry.add_full_definition(rule.ros1, rule.ros1_definition)
 
     def ros1_type_for(self, ros2_cls: type, ros1_type: str | None = None) -> str:
-        """The ROS 1 type a ROS 2 class is published as (rule, explicit, or derived)."""
-        if ros1_type is None:
-            name = ros2_type_name(ros2_cls)
-            ros1_type = next((r.ros1 for r in self.rules.values() if r.ros2 == name), None)
+        """The ROS 1 type a ROS 2 class is published as: the one a topic names (its
+        ``peer_type``, which brings the rule for that type) or the ROS 2 type's twin.
+
+        A rule never applies to topics that do not name its ROS 1 type: other topics of
+        the same ROS 2 type keep the twin, which is what ROS 1 peers of those topics expect.
+        """
         if ros1_type is not None and ros1_type in self.registry:
             return ros1_type
         return derive_from_ros2(self.registry, ros2_cls, ros1_name=ros1_type)

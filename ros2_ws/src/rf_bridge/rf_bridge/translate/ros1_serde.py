@@ -15,7 +15,7 @@ import struct
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import ProtocolError
+from ..errors import OutOfRangeError, ProtocolError
 from .ros1_types import BYTE_TYPES, PRIMITIVES, STRUCT_CODES, Field, TypeRegistry
 
 Decoder = Callable[[memoryview, int], tuple[Any, int]]
@@ -59,8 +59,16 @@ class Ros1Codec:
         return result
 
     def encode(self, type_name: str, value: dict[str, Any]) -> bytes:
+        """ROS 1 bytes of ``value``; OutOfRangeError for a number its field cannot hold
+        (a negative ``time``, 300 in a ``uint8``), ProtocolError for other misfits."""
         out: list[bytes] = []
-        self._encoder(type_name)(value, out)
+        try:
+            self._encoder(type_name)(value, out)
+        except (struct.error, OverflowError) as exc:
+            text = str(exc)
+            if "range" in text or "format requires" in text or "too large" in text:
+                raise OutOfRangeError(f"{type_name}: {text}") from None
+            raise ProtocolError(f"{type_name}: {text}") from None
         return b"".join(out)
 
     # --- decoding --------------------------------------------------------------------

@@ -11,7 +11,8 @@ from __future__ import annotations
 import hashlib
 import importlib
 import threading
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -255,9 +256,9 @@ def _check_closed(specs: dict[str, MsgSpec], name: str) -> None:
 
 ROS2_PRIMITIVES = {
     "boolean": "bool",
-    "octet": "uint8",
+    "octet": "byte",  # a .msg ``byte``: ROS 1's ``byte`` (an int8 on its wire)
     "char": "uint8",
-    "byte": "uint8",
+    "byte": "byte",
     "int8": "int8",
     "uint8": "uint8",
     "int16": "int16",
@@ -274,11 +275,32 @@ ROS2_PRIMITIVES = {
     "wstring": "string",
 }
 _ROS2_SPECIAL = {"builtin_interfaces/Time": "time", "builtin_interfaces/Duration": "duration"}
+
+
+@dataclass(frozen=True, slots=True)
+class _Ros1Form:
+    """How a common_interfaces type's ROS 1 definition differs from its ROS 2 one, so the
+    twin derived from ROS 2 has ROS 1's md5sum: fields ROS 2 renamed (lowercased), and
+    constants and fields ROS 2 added."""
+
+    renames: Mapping[str, str] = field(default_factory=dict)  # ROS 2 name: ROS 1 name
+    new_constants: frozenset[str] = frozenset()
+    new_fields: frozenset[str] = frozenset()
+
+
+_ROS1_FORMS = {
+    "sensor_msgs/CameraInfo": _Ros1Form(renames={"d": "D", "k": "K", "r": "R", "p": "P"}),
+    "sensor_msgs/NavSatStatus": _Ros1Form(
+        new_constants=frozenset({"STATUS_UNKNOWN", "SERVICE_UNKNOWN"})
+    ),
+    "sensor_msgs/BatteryState": _Ros1Form(
+        new_constants=frozenset(
+            {"POWER_SUPPLY_TECHNOLOGY_TERNARY", "POWER_SUPPLY_TECHNOLOGY_VRLA"}
+        )
+    ),
+    "sensor_msgs/Range": _Ros1Form(new_fields=frozenset({"variance"})),
+}
 #: ROS 1's Header has a sequence number that ROS 2 dropped.
-#: Where ROS 2 renamed common_interfaces fields (lowercase), so derived twins keep ROS 1's
-#: md5sum. Types whose constants changed (sensor_msgs/NavSatStatus) need a peer's or a
-#: rule's definition instead.
-_ROS1_FIELD_NAMES = {"sensor_msgs/CameraInfo": {"d": "D", "k": "K", "r": "R", "p": "P"}}
 _ROS1_HEADER = MsgSpec(
     "std_msgs/Header",
     (Field("seq", "uint32"), Field("stamp", "time"), Field("frame_id", "string")),
@@ -340,9 +362,12 @@ def _ros2_field(name: str, ros2_type: str) -> tuple[Field, str | None]:
 def derive_from_ros2(registry: TypeRegistry, cls: type, *, ros1_name: str | None = None) -> str:
     """Register the ROS 1 twin of ROS 2 message class ``cls`` and return its ROS 1 name.
 
-    Exact for types whose ROS 1 and ROS 2 definitions list the same fields and constants
-    (most of common_interfaces); where they differ, a YAML rule or a peer's own definition
-    gives the ROS 1 form. Types already known are kept (a learned definition wins).
+    The twin lists the fields and constants of the ROS 2 ``.msg`` file, with ROS 1's
+    ``char``/``byte`` where the file declares them (rclpy reports both as integers) and
+    the known differences of common_interfaces undone (:data:`_ROS1_FORMS`), so every
+    std_msgs, geometry_msgs, sensor_msgs and nav_msgs type has ROS 1's md5sum. For other
+    types whose ROS 1 form differs, a YAML rule or a peer's own definition gives it. Types
+    already known are kept (a learned definition wins).
     """
     pkg, _, msg_name = ros2_type_name(cls).split("/")
     name = ros1_name or f"{pkg}/{msg_name}"
@@ -351,21 +376,30 @@ def derive_from_ros2(registry: TypeRegistry, cls: type, *, ros1_name: str | None
     if name == "std_msgs/Header":
         registry.add(_ROS1_HEADER)
         return name
+    form = _ROS1_FORMS.get(name, _Ros1Form())
+    declared, constants = _ros2_msg_file(cls, pkg, msg_name)
     fields: list[Field] = []
-    renames = _ROS1_FIELD_NAMES.get(name, {})
     for field_name, ros2_type in cls.get_fields_and_field_types().items():  # type: ignore[attr-defined]
-        field, nested = _ros2_field(renames.get(field_name, field_name), ros2_type)
+        if field_name in form.new_fields:
+            continue
+        spec, nested = _ros2_field(form.renames.get(field_name, field_name), ros2_type)
+        if declared.get(field_name) in ("char", "byte"):  # what ROS 1 calls them too
+            spec = Field(spec.name, declared[field_name], spec.array)
         if nested is not None:
             nested_pkg, _, nested_name = nested.partition("/")
             derive_from_ros2(registry, ros2_class(f"{nested_pkg}/msg/{nested_name}"))
-        fields.append(field)
-    registry.add(MsgSpec(name, tuple(fields), _ros2_constants(cls, pkg, msg_name)))
+        fields.append(spec)
+    kept = tuple(c for c in constants if c.name not in form.new_constants)
+    registry.add(MsgSpec(name, tuple(fields), kept))
     return name
 
 
-def _ros2_constants(cls: type, pkg: str, msg_name: str) -> tuple[Constant, ...]:
-    """Constants as the ROS 2 ``.msg`` file declares them (type and text matter for the
-    md5sum); from the class's values when the file is not installed."""
+def _ros2_msg_file(
+    cls: type, pkg: str, msg_name: str
+) -> tuple[dict[str, str], tuple[Constant, ...]]:
+    """Field types as the ROS 2 ``.msg`` file declares them (element type, by field name)
+    and its constants (type and text matter for the md5sum); from the class's values when
+    the file is not installed."""
     try:
         from ament_index_python.packages import get_package_share_directory
 
@@ -375,15 +409,21 @@ def _ros2_constants(cls: type, pkg: str, msg_name: str) -> tuple[Constant, ...]:
         text = None
     if text is not None:
         found = []
+        declared: dict[str, str] = {}
         for line in text.splitlines():
             parts = line.strip().split(None, 1)
-            if len(parts) == 2 and not parts[0].startswith("#") and "=" in parts[1]:
+            if len(parts) != 2 or parts[0].startswith("#"):
+                continue
+            if "=" in parts[1].split("#", 1)[0] or (parts[0] == "string" and "=" in parts[1]):
                 cname, value = parts[1].split("=", 1)
                 if parts[0] != "string":
                     value = value.split("#", 1)[0]
                 found.append(Constant(parts[0], cname.strip(), value.strip()))
-        return tuple(found)
-    return tuple(
+            else:
+                field_name = parts[1].split("#", 1)[0].split()[0]
+                declared[field_name] = parts[0].split("[", 1)[0]
+        return declared, tuple(found)
+    return {}, tuple(
         Constant(
             _constant_type(value), cname, str(int(value) if isinstance(value, bool) else value)
         )

@@ -10,11 +10,12 @@ at their defaults (ROS 1's ``Header.seq``, for example) and listed in :attr:`unm
 from __future__ import annotations
 
 import array
+import struct
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..errors import TranslationError
+from ..errors import OutOfRangeError, TranslationError
 from .ros1_types import (
     BYTE_TYPES,
     ROS2_PRIMITIVES,
@@ -78,9 +79,14 @@ class Translator:
         self._to_ros1 = self._plan_to_ros1(ros1_type, ros2_cls, "")
 
     def to_ros2(self, value: dict[str, Any]) -> Any:
+        """The ROS 2 message; OutOfRangeError when a value does not fit its ROS 2 field
+        (a ROS 1 ``time`` beyond 2^31 s in ROS 2's int32 seconds): rclpy's setters check
+        every range, so nothing is wrapped or cut silently."""
         try:
             return self._to_ros2(value)
-        except (TypeError, ValueError, AssertionError, KeyError) as exc:
+        except (AssertionError, OverflowError) as exc:
+            raise OutOfRangeError(f"{self.ros1_type} -> ROS 2: {exc}") from exc
+        except (TypeError, ValueError, KeyError) as exc:
             raise TranslationError(f"{self.ros1_type} -> ROS 2: {exc}") from exc
 
     def to_ros1(self, msg: Any) -> dict[str, Any]:
@@ -166,7 +172,17 @@ class Translator:
             if f.type != _TIME_TYPES[elem]:
                 raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
             cls = ros2_class(elem)
-            return lambda v: cls(sec=v[0], nanosec=v[1])
+            label = where[:-1]
+
+            def stamp(v: tuple[int, int]) -> Any:
+                sec, nanosec = v
+                if not 0 <= nanosec < 1_000_000_000:  # the same instant, normalised
+                    sec, nanosec = divmod(sec * 1_000_000_000 + nanosec, 1_000_000_000)
+                if not _INT32[0] <= sec <= _INT32[1]:
+                    raise OutOfRangeError(f"{label}: {sec} s does not fit ROS 2's int32 seconds")
+                return cls(sec=sec, nanosec=nanosec)
+
+            return stamp
         if elem in ROS2_PRIMITIVES:
             if not f.is_primitive or f.type in ("time", "duration"):
                 raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
@@ -176,6 +192,9 @@ class Translator:
                 return bool
             if elem in ("octet", "byte") and f.array is None:
                 return lambda v: bytes((v & 0xFF,))
+            theirs, mine = _int_range(f.type), _int_range(ROS2_PRIMITIVES[elem])
+            if theirs and mine and (theirs[0] < mine[0] or theirs[1] > mine[1]):
+                return _range_check(mine, where[:-1])  # rclpy does not check by default
             return _identity
         if f.is_primitive:
             raise TranslationError(f"{where[:-1]}: {elem} vs ROS 1 {f.type}")
@@ -216,7 +235,12 @@ class Translator:
         if elem in _TIME_TYPES:
             one: Convert = lambda v: (v.sec, v.nanosec)  # noqa: E731
         elif elem in ROS2_PRIMITIVES:
-            one = (lambda v: v[0]) if elem in ("octet", "byte") else _identity
+            if elem in ("octet", "byte"):
+                # The octet crosses unchanged, as on the wire: into ROS 1's ``byte``/``int8``
+                # (signed) 200 reads as -56, and -56 comes back as 200.
+                one = _signed_octet if f.type in ("byte", "int8") else _octet
+            else:
+                one = _identity
         else:
             pkg, _, name = elem.partition("/")
             one = self._plan_to_ros1(f.type, ros2_class(f"{pkg}/msg/{name}"), where)
@@ -251,6 +275,37 @@ class Translator:
 
 def _identity(v: Any) -> Any:
     return v
+
+
+_INT32 = (-(1 << 31), (1 << 31) - 1)
+
+
+def _int_range(ros1_type: str) -> tuple[int, int] | None:
+    """Smallest and largest value of a ROS 1 integer type; None for other types."""
+    code = STRUCT_CODES.get(ros1_type)
+    if code is None or code in "?fd":
+        return None
+    bits = 8 * struct.calcsize(code)
+    return (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if code.islower() else (0, (1 << bits) - 1)
+
+
+def _range_check(bounds: tuple[int, int], label: str) -> Convert:
+    low, high = bounds
+
+    def check(v: int) -> int:
+        if not low <= v <= high:
+            raise OutOfRangeError(f"{label}: {v} is outside [{low}, {high}] of its ROS 2 type")
+        return v
+
+    return check
+
+
+def _octet(v: bytes) -> int:
+    return v[0]
+
+
+def _signed_octet(v: bytes) -> int:
+    return v[0] - 256 if v[0] > 127 else v[0]
 
 
 def _to_bytes(v: Any) -> bytes:

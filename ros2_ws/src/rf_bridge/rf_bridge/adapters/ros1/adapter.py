@@ -4,6 +4,10 @@ It registers the bridge's publications and subscriptions with the master, serves
 ROS 1 subscribers and connects to ROS 1 publishers. A watchdog asks the master every
 ``master_check_s`` whether it still knows the bridge; after a master restart it registers
 everything again, so ROS 1 nodes started later find the bridged topics without a restart.
+rospy and roscpp nodes never register again after a restart, so the new master does not
+name the publishers that were already running: the bridge keeps its links to them (they
+still serve their topics) until one of them is gone, instead of dropping what the new
+master does not list.
 
 Every thread it starts ends when it is closed: :meth:`Ros1Adapter.close` unregisters, stops
 the links, shuts the listener (closing alone does not wake a thread blocked in ``accept``)
@@ -24,13 +28,21 @@ from ..._log import Logger, RateLimitedLog
 from ...config import Ros1Options
 from ...core.adapter import Deliver, Route
 from ...core.qos import ros1_latch
-from ...errors import LinkError, ProtocolError, RfBridgeError, TranslationError
+from ...errors import (
+    LinkError,
+    OutOfRangeError,
+    ProtocolError,
+    RfBridgeError,
+    TranslationError,
+)
 from ...translate import Translator, TranslatorSet
+from ._deadline import deadline
 from .tcpros import InboundLink, OutboundConnection, encode_header, frame, read_header
 from .xmlrpc import MasterRefusedError, SlaveServer, call
 
 #: TCPROS handshakes in progress at once; a peer opening connections without sending a
-#: header holds one for at most the handshake timeout, further connections are refused.
+#: header (or trickling it) holds one for at most the handshake timeout in all, further
+#: connections are refused.
 MAX_HANDSHAKES = 32
 HANDSHAKE_TIMEOUT_S = 5.0
 #: Publishers of one topic the bridge connects to; a publisherUpdate naming more (a real
@@ -57,6 +69,9 @@ class _Subscription:
     route: Route
     ros1_type: str  # "*" when the type is learned from the publisher
     links: dict[str, InboundLink] = field(default_factory=dict)
+    #: Publishers linked before a master restart that the new master does not list (they
+    #: never register again): kept until their link fails, whatever the master says.
+    unlisted: set[str] = field(default_factory=set)
 
 
 class Ros1Adapter:
@@ -82,7 +97,7 @@ class Ros1Adapter:
 
     # --- lifecycle ---------------------------------------------------------------------
 
-    def start(self, routes: Sequence[Route], deliver: Deliver) -> None:
+    def start(self, routes: Sequence[Route], deliver: Deliver) -> Sequence[Route]:
         self._deliver = deliver
         host = self.options.bind
         advertise = self.options.advertise_host or (host if host != "0.0.0.0" else "127.0.0.1")
@@ -99,18 +114,29 @@ class Ros1Adapter:
             subscriptions=lambda: [[t, s.ros1_type] for t, s in self._subs.items()],
             log=self._log,
         )
+        served: list[Route] = []
         for route in routes:
             try:
-                if route.spec.outbound:
-                    self._add_publication(route)
+                if (route.spec.outbound and route.peer_topic in self._pubs) or (
+                    route.spec.inbound and route.peer_topic in self._subs
+                ):
+                    raise RfBridgeError("another entry bridges it the same way")
+                publication = self._publication(route) if route.spec.outbound else None
                 if route.spec.inbound:
                     self._add_subscription(route)
+                if publication is not None:
+                    self._pubs[route.peer_topic] = publication
             except RfBridgeError as exc:
-                self._log.error(f"ROS 1 topic {route.peer_topic} not bridged: {exc}")
+                self._log.error(
+                    f"topic {route.spec.ros2_topic} not bridged: ROS 1 {route.peer_topic}: {exc}"
+                )
+                continue
+            served.append(route)
         for target, name in ((self._accept, "tcpros-accept"), (self._watch_master, "ros1-master")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
             self._threads.append(thread)
+        return served
 
     @property
     def uri(self) -> str:
@@ -158,10 +184,10 @@ class Ros1Adapter:
 
     # --- master --------------------------------------------------------------------------
 
-    def _add_publication(self, route: Route) -> None:
+    def _publication(self, route: Route) -> _Publication:
         ros1_type = self._translators.ros1_type_for(route.ros2_cls, route.spec.peer_type)
         registry = self._translators.registry
-        pub = _Publication(
+        return _Publication(
             route=route,
             ros1_type=ros1_type,
             md5sum=registry.md5sum(ros1_type),
@@ -169,7 +195,6 @@ class Ros1Adapter:
             translator=self._translators.translator(ros1_type, route.ros2_cls),
             latch=ros1_latch(route.spec.qos),
         )
-        self._pubs[route.peer_topic] = pub
 
     def _add_subscription(self, route: Route) -> None:
         ros1_type = route.spec.peer_type
@@ -180,10 +205,14 @@ class Ros1Adapter:
     def _register_all(self) -> None:
         for topic, pub in self._pubs.items():
             call(self._master, "registerPublisher", self._caller_id, topic, pub.ros1_type, self.uri)
+        restarted = self.registrations > 0
         for topic, sub in self._subs.items():
             uris = call(
                 self._master, "registerSubscriber", self._caller_id, topic, sub.ros1_type, self.uri
             )
+            if restarted:
+                with self._lock:
+                    sub.unlisted |= set(sub.links) - set(uris)
             self._on_publishers(topic, list(uris))
         self.registrations += 1
         self._registered.set()
@@ -226,6 +255,10 @@ class Ros1Adapter:
             return
         try:
             payload = self._translators.codec.encode(pub.ros1_type, pub.translator.to_ros1(msg))
+        except OutOfRangeError as exc:
+            route.stats_out.dropped("out_of_range")
+            self._log.warning(f"not sent to ROS 1 {route.peer_topic}: {exc}")
+            return
         except (TranslationError, ProtocolError, TypeError, ValueError, KeyError) as exc:
             route.stats_out.dropped("untranslatable")
             self._log.error(f"cannot translate a message for ROS 1 {route.peer_topic}: {exc}")
@@ -271,9 +304,11 @@ class Ros1Adapter:
     def _handshake(self, sock: socket.socket, addr: Any) -> None:
         sock.settimeout(HANDSHAKE_TIMEOUT_S)
         try:
-            header = read_header(sock)
+            with deadline(sock, HANDSHAKE_TIMEOUT_S) as expired:
+                header = read_header(sock)
         except (OSError, LinkError, ProtocolError) as exc:
-            self._log.warning(f"rejecting TCPROS connection from {addr[0]}:{addr[1]}: {exc}")
+            reason = f"no header within {HANDSHAKE_TIMEOUT_S:g} s" if expired.is_set() else exc
+            self._log.warning(f"rejecting TCPROS connection from {addr[0]}:{addr[1]}: {reason}")
             sock.close()
             return
         finally:
@@ -319,7 +354,6 @@ class Ros1Adapter:
             peer=peer,
             topic=topic,
             queue_size=self.options.queue_size,
-            send_timeout_s=self.options.send_timeout_s,
             on_undelivered=stats.dropped,
             on_closed=lambda c: self._remove(pub, c),
             log=self._log,
@@ -383,6 +417,8 @@ class Ros1Adapter:
         with self._lock:
             if self._stop.is_set():  # checked under the lock close() takes the links with
                 return
+            sub.unlisted -= wanted  # the master knows it (again)
+            wanted |= sub.unlisted & set(sub.links)
             if len(wanted) > MAX_PUBLISHERS_PER_TOPIC:
                 self._log.warning(
                     f"{topic}: {len(wanted)} publishers named; connected to "
@@ -396,12 +432,31 @@ class Ros1Adapter:
             for uri in wanted - set(sub.links):
                 sub.links[uri] = self._link(sub, uri)
 
+    def _forget_unlisted(self, sub: _Subscription, uri: str) -> None:
+        """A publisher the master does not list cannot be reached: it is gone, and no
+        ``publisherUpdate`` will say so, so its link ends here."""
+        with self._lock:
+            if uri not in sub.unlisted:
+                return
+            sub.unlisted.discard(uri)
+            link = sub.links.pop(uri, None)
+        if link is not None:
+            link.stop()
+            self._log.info(
+                f"{sub.route.peer_topic}: publisher {uri}, unknown to the restarted master, "
+                "is gone; link closed"
+            )
+
     def _link(self, sub: _Subscription, uri: str) -> InboundLink:
         route = sub.route
         state: dict[str, Any] = {}
 
         def request() -> tuple[str, int]:
-            value = call(uri, "requestTopic", self._caller_id, route.peer_topic, [["TCPROS"]])
+            try:
+                value = call(uri, "requestTopic", self._caller_id, route.peer_topic, [["TCPROS"]])
+            except LinkError:
+                self._forget_unlisted(sub, uri)
+                raise
             if not isinstance(value, list) or len(value) != 3 or value[0] != "TCPROS":
                 raise ProtocolError(f"publisher {uri} offered {value!r}, not TCPROS")
             return str(value[1]), int(value[2])
@@ -434,15 +489,23 @@ class Ros1Adapter:
         codec = self._translators.codec
 
         def on_frame(payload: bytes) -> None:
+            """One message: a malformed frame drops the connection (the stream may be out
+            of step); a message that does not translate is dropped and counted, and the
+            connection carries on with the next one."""
             received = time.perf_counter_ns()
             try:
                 msg = state["translator"].to_ros2(codec.decode(state["type"], payload))
             except ProtocolError:
                 route.stats_in.dropped("malformed")
                 raise
-            except TranslationError:
+            except OutOfRangeError as exc:
+                route.stats_in.dropped("out_of_range")
+                self._log.warning(f"not delivered from ROS 1 {route.peer_topic}: {exc}")
+                return
+            except TranslationError as exc:
                 route.stats_in.dropped("untranslatable")
-                raise
+                self._log.error(f"cannot translate a message from ROS 1 {route.peer_topic}: {exc}")
+                return
             deliver(route, msg, received, len(payload))
 
         def on_oversize() -> None:

@@ -6,7 +6,9 @@ peer is checked against limits before anything is allocated for it.
 
 * :class:`OutboundConnection`: the bridge publishes to one ROS 1 subscriber. Sends go
   straight to the socket when it takes them (no thread hand-off on the fast path), else a
-  writer thread finishes them; a peer that stops reading for ``send_timeout_s`` is dropped.
+  writer thread finishes them. A peer that stops reading is treated as rospy treats it:
+  its queue keeps the newest ``queue_size`` messages (older ones dropped and counted) and
+  it gets data again as soon as it reads; only a peer that is gone is dropped.
 * :class:`InboundLink`: the bridge subscribes to one ROS 1 publisher, reconnecting while the
   master still lists it.
 """
@@ -96,6 +98,10 @@ Counter = Callable[[str, int], None]  # (reason, messages) for undelivered messa
 class OutboundConnection:
     """One ROS 1 subscriber of a topic the bridge publishes."""
 
+    #: How often the writer thread, waiting for a peer that does not read, checks whether
+    #: the connection was closed meanwhile.
+    POLL_S = 0.5
+
     def __init__(
         self,
         sock: socket.socket,
@@ -103,7 +109,6 @@ class OutboundConnection:
         peer: str,
         topic: str,
         queue_size: int,
-        send_timeout_s: float,
         on_undelivered: Counter,
         on_closed: Callable[[OutboundConnection], None],
         log: RateLimitedLog,
@@ -113,13 +118,14 @@ class OutboundConnection:
         self.sock = sock
         sock.setblocking(False)
         self._queue: collections.deque[memoryview] = collections.deque()
+        self._head_started = False  # part of the queue's first message is on the wire
         self._queue_size = queue_size
-        self._timeout = send_timeout_s
         self._undelivered = on_undelivered
         self._on_closed = on_closed
         self._log = log
         self._cond = threading.Condition()
         self._closed = False
+        self._dropping = 0  # messages dropped since the peer last kept up
         self.sent = 0
         self.thread = threading.Thread(target=self._writer, name=f"tcpros-out {topic}", daemon=True)
         self.thread.start()
@@ -138,9 +144,8 @@ class OutboundConnection:
                 self._close_locked("peer closed the connection", pending=1)
                 return
             if self._queue:
-                if len(self._queue) > self._queue_size:
-                    self._queue.popleft()  # oldest whole message (the head may be partial)
-                    self._undelivered("queue_full", 1)
+                if len(self._queue) >= self._queue_size:
+                    self._drop_oldest_locked()
                 self._queue.append(memoryview(data))
                 self._cond.notify()
                 return
@@ -153,9 +158,26 @@ class OutboundConnection:
                 return
             if n < len(data):
                 self._queue.append(memoryview(data)[n:])
+                self._head_started = n > 0
                 self._cond.notify()
             else:
                 self.sent += 1
+
+    def _drop_oldest_locked(self) -> None:
+        """The oldest whole message makes room (one already partly sent must be finished,
+        or the stream would be corrupt)."""
+        if self._head_started and len(self._queue) > 1:
+            del self._queue[1]
+        else:
+            self._queue.popleft()
+            self._head_started = False
+        self._undelivered("queue_full", 1)
+        if not self._dropping:
+            self._log.warning(
+                f"ROS 1 subscriber {self.peer} on {self.topic} is not keeping up: keeping its "
+                f"newest {self._queue_size} message(s), dropping older ones"
+            )
+        self._dropping += 1
 
     def _writer(self) -> None:
         while True:
@@ -166,17 +188,14 @@ class OutboundConnection:
                     return
                 head = self._queue[0]
             try:
-                _, writable, _ = select.select([], [self.sock], [], self._timeout)
+                _, writable, _ = select.select([], [self.sock], [], self.POLL_S)
             except (OSError, ValueError):
                 writable = []
             with self._cond:
                 if self._is_closed():  # closed by send() or close() meanwhile
                     return
-                if not writable:
-                    self._close_locked(
-                        f"peer stopped reading (send blocked for {self._timeout:g} s)", pending=0
-                    )
-                    return
+                if not writable or self._queue[0] is not head:
+                    continue  # not reading (yet), or the head was dropped meanwhile
                 try:
                     n = self.sock.send(head)
                 except BlockingIOError:
@@ -186,9 +205,17 @@ class OutboundConnection:
                     return
                 if n == len(head):
                     self._queue.popleft()
+                    self._head_started = False
                     self.sent += 1
+                    if not self._queue and self._dropping:
+                        self._log.info(
+                            f"ROS 1 subscriber {self.peer} on {self.topic} caught up; "
+                            f"{self._dropping} message(s) were dropped while it was not reading"
+                        )
+                        self._dropping = 0
                 else:
                     self._queue[0] = head[n:]
+                    self._head_started = True
 
     def _is_closed(self) -> bool:
         return self._closed

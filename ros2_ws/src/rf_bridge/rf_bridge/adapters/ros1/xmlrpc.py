@@ -6,8 +6,9 @@ a small "slave" XML-RPC server through which the master announces new publishers
 
 Anyone who can reach these sockets can talk to them (ROS 1 has no authentication), so both
 ends are bounded: requests and replies are limited in size before they are parsed, every
-socket has a timeout, the server serves a limited number of connections at once, and
-arguments are checked before the adapter sees them.
+socket operation has a timeout and every connection to the server a total deadline (a
+client trickling its request a byte at a time is cut off), the server serves a limited
+number of connections at once, and arguments are checked before the adapter sees them.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
 from ..._log import RateLimitedLog
 from ...errors import LinkError
+from ._deadline import deadline
 
 #: Largest XML-RPC request or reply accepted; ROS 1 API calls are a few kilobytes.
 MAX_XMLRPC_BYTES = 1 << 20
@@ -30,6 +32,9 @@ MAX_XMLRPC_BYTES = 1 << 20
 MAX_XMLRPC_CONNECTIONS = 32
 #: Seconds a connection to the node API may sit idle before it is closed.
 XMLRPC_TIMEOUT_S = 5.0
+#: Seconds a connection to the node API may last in all, however busy: a request of a few
+#: kilobytes takes milliseconds.
+XMLRPC_DEADLINE_S = 10.0
 
 
 class MasterRefusedError(LinkError):
@@ -125,7 +130,13 @@ class _Server(ThreadingMixIn, SimpleXMLRPCServer):
 
     def process_request_thread(self, request: Any, client_address: Any) -> None:
         try:
-            super().process_request_thread(request, client_address)
+            with deadline(request, XMLRPC_DEADLINE_S) as expired:
+                super().process_request_thread(request, client_address)
+            if expired.is_set():
+                self.log.warning(
+                    f"closed an XML-RPC connection from {client_address[0]}: not done within "
+                    f"{XMLRPC_DEADLINE_S:g} s"
+                )
         finally:
             self._slots.release()
 
