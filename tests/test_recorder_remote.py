@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from std_msgs.msg import String
 
 from efficient_comm import Container
 from efficient_comm.handle import NodeHandle
-from efficient_comm.testing import isolated_domain_id, unique_topic
+from efficient_comm.testing import isolated_domain_id, ros_env, unique_topic
 from robot_recorder import Recorder
 from robot_recorder.writer import IDLE, RECORDING
 from robot_recorder_interfaces.msg import RecorderStatus, TopicSelection
@@ -34,11 +35,14 @@ class Talker:
         self.pub.publish(String(data=text))
 
 
-def _call(p: Peer, container: Container, srv_type: Any, name: str, **fields: Any) -> Any:
+def _call(p: Peer, container: Container | None, srv_type: Any, name: str,
+          **fields: Any) -> Any:
+    """Call service ``name`` from peer ``p`` (spinning ``container`` too, if in-process)."""
+    also = container.spin_once if container is not None else None
     client = p.node.create_client(srv_type, name)
-    assert p.wait_for(client.service_is_ready, also=container.spin_once), name
+    assert p.wait_for(client.service_is_ready, timeout_s=30, also=also), name
     future = client.call_async(srv_type.Request(**fields))
-    assert p.wait_for(future.done, also=container.spin_once), name
+    assert p.wait_for(future.done, timeout_s=30, also=also), name
     p.node.destroy_client(client)
     return future.result()
 
@@ -125,3 +129,74 @@ def test_standalone_recorder_process_records_another_process_and_closes_on_sigin
         assert proc.wait(20) == 0
     assert (bag / "metadata.yaml").exists()  # closed properly on Ctrl-C
     assert [m.data for _, m in read_rosbags(bag)] == [f"m{i}" for i in range(20)]
+
+
+def _recorder_command(tmp_path: Path, *params: str) -> list[str | Path]:
+    """The recorder as a user types it, with ``-p`` parameters."""
+    args: list[str | Path] = [executable("robot_recorder", "recorder"), "--ros-args",
+                              "-p", f"output_dir:={tmp_path / 'out'}",
+                              "-p", "status_period_s:=0.2", "-p", "min_free_bytes:=0"]
+    for param in params:
+        args += ["-p", param]
+    return args
+
+
+def test_set_topics_with_an_unknown_type_is_refused_and_changes_nothing(tmp_path: Path) -> None:
+    topic, other = unique_topic("kept"), unique_topic("other")
+    domain = isolated_domain_id()
+    with peer(domain, "laptop") as laptop, \
+            child(_recorder_command(tmp_path, f"topics:=['{topic}']"), domain_id=domain,
+                  log=tmp_path / "recorder.log"):
+        statuses: list[Any] = []
+        laptop.node.create_subscription(RecorderStatus, "/recorder/status", statuses.append, 10)
+        pub = laptop.node.create_publisher(String, topic, RELIABLE)
+        assert laptop.wait_for(lambda: pub.get_subscription_count() == 1, timeout_s=30), (
+            tmp_path / "recorder.log").read_text()
+        pub.publish(String(data="before"))
+        for selection in ([TopicSelection(name=other, type="nosuch_msgs/msg/Thing")],
+                          [TopicSelection(name=topic),
+                           TopicSelection(name=other, type="std_msgs/msg/NoSuchType")]):
+            reply = _call(laptop, None, SetTopics, "/recorder/set_topics", topics=selection)
+            assert not reply.success, selection
+            assert selection[-1].type.split("/")[0] in reply.message, reply.message
+        pub.publish(String(data="after"))
+        assert laptop.wait_for(lambda: bool(statuses) and statuses[-1].messages == 2,
+                               timeout_s=30), statuses[-1:]
+        assert [t.name for t in statuses[-1].topics] == [topic]
+        assert statuses[-1].error == ""
+        bag = Path(statuses[-1].bag)
+    assert [m.data for _, m in read_rosbags(bag)] == ["before", "after"]
+
+
+def test_recorder_command_help_autostart_and_unknown_options(tmp_path: Path) -> None:
+    recorder = executable("robot_recorder", "recorder")
+    # --help: help, and nothing recorded (not even a directory made).
+    result = subprocess.run([str(recorder), "--help", "--ros-args", "-p",
+                             f"output_dir:={tmp_path / 'help'}"], capture_output=True,
+                            text=True, timeout=60, cwd=tmp_path, env=ros_env(isolated_domain_id()))
+    assert result.returncode == 0, result.stderr
+    assert "autostart" in result.stdout and "usage: recorder" in result.stdout
+    assert list(tmp_path.iterdir()) == []
+    # A misspelt option in a topic entry: named, in one line.
+    result = subprocess.run([str(recorder), "--ros-args", "-p",
+                             "topics:=['/chatter max_rte_hz=5']", "-p",
+                             f"output_dir:={tmp_path / 'typo'}"], capture_output=True,
+                            text=True, timeout=60, env=ros_env(isolated_domain_id()))
+    assert result.returncode == 1
+    assert "unknown option 'max_rte_hz'" in result.stderr, result.stderr
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    # autostart:=false: idle until told to start.
+    topic = unique_topic("chatter")
+    domain = isolated_domain_id()
+    with peer(domain, "laptop") as laptop, \
+            child(_recorder_command(tmp_path, f"topics:=['{topic}']", "autostart:=false"),
+                  domain_id=domain, log=tmp_path / "recorder.log"):
+        statuses: list[Any] = []
+        laptop.node.create_subscription(RecorderStatus, "/recorder/status", statuses.append, 10)
+        assert laptop.wait_for(lambda: len(statuses) >= 3, timeout_s=30), (
+            tmp_path / "recorder.log").read_text()
+        assert all(s.state == IDLE and not s.bag for s in statuses)
+        assert not (tmp_path / "out").exists()
+        reply = _call(laptop, None, Start, "/recorder/start")
+        assert reply.success and reply.bag.startswith(str(tmp_path / "out")), reply.message
+        assert laptop.wait_for(lambda: statuses[-1].state == RECORDING, timeout_s=30)
