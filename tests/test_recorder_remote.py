@@ -1,5 +1,6 @@
 """The recorder over DDS: controlled by services from another participant, recording topics
 of its own process (by reference) and of other participants, reporting on its status topic.
+The recorder and player commands as a user types them, with a plain rclpy peer.
 """
 
 from __future__ import annotations
@@ -15,11 +16,24 @@ from std_msgs.msg import String
 
 from efficient_comm import Container
 from efficient_comm.handle import NodeHandle
-from efficient_comm.testing import isolated_domain_id, ros_env, unique_topic
+from efficient_comm.testing import (
+    TestHandle,
+    isolated_domain_id,
+    ros_env,
+    test_container,
+    unique_topic,
+)
 from robot_recorder import Recorder
 from robot_recorder.writer import IDLE, RECORDING
 from robot_recorder_interfaces.msg import RecorderStatus, TopicSelection
-from robot_recorder_interfaces.srv import SetTopics, Snapshot, Split, Start, Stop
+from robot_recorder_interfaces.srv import (
+    PlayerControl,
+    SetTopics,
+    Snapshot,
+    Split,
+    Start,
+    Stop,
+)
 
 from ._recording import read_rosbags
 from ._ros import Peer, child, executable, peer
@@ -200,3 +214,59 @@ def test_recorder_command_help_autostart_and_unknown_options(tmp_path: Path) -> 
         reply = _call(laptop, None, Start, "/recorder/start")
         assert reply.success and reply.bag.startswith(str(tmp_path / "out")), reply.message
         assert laptop.wait_for(lambda: statuses[-1].state == RECORDING, timeout_s=30)
+
+
+def _small_bag(tmp_path: Path, topic: str, n: int) -> Path:
+    """A bag of ``n`` Strings on ``topic``, 10 ms apart, recorded in-process."""
+    container = test_container()
+    pub = TestHandle("talker", container=container).create_publisher(String, topic)
+    recorder = Recorder(TestHandle("recorder", container=container), topics=[topic],
+                        output_dir=tmp_path)
+    bag = recorder.start(tmp_path / "bag").result(10)
+    for i in range(n):
+        pub.publish(String(data=f"m{i}"))
+        container.advance(0.01)
+    recorder.close()
+    return bag
+
+
+def _append(texts: list[str], msg: String) -> None:
+    texts.append(msg.data)
+
+
+def test_player_command_waits_for_subscribers_and_exits_at_the_end(tmp_path: Path) -> None:
+    topic = unique_topic("replay")
+    bag = _small_bag(tmp_path, topic, 20)
+    player = executable("robot_recorder", "player")
+    sent = [f"m{i}" for i in range(20)]
+    domain = isolated_domain_id()
+    with peer(domain, "viewer") as viewer, \
+            child([player, bag], domain_id=domain, log=tmp_path / "player.log") as proc:
+        # The player is up and answers (that takes longer than the bag lasts), but has not
+        # published yet: nobody subscribes. A subscriber joining now gets everything.
+        reply = _call(viewer, None, PlayerControl, "/player/control",
+                      command=PlayerControl.Request.SET_RATE, rate=1.0)
+        assert reply.success and reply.position_ns > 0, reply  # -1: played to nobody
+        got: list[str] = []
+        viewer.node.create_subscription(String, topic, lambda m: _append(got, m), RELIABLE)
+        assert viewer.wait_for(lambda: proc.poll() is not None, timeout_s=30), got
+        assert proc.returncode == 0, (tmp_path / "player.log").read_text()
+        assert viewer.wait_for(lambda: len(got) == 20, timeout_s=10), got
+        assert got == sent
+    # --loop: plays on until stopped.
+    with peer(domain, "viewer") as viewer, \
+            child([player, bag, "--loop"], domain_id=domain,
+                  log=tmp_path / "loop.log") as proc:
+        got = []
+        viewer.node.create_subscription(String, topic, lambda m: _append(got, m), RELIABLE)
+        assert viewer.wait_for(lambda: len(got) > 45, timeout_s=30), got
+        assert proc.poll() is None
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(20) == 0
+    assert got[:40] == sent + sent
+    # Nobody listening and a wait limit: it says so, plays and ends.
+    result = subprocess.run([str(player), str(bag), "--wait-timeout", "0.2"],
+                            capture_output=True, text=True, timeout=60,
+                            env=ros_env(isolated_domain_id()))
+    assert result.returncode == 0, result.stderr
+    assert "nobody subscribes" in result.stderr + result.stdout
