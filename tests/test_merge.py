@@ -167,11 +167,11 @@ def test_cli_merges_and_reports(team_logs, tmp_path, capsys):
     paths, _ = team_logs
     out = tmp_path / "cli_merged"
     args = ["merge", "-o", str(out), "--stamps",
-            *(f"robot_{name}={path}" for name, path in paths.items())]
+            *(f"{name}={path}" for name, path in paths.items())]
     assert cli_main(args) == 0
     printed = capsys.readouterr().out
-    assert "/robot_b:" in printed and "stamps moved" in printed
-    assert set(_events(out)) == {"robot_ref", "robot_a", "robot_b"}
+    assert "/b:" in printed and "stamps moved" in printed
+    assert set(_events(out)) == {"ref", "a", "b"}
     assert cli_main(args) == 1  # the output exists now: refused, nothing overwritten
     assert "exists" in capsys.readouterr().err
     assert cli_main(["offsets", str(paths["b"])]) == 0

@@ -11,6 +11,7 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
+import pytest
 from geometry_msgs.msg import PointStamped
 from rosbags.highlevel import AnyReader
 
@@ -18,6 +19,7 @@ from efficient_comm.testing import TestHandle, test_container
 from robot_recorder import Recorder
 from team_clock.bag import LogReader
 from team_clock.clocks import SkewedClock
+from team_clock.errors import NoEstimateError
 from team_clock.merge import RobotLog, merge
 from team_clock.model import METADATA_NAME, OffsetModel
 from team_clock.sync import OFFSET_TOPIC, PING_TOPIC, PONG_TOPIC, ClockSync
@@ -84,3 +86,26 @@ def test_recorded_estimates_align_the_recorders_own_log_times(tmp_path: Path) ->
                   for c, t, raw in reader.messages(connections=conns)}
     assert merged.keys() == truth.keys()
     assert all(abs(merged[e] - truth[e]) <= 1 * MS for e in truth)
+
+
+def test_the_clock_robot_parameter_names_whose_estimates_are_recorded(tmp_path: Path) -> None:
+    """Two robots' estimates reach the recorder; the parameter says which is this log's."""
+    from team_clock_interfaces.msg import ClockOffset
+
+    container = test_container()
+    talker = TestHandle("team", container=container)
+    pub = talker.create_publisher(ClockOffset, OFFSET_TOPIC)
+    recorder = Recorder(TestHandle("recorder", container=container,
+                                   parameters={"clock_robot": "b"}),
+                        topics=[], output_dir=tmp_path)
+    bag = recorder.start(tmp_path / "bag").result(10)
+    for robot, offset in (("a", 1), ("b", 2), ("c", 3), ("b", 4)):
+        pub.publish(ClockOffset(robot=robot, reference="a", offset_ns=offset, valid=True))
+    recorder.close()
+    model = OffsetModel.from_mcap(bag)
+    assert model.robot == "b" and [k.offset_ns for k in model.knots] == [2, 4]
+    for other in ("a", "c"):  # not recorded at all
+        with pytest.raises(NoEstimateError, match="the log has those of"):
+            OffsetModel.from_mcap(bag, robot=other)
+    meta = [values for name, values in LogReader(bag).metadata() if name == METADATA_NAME]
+    assert [m["robot"] for m in meta] == ["b"]

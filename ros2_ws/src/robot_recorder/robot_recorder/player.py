@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import bisect
 import sys
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -57,9 +57,16 @@ class Player:
 
     Parameters (ROS): ``bag``, ``topics`` (empty: all), ``remappings`` (``FROM:=TO``),
     ``rate``, ``loop``, ``start_paused``, ``stamps`` (original / aligned / shifted),
-    ``tick_s`` (how often due messages are published). Keyword options override them;
-    ``offset_model`` (anything with ``to_reference(int) -> int``) is needed for ``aligned``
-    unless team_clock can read one from the bag.
+    ``tick_s`` (how often due messages are published), ``wait_for_subscribers`` and
+    ``wait_timeout_s`` (see below). Keyword options override them; ``offset_model``
+    (anything with ``to_reference(int) -> int``) is needed for ``aligned`` unless team_clock
+    can read one from the bag; ``on_end`` is called once when playback reaches the end of
+    the bag (never while looping).
+
+    With ``wait_for_subscribers`` the first message goes out only once every topic has a
+    subscriber, or ``wait_timeout_s`` (0: no limit) has passed: a subscriber in another
+    process is matched a fraction of a second after the player starts, and what was
+    published before that is lost to it.
     """
 
     def __init__(
@@ -74,6 +81,9 @@ class Player:
         start_paused: bool | None = None,
         stamps: str | None = None,
         offset_model: OffsetModel | None = None,
+        wait_for_subscribers: bool | None = None,
+        wait_timeout_s: float | None = None,
+        on_end: Callable[[], None] | None = None,
     ) -> None:
         p = node.declare_parameter
         self._node = node
@@ -115,6 +125,16 @@ class Player:
         self.published = 0
         self.finished = False
         self.paused = bool(start_paused if start_paused is not None else p("start_paused", False))
+        self.waiting = bool(wait_for_subscribers if wait_for_subscribers is not None
+                            else p("wait_for_subscribers", False))
+        wait_s = float(wait_timeout_s if wait_timeout_s is not None else p("wait_timeout_s", 0.0))
+        if wait_s < 0:
+            raise RecorderConfigError(f"wait_timeout_s must be >= 0 (0: no limit), not {wait_s}")
+        self._wait_until_ns = node.clock.now_ns() + round(wait_s * 1e9) if wait_s else None
+        self._on_end = on_end
+        if self.waiting:
+            node.logger.info(f"waiting for a subscriber on each of {self._unmatched()} before "
+                             "playing (wait_timeout_s limits the wait)")
         self._anchor()
         self._serve(node)
         tick_s = float(p("tick_s", 0.001))
@@ -152,10 +172,12 @@ class Player:
     def seek(self, time_ns: int) -> None:
         """Continue from the first message recorded at or after ``time_ns`` (0: the start)."""
         self.position = bisect.bisect_left(self._times, time_ns)
-        self.finished = self.position >= len(self._times) and not self.loop
+        self.finished = False
         if self.position >= len(self._times) and self.loop:
             self.position = 0
         self._anchor()
+        if self.position >= len(self._times):
+            self._end()
 
     def step(self) -> bool:
         """Publish the next message now (meant for paused playback); False at the end."""
@@ -175,8 +197,31 @@ class Player:
         self._anchor_clock = self._node.clock.now_ns()
         self._anchor_log = self.position_ns() if self.position < len(self._times) else 0
 
+    def _unmatched(self) -> list[str]:
+        return [p.topic_name for p in self._publishers.values()
+                if p.get_subscription_count() == 0]
+
+    def _still_waiting(self) -> bool:
+        """Whether to hold playback back for subscribers; says once why it stops waiting."""
+        unmatched = self._unmatched()
+        timed_out = (self._wait_until_ns is not None
+                     and self._node.clock.now_ns() >= self._wait_until_ns)
+        if unmatched and not timed_out:
+            return True
+        if unmatched:
+            self._node.logger.warning(f"playing although nobody subscribes to {unmatched} "
+                                      "(wait_timeout_s passed)")
+        self.waiting = False
+        self._anchor()
+        return False
+
+    def _end(self) -> None:
+        self.finished = True
+        if self._on_end is not None:
+            self._on_end()
+
     def _on_timer(self) -> None:
-        if self.paused or self.finished:
+        if self.paused or self.finished or (self.waiting and self._still_waiting()):
             return
         now = self._node.clock.now_ns()
         messages, times = self._messages, self._times
@@ -184,7 +229,7 @@ class Player:
         while True:
             if self.position >= len(messages):
                 if not self.loop:
-                    self.finished = True
+                    self._end()
                     return
                 if wrapped:  # a bag shorter than a tick: once around per tick
                     return
@@ -259,7 +304,11 @@ def _model_from_bag(path: Path) -> OffsetModel:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``player BAG [--topics ...] [--remap FROM:=TO ...] [--rate R] [--loop] [--paused]
-    [--stamps original|aligned|shifted]`` as a standalone node (``--ros-args`` after)."""
+    [--stamps original|aligned|shifted] [--no-wait | --wait-timeout S]`` as a standalone
+    node (``--ros-args`` after).
+
+    It starts playing once every topic has a subscriber (--no-wait: at once; --wait-timeout:
+    at the latest after S seconds), and exits at the end of the bag unless --loop."""
     import argparse
 
     from efficient_comm.standalone import run
@@ -277,8 +326,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--loop", action="store_true")
     parser.add_argument("--paused", action="store_true")
     parser.add_argument("--stamps", choices=STAMP_MODES, default="original")
+    wait = parser.add_mutually_exclusive_group()
+    wait.add_argument("--no-wait", action="store_true",
+                      help="play at once, without waiting for subscribers")
+    wait.add_argument("--wait-timeout", type=float, default=0.0, metavar="S",
+                      help="wait at most S seconds for subscribers (default: no limit)")
     ns = parser.parse_args(args_in)
+    if ns.wait_timeout < 0:
+        parser.error(f"--wait-timeout must be >= 0, not {ns.wait_timeout}")
     return run(lambda node: Player(node, bag=ns.bag, topics=ns.topics, remappings=ns.remap,
                                    rate=ns.rate, loop=ns.loop, start_paused=ns.paused,
-                                   stamps=ns.stamps),
+                                   stamps=ns.stamps, wait_for_subscribers=not ns.no_wait,
+                                   wait_timeout_s=ns.wait_timeout, on_end=_exit),
                name="player", args=["player", *ros_args])
+
+
+def _exit() -> None:
+    """The command's end of the bag: leave the executor; the node is closed on the way out
+    (a SystemExit passes through the callback guards, which catch only Exceptions)."""
+    raise SystemExit(0)

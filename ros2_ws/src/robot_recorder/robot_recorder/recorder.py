@@ -8,6 +8,12 @@ thread.
 
 Remote control (services, relative to the node: ``~/start``, ``~/stop``, ``~/split``,
 ``~/snapshot``, ``~/set_topics``) and ``~/status`` (about once a second and on every change).
+
+Clock estimates (``clock_topic``, team_clock's ``/team_clock/offset``) are recorded for one
+robot only, this one: on a DDS domain shared by a team every robot's estimates reach every
+recorder, and a log holding another robot's estimates would be aligned with the wrong
+clock. The robot is the ``clock_robot`` parameter, else the one whose clock sync publishes
+the estimates in this process (composed in the same container).
 """
 
 from __future__ import annotations
@@ -57,6 +63,8 @@ class Recorder:
     ``autostart``, ``queue_depth``, ``chunk_interval_s``, ``chunk_bytes``,
     ``max_file_bytes``, ``max_file_duration_s``, ``min_free_bytes``, ``compression``,
     ``snapshot_bytes``, ``snapshot_seconds``, ``status_period_s``, ``clock_topic``,
+    ``clock_robot`` (whose clock estimates to record; empty: the robot whose clock sync
+    shares the container),
     ``gil_switch_interval_s`` (0 leaves the interpreter's setting alone),
     ``pace_before_timers_s`` and ``pace_after_timers_s`` (the writer keeps off the GIL
     around the container's timer deadlines; 0 and 0 turn that off).
@@ -81,6 +89,12 @@ class Recorder:
         start = p("autostart", False) if autostart is None else autostart
         self.clock_topic = (p("clock_topic", DEFAULT_CLOCK_TOPIC)
                             if clock_topic is None else clock_topic)
+        #: The robot whose clock estimates are recorded ("": not known yet).
+        self.clock_robot: str = p("clock_robot", "", description="whose clock estimates to "
+                                  "record (empty: the clock sync in this container's)")
+        self._clock_robots_heard: set[str] = set()  # whose estimates were not recorded
+        self._local_robots: set[str] = set()  # whose estimates were published in-process
+        self._clock_tap: Any = None
         bag_options = {
             "chunk_interval_s": p("chunk_interval_s", 1.0),
             "chunk_bytes": p("chunk_bytes", 1 << 20),
@@ -118,7 +132,7 @@ class Recorder:
         self._active: dict[str, _Active] = {}
         self._status_pub: Any = None
         try:
-            self.set_topics(selections)
+            self._select(selections)
             self._serve(node)
             node.create_timer(p("status_period_s", 1.0), self._on_timer)
             if switch_interval > 0:
@@ -154,7 +168,19 @@ class Recorder:
         return self.writer.snapshot(Path(bag) if bag else self._new_bag_path("snapshot_"))
 
     def set_topics(self, selections: Iterable[TopicSelection]) -> None:
-        """Record exactly these topics from now on (throttle options may change)."""
+        """Record exactly these topics from now on (throttle options may change).
+
+        A selection that cannot be recorded (a topic named twice, a type given that is not
+        installed) raises :class:`RecorderError` and changes nothing: what was recorded
+        before goes on being recorded.
+        """
+        selections = list(selections)
+        for selection in selections:
+            if selection.type:
+                _checked_type(selection.type)
+        self._select(selections)
+
+    def _select(self, selections: Iterable[TopicSelection]) -> None:
         wanted: dict[str, TopicSelection] = {}
         for selection in selections:
             name = self._resolve(selection.name)
@@ -180,6 +206,10 @@ class Recorder:
         try:
             self.writer.close()
         finally:
+            container = _container(self._node)
+            if self._clock_tap is not None and container is not None:
+                container.bus.remove_subscription(self._clock_tap)
+                self._clock_tap = None
             if self._switch_interval is not None:
                 _SWITCH_INTERVAL.release(self._switch_interval)
                 self._switch_interval = None
@@ -208,9 +238,7 @@ class Recorder:
             if not type_str:
                 continue  # no publisher yet: the timer looks again
             try:
-                msg_type = import_type(type_str)
-                type_str = type_name(msg_type)
-                full_definition(type_str)  # refuse now what could not be written later
+                msg_type, type_str = _checked_type(type_str)
             except UnknownTypeError as exc:
                 self._node.logger.error(f"not recording {name}: {exc}")
                 self.writer.error = str(exc)
@@ -227,15 +255,63 @@ class Recorder:
         def on_message(msg: Any, state: TopicState = state) -> None:
             enqueue(state, msg, clock.now_ns())
 
+        callback: Callable[[Any], None] = on_message
+        if name == self._clock_name:
+            callback = self._own_estimates(on_message, msg_type)
+
         qos = _record_qos(self._node, name)
         throttle = selection.throttle()
         endpoint: Any
         if throttle is not None:
-            endpoint = ThrottledSubscription(self._node, msg_type, name, on_message,
+            endpoint = ThrottledSubscription(self._node, msg_type, name, callback,
                                              options=throttle, qos=qos)
         else:
-            endpoint = self._node.create_subscription(msg_type, name, on_message, qos=qos)
+            endpoint = self._node.create_subscription(msg_type, name, callback, qos=qos)
         self._active[name] = _Active(selection, state, endpoint)
+
+    def _own_estimates(self, record: Callable[[Any], None], msg_type: type
+                       ) -> Callable[[Any], None]:
+        """``record`` for the estimates of :attr:`clock_robot` only (see the module doc).
+
+        Without the parameter, the robot is learnt from the estimates published in this
+        process: a tap on the in-process bus (no DDS reader) sees only those. It is made
+        before the recording subscription, so it hears each estimate first.
+        """
+        container = _container(self._node)
+        if not self.clock_robot and container is not None and self._clock_tap is None:
+            def learn(msg: Any) -> None:
+                robot = str(getattr(msg, "robot", ""))
+                if not self.clock_robot and robot:
+                    self.clock_robot = robot
+                    self._node.logger.info(f"recording the clock estimates of robot {robot!r} "
+                                           "(its clock sync shares this container)")
+                elif robot and robot != self.clock_robot and robot not in self._local_robots:
+                    self._node.logger.warning(
+                        f"robots {self.clock_robot!r} and {robot!r} both publish clock "
+                        f"estimates in this container; recording {self.clock_robot!r}'s "
+                        "(the clock_robot parameter chooses)")
+                self._local_robots.add(robot)
+
+            self._clock_tap = container.bus.add_subscription(
+                self._clock_name, msg_type, learn, _TAP_QOS,
+                stats=container.executor.registry.add(
+                    self._node.fully_qualified_name, "subscription",
+                    f"{self._clock_name} (whose clock sync is here)"),
+                logger=self._node.logger)
+            self._clock_tap.observer = True  # it asks nobody to publish
+
+        def on_estimate(msg: Any) -> None:
+            robot = str(getattr(msg, "robot", ""))
+            if robot and robot == self.clock_robot:
+                record(msg)
+            elif robot not in self._clock_robots_heard:
+                self._clock_robots_heard.add(robot)
+                self._node.logger.info(
+                    f"not recording the clock estimates of robot {robot!r} on "
+                    f"{self._clock_name}: this log is robot "
+                    f"{self.clock_robot or '(none yet: set clock_robot)'}'s")
+
+        return on_estimate
 
     def _unsubscribe(self, name: str) -> None:
         active = self._active.pop(name)
@@ -391,6 +467,22 @@ class _SwitchInterval:
 
 
 _SWITCH_INTERVAL = _SwitchInterval()
+
+
+#: The in-process tap that learns whose clock sync shares the container: it takes whatever
+#: a publisher offers (best effort and volatile match every publisher).
+_TAP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                      reliability=ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def _checked_type(type_str: str) -> tuple[type, str]:
+    """The message class and canonical name of ``type_str``; :class:`UnknownTypeError` if
+    it is not installed or its definition could not be written into the bag."""
+    msg_type = import_type(type_str)
+    canonical = type_name(msg_type)
+    full_definition(canonical)  # refuse now what could not be written later
+    return msg_type, canonical
 
 
 def _container(node: NodeHandle) -> Container | None:

@@ -60,15 +60,11 @@ def parse_selection(text: str) -> TopicSelection:
                 raise RecorderConfigError(f"{text!r}: two types given ({msg_type}, {token})")
             msg_type = token
             continue
+        if key not in ("max_rate_hz", "every_nth"):
+            # Checked apart from the value: RecorderConfigError is a ValueError too.
+            raise RecorderConfigError(f"{text!r}: unknown option {key!r} (max_rate_hz, every_nth)")
         try:
-            if key == "max_rate_hz":
-                options[key] = float(value)
-            elif key == "every_nth":
-                options[key] = int(value)
-            else:
-                raise RecorderConfigError(
-                    f"{text!r}: unknown option {key!r} (max_rate_hz, every_nth)"
-                )
+            options[key] = float(value) if key == "max_rate_hz" else int(value)
         except ValueError as exc:
             raise RecorderConfigError(f"{text!r}: {key} has an invalid value {value!r}") from exc
     return TopicSelection(name=name, type=msg_type, **options)  # type: ignore[arg-type]

@@ -19,6 +19,7 @@ from .clocks import SkewedClock as SkewedClock
 from .errors import LogFormatError as LogFormatError
 from .errors import MergeError as MergeError
 from .errors import NoEstimateError as NoEstimateError
+from .errors import OtherRobotError as OtherRobotError
 from .errors import TeamClockError as TeamClockError
 from .estimator import Estimate as Estimate
 from .estimator import OffsetEstimator as OffsetEstimator

@@ -28,8 +28,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     m = sub.add_parser("merge", help="merge logs into one MCAP in team reference time")
-    m.add_argument("logs", nargs="+", metavar="[NAMESPACE=]LOG",
-                   help="an .mcap file or rosbag2 directory; NAMESPACE defaults to its robot")
+    m.add_argument("logs", nargs="+", metavar="[ROBOT=]LOG",
+                   help="an .mcap file or rosbag2 directory, aligned with ROBOT's recorded "
+                        "clock estimates and merged under /ROBOT (default: the robot whose "
+                        "estimates it holds)")
     m.add_argument("-o", "--output", required=True, type=Path,
                    help="bag directory to create (or a file ending in .mcap)")
     m.add_argument("--stamps", action="store_true",

@@ -26,7 +26,7 @@ from pathlib import Path
 from mcap.records import Channel, Message, Schema
 
 from .bag import BagWriter, LogReader
-from .errors import MergeError, NoEstimateError
+from .errors import MergeError, OtherRobotError
 from .model import OffsetModel
 
 __all__ = ["MergeReport", "RobotLog", "RobotReport", "merge"]
@@ -39,9 +39,10 @@ _HEADER_TYPES = {"std_msgs/Header", "std_msgs/msg/Header", "Header"}
 class RobotLog:
     """One robot's log and how to align it.
 
-    ``model`` None reads the offsets recorded in the log (``robot`` picks whose, when the
-    log holds several robots' estimates; else the robot named like ``namespace``).
-    ``namespace`` None uses the model's robot name.
+    ``model`` None reads the offsets recorded in the log: those of ``robot``, else of the
+    robot named like ``namespace`` (``b=LOG`` on the command line means robot b), and a log
+    holding only other robots' estimates is refused. ``namespace`` None uses the model's
+    robot name.
     """
 
     path: Path
@@ -88,14 +89,17 @@ def merge(
         raise MergeError("nothing to merge: no logs given")
     if Path(output).exists():
         raise MergeError(f"{output} exists; refusing to overwrite it")
+    named: list[str] = []
+    for log in logs:  # the names given first: a clash is said as such, not as a wrong robot
+        if log.namespace is not None:
+            _check_namespace(log.namespace, log.path, named)
+            named.append(log.namespace)
     reports: list[RobotReport] = []
     for log in logs:
         model = log.model or _model_of(log)
         namespace = log.namespace or model.robot or Path(log.path).stem
-        if not _NAME.match(namespace):
-            raise MergeError(f"namespace {namespace!r} of {log.path} is not a ROS name token")
-        if namespace in {r.namespace for r in reports}:
-            raise MergeError(f"two logs would be merged under /{namespace}")
+        if log.namespace is None:
+            _check_namespace(namespace, log.path, [r.namespace for r in reports] + named)
         reports.append(RobotReport(namespace, Path(log.path), model))
     references = {r.model.reference for r in reports} - {""}
     if len(references) > 1:
@@ -159,18 +163,28 @@ def merge(
     return MergeReport(Path(output), reports)
 
 
+def _check_namespace(namespace: str, path: Path, taken: Sequence[str]) -> None:
+    if not _NAME.match(namespace):
+        raise MergeError(f"namespace {namespace!r} of {path} is not a ROS name token")
+    if namespace in taken:
+        raise MergeError(f"two logs would be merged under /{namespace}")
+
+
 def _model_of(log: RobotLog) -> OffsetModel:
-    """The log's recorded model; with several robots' estimates, the namespace's robot."""
+    """The recorded model of the robot the log is named for (see :class:`RobotLog`).
+
+    Never another robot's: on a shared domain a log may hold its neighbours' estimates
+    too (recorders before robot_recorder kept only their own), and aligning robot b with
+    robot c's clock would be wrong by their offset while stating c's small error bound.
+    """
+    robot = log.robot if log.robot is not None else log.namespace
     try:
-        return OffsetModel.from_mcap(log.path, robot=log.robot)
-    except NoEstimateError:
-        if log.robot is not None or log.namespace is None:
-            raise
-        try:
-            return OffsetModel.from_mcap(log.path, robot=log.namespace)
-        except NoEstimateError:
-            pass
-        raise
+        return OffsetModel.from_mcap(log.path, robot=robot)
+    except OtherRobotError as exc:
+        raise MergeError(
+            f"{log.path} holds the clock estimates of robot {', '.join(exc.found)}, not of "
+            f"robot {robot}: the log was recorded on another robot (name it as "
+            f"{exc.found[0]}=LOG if it is {exc.found[0]}'s)") from exc
 
 
 def _aligned(

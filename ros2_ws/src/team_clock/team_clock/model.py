@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import LogFormatError, NoEstimateError
+from .errors import LogFormatError, NoEstimateError, OtherRobotError
 
 __all__ = ["METADATA_NAME", "Knot", "OffsetModel", "offset_metadata"]
 
@@ -267,8 +267,11 @@ class _Record:
 def _pick_robot(by_robot: Mapping[str, list[Knot]], robot: str | None) -> str:
     if robot is not None:
         if robot not in by_robot:
-            raise NoEstimateError(f"no clock estimates of robot {robot!r}; the log has "
-                                  f"{sorted(by_robot) or 'none'}")
+            if by_robot:
+                raise OtherRobotError(f"no clock estimates of robot {robot!r}; the log has "
+                                      f"those of {sorted(by_robot)}", wanted=robot,
+                                      found=sorted(by_robot))
+            raise NoEstimateError(f"no clock estimates of robot {robot!r}; the log has none")
         return robot
     if len(by_robot) != 1:
         raise NoEstimateError(
