@@ -26,8 +26,10 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from .dynamixel.plant import JointState
+from .errors import SimConfigError
 
 #: XM430-W350 at 12 V, from the ROBOTIS e-Manual's specification table.
 STALL_TORQUE_NM = 4.1
@@ -70,6 +72,8 @@ class MujocoPlant:
         self._slew_index = np.zeros(0, dtype=np.intp)
         self._slew_goal = np.zeros(0)
         self._slew_speed = np.zeros(0)
+        #: Pushes under way: body id, the simulated time at which it ends, its force.
+        self._pushes: list[tuple[int, float, npt.NDArray[np.float64]]] = []
         for dxl_id in joints:
             self._set_torque(dxl_id, on=False)
         mujoco.mj_forward(self.model, self.data)
@@ -96,6 +100,32 @@ class MujocoPlant:
         self._slew_goal = np.array([g for _, g, _ in on])
         self._slew_speed = np.array([s for _, _, s in on])
 
+    def push(self, force_n: tuple[float, float, float], *, duration_s: float,
+             body: str = "torso") -> None:
+        """Push ``body`` at its centre of mass with ``force_n`` (field frame, newtons) for
+        the next ``duration_s`` of simulated time: a shove, as in a push-recovery test.
+
+        Pushes on the same body add up while they overlap.
+        """
+        force = np.array(force_n, dtype=float)
+        if force.shape != (3,) or not np.isfinite(force).all() or not duration_s > 0:
+            raise SimConfigError(f"a push needs a finite (x, y, z) force and a duration > 0, "
+                                 f"got {force_n} for {duration_s} s")
+        try:
+            body_id = self.model.body(body).id
+        except KeyError:
+            raise SimConfigError(f"no body {body!r} to push in the model") from None
+        self.data.xfrc_applied[body_id, :3] += force
+        self._pushes.append((body_id, self.data.time + duration_s, force))
+
+    def _end_pushes(self) -> None:
+        now = self.data.time + 1e-9
+        for push in list(self._pushes):
+            body_id, until, force = push
+            if now >= until:
+                self.data.xfrc_applied[body_id, :3] -= force
+                self._pushes.remove(push)
+
     def step(self, seconds: float) -> None:
         """Advance the simulation; set-points move toward goals at the allowed speed."""
         steps = max(1, round(seconds / self.model.opt.timestep))
@@ -106,6 +136,8 @@ class MujocoPlant:
                 ctrl = self.data.ctrl[index]
                 self.data.ctrl[index] = ctrl + np.clip(goal - ctrl, -limit, limit)
             mujoco.mj_step(self.model, self.data)
+            if self._pushes:
+                self._end_pushes()
 
     def motor_torque(self, dxl_id: int) -> float:
         """The motor's torque at the output (N m): what the PWM asks for less the back-EMF's."""
