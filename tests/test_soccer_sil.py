@@ -22,6 +22,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 from efficient_comm import ComponentError, Container
 from efficient_comm.testing import TestHandle, isolated_domain_id, ros_env, test_container
@@ -29,6 +30,7 @@ from humanoid_sim.driver import MISSING_AFTER
 from humanoid_sim.errors import HumanoidSimError, SimConfigError
 from humanoid_sim.mujoco_plant import JOINTS
 from humanoid_sim.soccer.compose import SoccerRobot, compose
+from humanoid_sim.soccer.fall import LATCHED
 from humanoid_sim.soccer.motion import STANCE
 
 #: The promise: with the ball rolling, the head keeps it this close to the image centre
@@ -66,7 +68,10 @@ def test_head_keeps_a_rolling_ball_near_the_image_centre() -> None:
                 "ball_kick_period": 2.5, "seed": 3}, guard=False) as (container, bot):
         probe = TestHandle("probe", container=container)
         path: list[PoseStamped] = []
+        postures: list[str] = []
         probe.create_subscription(PoseStamped, "/robot/ground_truth/ball", path.append, qos=10)
+        probe.create_subscription(String, "/robot/fall/state",
+                                  lambda m: postures.append(m.data), qos=LATCHED)
         container.advance(1.0)  # acquire the ball
         bot.monitor.window()
         path.clear()
@@ -82,6 +87,9 @@ def test_head_keeps_a_rolling_ball_near_the_image_centre() -> None:
     assert summary["tracking_error_max_deg"] < TRACKING_MAX_DEG
     assert summary["detection_error_p95_deg"] < 1.0  # the detector agrees with the truth
     assert bot.behaviour.state == "tracking"
+    # Starting up, turning the head after kicked balls: never taken for a fall.
+    assert postures == ["standing"] and bot.fall_detector.falls == 0
+    assert figures.frames_down == 0
 
 
 def test_head_searches_for_a_ball_out_of_sight_and_finds_it() -> None:
@@ -92,14 +100,57 @@ def test_head_searches_for_a_ball_out_of_sight_and_finds_it() -> None:
         assert bot.monitor.totals().detections == 0
         container.advance(6.0)  # one sweep of the search pattern
         assert bot.behaviour.state == "tracking"
+        assert bot.fall_detector.state == "standing"  # sweeping the head is no fall
+        assert bot.fall_detector.falls == 0
         container.advance(0.5)  # turn the head to it
         bot.monitor.window()
         container.advance(1.0)
         assert bot.monitor.window().summary()["tracking_error_max_deg"] < TRACKING_MAX_DEG
 
 
+def test_a_robot_pushed_over_is_noticed_and_stops_claiming_to_track() -> None:
+    with robot({"ball_position": [1.5, 0.0]}) as (container, bot):
+        probe = TestHandle("probe", container=container)
+        diagnostics: list[DiagnosticArray] = []
+        postures: list[str] = []
+        head_goals: list[JointState] = []
+        probe.create_subscription(DiagnosticArray, "/diagnostics", diagnostics.append, qos=10)
+        probe.create_subscription(String, "/robot/fall/state",
+                                  lambda m: postures.append(m.data), qos=LATCHED)
+        probe.create_subscription(JointState, "/robot/head/goal", head_goals.append, qos=10)
+        container.advance(1.5)
+        assert bot.behaviour.state == "tracking" and postures == ["standing"]
+        assert _posture(diagnostics) == (DiagnosticStatus.OK, "standing")
+
+        bot.simulator.push((10.0, 0.0, 0.0), duration_s=0.1)  # a shove it stands
+        container.advance(2.0)
+        assert postures == ["standing"] and bot.behaviour.state == "tracking"
+
+        bot.simulator.push((40.0, 0.0, 0.0), duration_s=0.1)  # from behind: falls forward
+        container.advance(1.5)
+        assert bot.simulator.plant.torso_height() < 0.15  # the truth: it is on the ground
+        assert postures == ["standing", "falling", "fallen"]
+        assert bot.fall_detector.falls == 1
+        assert _posture(diagnostics) == (DiagnosticStatus.ERROR, "fallen")
+        assert bot.behaviour.state == "fallen"
+        head_goals.clear()
+        frames_before = bot.monitor.totals().frames_down
+        container.advance(1.0)
+        assert head_goals == []  # neither tracking nor searching from the ground
+        assert bot.behaviour.state == "fallen"
+        assert bot.monitor.totals().frames_down - frames_before == pytest.approx(30, abs=1)
+
+
+def _posture(diagnostics: list[DiagnosticArray]) -> tuple[int, str]:
+    status = next(s for a in reversed(diagnostics) for s in a.status if s.hardware_id == "imu")
+    return status.level, status.message
+
+
 def _servo_levels(diagnostics: list[DiagnosticArray]) -> dict[str, int]:
-    return {s.hardware_id: s.level for s in diagnostics[-1].status}
+    """The servos' levels in the driver's last report (the fall detector reports too)."""
+    last = next(a for a in reversed(diagnostics)
+                if a.status and a.status[0].hardware_id.startswith("dynamixel:"))
+    return {s.hardware_id: s.level for s in last.status}
 
 
 def test_unplugged_servo_is_reported_survived_and_taken_back() -> None:
@@ -163,6 +214,7 @@ def test_lockstep_runs_are_deterministic_for_a_seed() -> None:
 
 @pytest.mark.parametrize("parameters", [
     {"step_hz": 0.0}, {"line_noise": 1.5}, {"ball_position": [1.0]}, {"camera_width": 4000},
+    {"push_force": [1.0, 2.0]}, {"push_at": -1.0},
 ])
 def test_bad_simulator_parameters_are_refused_clearly(parameters: dict[str, Any]) -> None:
     with test_container() as container, pytest.raises(ComponentError) as error:
@@ -186,6 +238,23 @@ def test_demo_runs_headless_and_leaves_a_report(tmp_path: Path) -> None:
     text = report.read_text()
     assert "tracking error" in text and "real-time factor" in text
     assert "| servos answering | 20 of 20" in text
+    assert "| posture (fall detector) | stood throughout, now standing |" in text
+
+
+def test_the_demo_says_when_the_robot_fell_in_its_report_and_exit_status(tmp_path: Path
+                                                                         ) -> None:
+    report = tmp_path / "report.md"
+    result = subprocess.run(
+        [sys.executable, "-m", "humanoid_sim.demo", "--lockstep", "--no-dds", "--duration", "4",
+         "--push-at", "2", "--report", str(report)],
+        capture_output=True, text=True, timeout=90, check=False,
+    )
+    assert result.returncode == 3, result.stdout + result.stderr  # fell, and no bug
+    assert "the robot fell" in result.stdout
+    text = report.read_text()
+    assert "| posture (fall detector) | **FELL** 1 time (at 2." in text
+    assert "now fallen" in text and "pushed 1 time" in text
+    assert "| head behaviour | fallen" in text
 
 
 def test_real_time_demo_with_dds_stops_cleanly_on_ctrl_c(tmp_path: Path) -> None:

@@ -31,6 +31,7 @@ setup(
             "humanoid_sim::HeadBehaviour = humanoid_sim.soccer.behaviour:HeadBehaviour",
             "humanoid_sim::Motion = humanoid_sim.soccer.motion:Motion",
             "humanoid_sim::SoccerMonitor = humanoid_sim.soccer.monitor:SoccerMonitor",
+            "humanoid_sim::FallDetector = humanoid_sim.soccer.fall:FallDetector",
         ],
     },
 )

@@ -9,7 +9,12 @@ ball model -> behaviour -> motion), passing messages by reference on one thread.
 ``--duration`` or on Ctrl-C/SIGTERM) it writes a short Markdown report.
 
 ``--lockstep`` runs on a manual clock as fast as the machine allows, the same run for the
-same ``--seed``; by default the simulation runs in real time.
+same ``--seed``; by default the simulation runs in real time. ``--push-at`` shoves the robot
+from behind at that simulated second (``--push-newtons`` for 0.1 s; 40 N fells it).
+
+Exit status: 0 the robot stood and tracked; 1 a bug (the ball was never detected, a
+callback raised, or the servo bus emulator raised); 3 the robot fell (the fall detector
+saw it on the ground), with no bug.
 """
 
 from __future__ import annotations
@@ -29,6 +34,8 @@ from efficient_comm.examples.demo import format_stats
 from .soccer.compose import SoccerRobot, compose
 from .soccer.monitor import Figures
 
+EXIT_OK, EXIT_BUG, EXIT_FELL = 0, 1, 3
+
 HEADER = (f"{'sim s':>6} {'RTF':>5} {'cam fps':>7} {'det Hz':>6} {'bus Hz':>6} "
           f"{'err mean°':>9} {'err p95°':>8} {'lat ms':>6} {'head':<9} {'bus err':>7}")
 
@@ -45,6 +52,18 @@ def live_line(robot: SoccerRobot, window: Figures) -> str:
             f"{_f(s['tracking_error_p95_deg'], '8.2f'):>8} "
             f"{_f(s['latency_median_ms'], '6.1f'):>6} {robot.behaviour.state:<9} "
             f"{robot.driver.comm_errors:>7}")
+
+
+def posture(robot: SoccerRobot, frames_down: int) -> str:
+    """What the fall detector saw, for the report: the robot fell, or it stood throughout."""
+    fall = robot.fall_detector
+    pushes = robot.simulator.status()["pushes"]
+    pushed = f"; pushed {pushes} time{'s' * (pushes != 1)}" if pushes else ""
+    if not fall.falls:
+        return f"stood throughout, now {fall.state}{pushed}"
+    when = ", ".join(f"{t / 1e9:.1f} s" for t in fall.fell_at_ns)
+    return (f"**FELL** {fall.falls} time{'s' * (fall.falls != 1)} (at {when}), now "
+            f"{fall.state}; {frames_down} frames while down, not scored{pushed}")
 
 
 def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
@@ -84,6 +103,7 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         f"{sim['bus_discarded_bytes']} bytes of unfinished packets dropped, "
         f"{sim['bus_dropped_replies']} replies nobody read |",
         f"| head behaviour | {robot.behaviour.state}, {robot.behaviour.switches} switches |",
+        f"| posture (fall detector) | {posture(robot, totals.frames_down)} |",
         "",
         "## Callbacks",
         "",
@@ -108,6 +128,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--no-dds", action="store_true", help="no DDS: nothing leaves the process")
     parser.add_argument("--stats-period", type=float, default=2.0)
     parser.add_argument("--report", type=Path, default=Path("soccer_report.md"))
+    parser.add_argument("--push-at", type=float, default=0.0, metavar="SECONDS",
+                        help="push the robot from behind at this simulated time (0: never)")
+    parser.add_argument("--push-newtons", type=float, default=40.0,
+                        help="force of that push, for 0.1 s")
     args = parser.parse_args(argv)
     stop_on_sigterm()
 
@@ -117,6 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         robot = compose(container, simulator={
             "seed": args.seed, "ball_velocity": [0.0, 0.3], "ball_kick_period": args.kick_period,
             "line_noise": args.line_noise,
+            "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
         })
         print(f"soccer demo: {robot.simulator.camera.backend if robot.simulator.camera else 'no'}"
               f" camera, servos on {robot.simulator.port}; "
@@ -144,10 +169,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         # A failing callback or an exception inside the emulator is a bug: exit status 1.
         ok = (robot.monitor.totals().detections > 0 and failures == 0
               and not robot.simulator.pty.errors)
+        fell = robot.fall_detector.falls > 0
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(text)
     print(f"\n{text}\nreport written to {args.report.resolve()}")
-    return 0 if ok else 1
+    if not ok:
+        return EXIT_BUG
+    if fell:
+        print("the robot fell (exit status 3)")
+        return EXIT_FELL
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -1,19 +1,46 @@
 """MuJoCo as the :class:`~humanoid_sim.dynamixel.plant.Plant` behind the emulated servos.
 
-Each servo id drives one joint through a position actuator (XM430-like: 4.1 N m stall
-torque). A goal is approached no faster than the servo's profile speed (the set-point
-slews), and torque off makes the joint limp (the actuator's gains drop to zero).
+Each servo id drives one joint as an XM430-W350 at 12 V drives it: a DC motor behind a
+353.5:1 gearbox, whose controller turns the position error into a PWM duty cycle. In MJCF
+(``models/robot.xml``, class ``servo``) that is
+
+* a position actuator whose force is the torque the duty cycle asks for, saturating at the
+  stall torque (full PWM): ``clamp(kp * (goal - q), ±τ_stall)``;
+* joint damping ``b = τ_stall / ω_no_load``: the back-EMF, which takes ``b * ω`` off that
+  torque at speed ω. Together they give the motor's torque-speed line: driving, the torque
+  is at most ``τ_stall * (1 - ω / ω_no_load)``, so no joint ever turns faster than the
+  no-load speed (46 rpm), and a loaded one slows down along the line;
+* the rotor's inertia seen through the gearbox (armature).
+
+How each figure follows from the e-Manual's is written in docs/HUMANOID_SIM.md and next to
+the figures in ``models/robot.xml``. A goal is approached no faster than the servo's profile
+speed (the set-point slews). Torque off makes the joint limp: the controller's gain and the
+back-EMF's damping drop to zero (the motor driver's output is off, so no current flows).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from .dynamixel.plant import JointState
+from .errors import SimConfigError
+
+#: XM430-W350 at 12 V, from the ROBOTIS e-Manual's specification table.
+STALL_TORQUE_NM = 4.1
+STALL_CURRENT_A = 2.3
+NO_LOAD_SPEED_RAD_S = 46 * 2 * math.pi / 60
+GEAR_RATIO = 353.5
+#: Not published by ROBOTIS: the inertia of a 16 mm coreless motor's rotor, the size the
+#: XM430's case holds (1 g cm²). Seen through the gearbox it is the joint's armature.
+ROTOR_INERTIA_KG_M2 = 1.0e-7
+#: Output torque per ampere of motor current (the motor's torque is proportional to it).
+TORQUE_PER_AMP = STALL_TORQUE_NM / STALL_CURRENT_A
 
 MODEL = Path(__file__).with_name("models") / "soccer_field.xml"
 
@@ -38,11 +65,15 @@ class MujocoPlant:
         self._actuator = {i: self.model.actuator(name).id for i, name in joints.items()}
         self._kp = {i: float(self.model.actuator_gainprm[a, 0]) for i, a in self._actuator.items()}
         self._kv = {i: float(-self.model.actuator_biasprm[a, 2]) for i, a in self._actuator.items()}
+        self._dof = {i: int(self.model.joint(name).dofadr[0]) for i, name in joints.items()}
+        self._damping = {i: float(self.model.dof_damping[d]) for i, d in self._dof.items()}
         self._goal: dict[int, tuple[bool, float, float]] = {}
         # Set-point slewing for all torqued joints at once: actuator index, goal, speed.
         self._slew_index = np.zeros(0, dtype=np.intp)
         self._slew_goal = np.zeros(0)
         self._slew_speed = np.zeros(0)
+        #: Pushes under way: body id, the simulated time at which it ends, its force.
+        self._pushes: list[tuple[int, float, npt.NDArray[np.float64]]] = []
         for dxl_id in joints:
             self._set_torque(dxl_id, on=False)
         mujoco.mj_forward(self.model, self.data)
@@ -53,6 +84,7 @@ class MujocoPlant:
         self.model.actuator_gainprm[a, 0] = kp
         self.model.actuator_biasprm[a, 1] = -kp
         self.model.actuator_biasprm[a, 2] = -kv
+        self.model.dof_damping[self._dof[dxl_id]] = self._damping[dxl_id] if on else 0.0
 
     def command(self, dxl_id: int, *, torque: bool, goal_rad: float, max_speed_rad_s: float
                 ) -> None:
@@ -68,6 +100,32 @@ class MujocoPlant:
         self._slew_goal = np.array([g for _, g, _ in on])
         self._slew_speed = np.array([s for _, _, s in on])
 
+    def push(self, force_n: tuple[float, float, float], *, duration_s: float,
+             body: str = "torso") -> None:
+        """Push ``body`` at its centre of mass with ``force_n`` (field frame, newtons) for
+        the next ``duration_s`` of simulated time: a shove, as in a push-recovery test.
+
+        Pushes on the same body add up while they overlap.
+        """
+        force = np.array(force_n, dtype=float)
+        if force.shape != (3,) or not np.isfinite(force).all() or not duration_s > 0:
+            raise SimConfigError(f"a push needs a finite (x, y, z) force and a duration > 0, "
+                                 f"got {force_n} for {duration_s} s")
+        try:
+            body_id = self.model.body(body).id
+        except KeyError:
+            raise SimConfigError(f"no body {body!r} to push in the model") from None
+        self.data.xfrc_applied[body_id, :3] += force
+        self._pushes.append((body_id, self.data.time + duration_s, force))
+
+    def _end_pushes(self) -> None:
+        now = self.data.time + 1e-9
+        for push in list(self._pushes):
+            body_id, until, force = push
+            if now >= until:
+                self.data.xfrc_applied[body_id, :3] -= force
+                self._pushes.remove(push)
+
     def step(self, seconds: float) -> None:
         """Advance the simulation; set-points move toward goals at the allowed speed."""
         steps = max(1, round(seconds / self.model.opt.timestep))
@@ -78,13 +136,21 @@ class MujocoPlant:
                 ctrl = self.data.ctrl[index]
                 self.data.ctrl[index] = ctrl + np.clip(goal - ctrl, -limit, limit)
             mujoco.mj_step(self.model, self.data)
+            if self._pushes:
+                self._end_pushes()
+
+    def motor_torque(self, dxl_id: int) -> float:
+        """The motor's torque at the output (N m): what the PWM asks for less the back-EMF's."""
+        dof = self._dof[dxl_id]
+        return (float(self.data.actuator_force[self._actuator[dxl_id]])
+                - float(self.model.dof_damping[dof]) * float(self.data.qvel[dof]))
 
     def state(self, dxl_id: int) -> JointState:
         joint = self._joint[dxl_id]
         return JointState(
             position_rad=float(self.data.qpos[joint.qposadr[0]]),
             velocity_rad_s=float(self.data.qvel[joint.dofadr[0]]),
-            current_a=abs(float(self.data.actuator_force[self._actuator[dxl_id]])) / 1.8,
+            current_a=abs(self.motor_torque(dxl_id)) / TORQUE_PER_AMP,
         )
 
     def torso_height(self) -> float:

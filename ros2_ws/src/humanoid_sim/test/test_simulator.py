@@ -10,11 +10,12 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
+from geometry_msgs.msg import Vector3
 
 from efficient_comm.testing import TestHandle
 from humanoid_sim import simulator
 from humanoid_sim.errors import SimConfigError
-from humanoid_sim.simulator import MAX_CATCH_UP, Simulator
+from humanoid_sim.simulator import MAX_CATCH_UP, PUSH_SECONDS, Simulator
 
 
 def _open_fds() -> set[str]:
@@ -106,5 +107,41 @@ def test_imu_ground_truth_and_camera_info_describe_the_same_world() -> None:
         f = (240 / 2) / math.tan(math.radians(70 / 2))  # the head camera's vertical view
         assert list(info.k) == pytest.approx([f, 0, 160, 0, f, 120, 0, 0, 1])
         assert robot.header.frame_id == "field"
+    finally:
+        sim.close()
+
+
+def test_pushes_last_as_long_as_asked_from_a_method_a_topic_or_a_schedule() -> None:
+    node = TestHandle("sim", parameters={"camera_hz": 0.0, "push_at": 0.5,
+                                         "push_force": [0.0, -30.0, 0.0]})
+    sim = Simulator(node)
+    try:
+        torso = sim.model.body("torso").id
+
+        def force() -> list[float]:
+            return [round(float(f), 6) for f in sim.data.xfrc_applied[torso, :3]]
+
+        node.advance(0.5)
+        assert force() == [0.0, 0.0, 0.0]
+        node.advance(0.01)  # the tick that steps from 0.5 s on
+        assert force() == [0.0, -30.0, 0.0]  # the scheduled one, at 0.5 s
+        node.advance(0.1)
+        assert force() == [0.0, 0.0, 0.0]  # over after PUSH_SECONDS
+        node.inject("push", Vector3(x=2.0, y=0.0, z=0.5))  # an impulse, N s
+        sim.push((0.0, 5.0, 0.0), duration_s=0.2)
+        node.advance(0.05)
+        assert force() == [2.0 / PUSH_SECONDS, 5.0, 0.5 / PUSH_SECONDS]  # they add up
+        node.advance(0.1)
+        assert force() == [0.0, 5.0, 0.0]  # the longer one still on
+        node.advance(0.1)
+        assert force() == [0.0, 0.0, 0.0]
+        assert sim.status()["pushes"] == 3
+        node.inject("push", Vector3(x=math.nan))
+        assert force() == [0.0, 0.0, 0.0] and sim.status()["pushes"] == 3
+        assert any("push ignored" in message for _, message in node.records)
+        with pytest.raises(SimConfigError, match="duration"):
+            sim.push((1.0, 0.0, 0.0), duration_s=0.0)
+        with pytest.raises(SimConfigError, match="no body 'tail'"):
+            sim.push((1.0, 0.0, 0.0), body="tail")
     finally:
         sim.close()

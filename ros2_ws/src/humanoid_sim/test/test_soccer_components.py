@@ -8,12 +8,16 @@ import math
 import cv2
 import numpy as np
 import pytest
-from geometry_msgs.msg import PointStamped
-from sensor_msgs.msg import CameraInfo, Image, JointState
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PointStamped, Quaternion
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
+from std_msgs.msg import String
 
 from efficient_comm import to_msg
 from efficient_comm.testing import TestHandle
+from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.behaviour import SEARCH_PITCH_RAD, HeadBehaviour
+from humanoid_sim.soccer.fall import FallDetector
 from humanoid_sim.soccer.motion import NECK_LIMITS, STANCE, Motion
 from humanoid_sim.soccer.vision import FALLBACK_FOVY_DEG, BallDetector
 from humanoid_sim.soccer.world_model import BALL_RADIUS_M, BallModel
@@ -146,3 +150,95 @@ def test_motion_commands_the_stance_and_clamps_head_goals() -> None:
     assert command["neck_yaw"] == NECK_LIMITS["neck_yaw"][1]
     assert command["neck_pitch"] == NECK_LIMITS["neck_pitch"][0]
     assert command["l_knee"] == STANCE["l_knee"]  # the head goal moves only the head
+
+
+def _imu(stamp_s: float, tilt_deg: float, rate: float = 0.0, *, heading_deg: float = 0.0
+         ) -> Imu:
+    """The torso turned to ``heading_deg``, then tilted by ``tilt_deg`` about its y axis."""
+    h, t = math.radians(heading_deg) / 2, math.radians(tilt_deg) / 2
+    imu = Imu()  # q = yaw(h) * pitch(t)
+    imu.orientation = Quaternion(w=math.cos(h) * math.cos(t), x=-math.sin(h) * math.sin(t),
+                                 y=math.cos(h) * math.sin(t), z=math.sin(h) * math.cos(t))
+    imu.angular_velocity.y = rate
+    imu.header.stamp = to_msg(round(stamp_s * 1e9))
+    return imu
+
+
+def _feed(node: TestHandle, start_s: float, seconds: float, tilt_deg: float,
+          rate: float = 0.0) -> float:
+    """IMU messages at 100 Hz, as the simulator sends them; returns the time after them."""
+    steps = round(seconds * 100)
+    for k in range(steps):
+        node.inject("imu/data", _imu(start_s + k / 100, tilt_deg, rate))
+    return start_s + steps / 100
+
+
+def _states(node: TestHandle) -> list[str]:
+    return [m.data for m in node.published("fall/state")]
+
+
+def test_fall_detector_sees_a_fall_and_a_getting_up_with_hysteresis() -> None:
+    node = TestHandle("fall")
+    fall = FallDetector(node)
+    t = _feed(node, 0.0, 1.0, tilt_deg=5.0, rate=1.0)  # a wobble, and a head turning
+    t = _feed(node, t, 1.0, tilt_deg=35.0, rate=0.2)  # leaning far, but still: not yet
+    assert _states(node) == ["standing"]
+    node.inject("imu/data", _imu(t, 25.0, rate=2.0))  # leaning and tipping over fast
+    assert _states(node) == ["standing", "falling"] and fall.down
+    node.inject("imu/data", _imu(t + 0.01, 85.0, rate=0.3, heading_deg=120))  # any heading
+    assert _states(node) == ["standing", "falling", "fallen"]
+    assert fall.falls == 1 and fall.fell_at_ns == [round((t + 0.01) * 1e9)]
+    status = node.published("/diagnostics")[-1].status[0]
+    assert (status.level, status.message, status.hardware_id) == (
+        DiagnosticStatus.ERROR, "fallen", "imu")
+    assert {v.key: v.value for v in status.values}["falls"] == "1"
+    t = _feed(node, t + 0.02, 0.9, tilt_deg=10.0)  # upright again, not long enough yet
+    t = _feed(node, t, 0.5, tilt_deg=10.0, rate=0.8)  # still moving: the wait starts anew
+    t = _feed(node, t, 0.9, tilt_deg=10.0)
+    assert fall.state == "fallen"
+    _feed(node, t, 0.2, tilt_deg=10.0)  # a whole second upright and still
+    assert _states(node)[-1] == "standing" and fall.falls == 1
+    node.advance(1.0)  # and reported as such once a second
+    assert node.published("/diagnostics")[-1].status[0].level == DiagnosticStatus.OK
+
+
+def test_fall_detector_a_stumble_caught_in_time_is_no_fall() -> None:
+    node = TestHandle("fall")
+    fall = FallDetector(node)
+    node.inject("imu/data", _imu(0.0, 45.0))
+    assert fall.state == "falling"
+    _feed(node, 0.01, 1.1, tilt_deg=3.0)
+    assert _states(node) == ["standing", "falling", "standing"]
+    assert fall.falls == 0  # never on the ground
+
+
+def test_fall_detector_refuses_bad_thresholds_and_skips_broken_orientations() -> None:
+    with pytest.raises(SimConfigError, match="fall_tilt_deg"):
+        FallDetector(TestHandle("fall", parameters={"fall_tilt_deg": 10.0}))
+    with pytest.raises(SimConfigError, match="rest_rate"):
+        FallDetector(TestHandle("fall", parameters={"rest_rate": 0.0}))
+    node = TestHandle("fall")
+    fall = FallDetector(node)
+    broken = _imu(0.0, 0.0)
+    broken.orientation = Quaternion(w=0.0, x=0.0, y=0.0, z=0.0)
+    node.inject("imu/data", broken)
+    assert fall.rejected == 1 and fall.state == "standing"
+
+
+def test_behaviour_stops_tracking_and_searching_while_the_robot_is_down() -> None:
+    node = TestHandle("behaviour")
+    behaviour = HeadBehaviour(node)
+    estimate = PointStamped()
+    node.inject("ball/estimate", estimate)
+    assert behaviour.state == "tracking"
+    node.inject("fall/state", String(data="falling"))
+    assert behaviour.state == "fallen"
+    node.clear_published()
+    node.inject("ball/estimate", estimate)  # still seen, as the robot goes down
+    node.advance(2.0)  # long past lost_after: no search either
+    assert behaviour.state == "fallen" and node.published("head/goal") == []
+    node.inject("fall/state", String(data="fallen"))
+    node.inject("fall/state", String(data="standing"))
+    assert behaviour.state == "searching"
+    node.advance(0.1)
+    assert node.published("head/goal")[-1].position[1] == SEARCH_PITCH_RAD

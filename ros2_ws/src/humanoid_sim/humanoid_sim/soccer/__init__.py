@@ -3,6 +3,7 @@
 ``vision`` finds the ball in camera images (OpenCV); ``world_model`` filters its bearing in
 the robot's frame; ``behaviour`` points the head at it (and searches when it is lost);
 ``motion`` turns stance and head goals into joint commands for the servo driver;
+``fall`` tells from the IMU whether the robot stands, is falling or lies on the ground;
 ``monitor`` measures what the pipeline achieves against the simulator's ground truth.
 ``compose`` wires them, the simulator and the driver into one container.
 
@@ -14,4 +15,5 @@ Messages between them (all standard types, passed by reference when composed):
 * ``ball/estimate`` (PointStamped): x, y = filtered yaw and pitch of the ball from the
   torso's forward axis (rad), z = distance (m); stamped with the image it came from.
 * ``head/goal`` (JointState): neck_yaw and neck_pitch, stamped with the image it came from.
+* ``fall/state`` (String, transient local): ``standing``, ``falling`` or ``fallen``.
 """

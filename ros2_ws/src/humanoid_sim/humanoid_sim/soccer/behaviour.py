@@ -2,6 +2,9 @@
 
 Head goals are the estimated bearing itself (the world model already predicts it to the
 present). Searching sweeps the head from side to side, looking down at the field in front.
+While the fall detector says the robot is falling or has fallen (``fall/state``), the
+behaviour is ``fallen``: it neither tracks nor searches, and claims neither; once the robot
+stands again it starts by searching.
 """
 
 from __future__ import annotations
@@ -10,9 +13,12 @@ import math
 
 from geometry_msgs.msg import PointStamped
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 from efficient_comm import to_msg
 from efficient_comm.handle import NodeHandle
+
+from .fall import LATCHED, STANDING
 
 SEARCH_PERIOD_S = 6.0
 SEARCH_YAW_RAD = 1.4
@@ -25,11 +31,20 @@ class HeadBehaviour:
         self.lost_after_ns = round(node.declare_parameter("lost_after", 0.5) * 1e9)
         self.pub = node.create_publisher(JointState, "head/goal", qos=10)
         node.create_subscription(PointStamped, "ball/estimate", self._on_ball, qos=10)
+        node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
         self.last_seen_ns: int | None = None
         self.state = "searching"
         self.switches = 0
         self._search_start_ns = node.clock.now_ns()
         node.create_timer(0.1, self._search)
+
+    def _on_posture(self, posture: String) -> None:
+        if posture.data != STANDING:
+            self._set_state("fallen")
+        elif self.state == "fallen":  # up again: where the ball is, is not known
+            self.last_seen_ns = None
+            self._set_state("searching")
+            self._search_start_ns = self.node.clock.now_ns()
 
     def _look(self, yaw: float, pitch: float, stamp_ns: int | None = None) -> None:
         goal = JointState(name=["neck_yaw", "neck_pitch"], position=[yaw, pitch])
@@ -43,6 +58,8 @@ class HeadBehaviour:
             self.node.logger.info(f"head: {state}")
 
     def _on_ball(self, estimate: PointStamped) -> None:
+        if self.state == "fallen":
+            return
         self.last_seen_ns = self.node.clock.now_ns()
         self._set_state("tracking")
         stamp = estimate.header.stamp
@@ -51,7 +68,8 @@ class HeadBehaviour:
 
     def _search(self) -> None:
         now = self.node.clock.now_ns()
-        if self.last_seen_ns is not None and now - self.last_seen_ns < self.lost_after_ns:
+        if self.state == "fallen" or (
+                self.last_seen_ns is not None and now - self.last_seen_ns < self.lost_after_ns):
             return
         if self.state != "searching":
             self._search_start_ns = now

@@ -17,6 +17,7 @@ from ..driver import ServoDriver
 from ..mujoco_plant import JOINTS
 from ..simulator import Simulator
 from .behaviour import HeadBehaviour
+from .fall import FallDetector
 from .monitor import SoccerMonitor
 from .motion import Motion
 from .vision import BallDetector
@@ -33,6 +34,7 @@ class SoccerRobot:
     driver: ServoDriver
     detector: BallDetector
     ball_model: BallModel
+    fall_detector: FallDetector
     behaviour: HeadBehaviour
     motion: Motion
     monitor: SoccerMonitor
@@ -64,6 +66,7 @@ def compose(container: Container, *, namespace: str = "/robot",
                              parameters=driver_parameters),
         detector=container.add(BallDetector, name="ball_detector", namespace=namespace),
         ball_model=container.add(BallModel, name="ball_model", namespace=namespace),
+        fall_detector=container.add(FallDetector, name="fall_detector", namespace=namespace),
         behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
         motion=container.add(Motion, name="motion", namespace=namespace),
         monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),

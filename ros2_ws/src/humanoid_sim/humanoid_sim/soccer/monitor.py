@@ -3,8 +3,10 @@
 Tracking error is the angle between the camera's optical axis and the true direction to the
 ball at each camera frame: what "the head keeps the ball centred" means, independent of what
 the pipeline believes. Latency runs from an image's capture stamp to the joint command it
-caused. Rates count what each stage produced. :meth:`SoccerMonitor.window` returns the
-figures since its last call (live statistics); :meth:`SoccerMonitor.totals` those of the run.
+caused. Rates count what each stage produced. Frames taken while the fall detector says the
+robot is down (``fall/state``) are counted but not scored: a head on the ground tracks
+nothing. :meth:`SoccerMonitor.window` returns the figures since its last call (live
+statistics); :meth:`SoccerMonitor.totals` those of the run.
 """
 
 from __future__ import annotations
@@ -17,9 +19,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from geometry_msgs.msg import PointStamped, PoseStamped
 from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import String
 
 from efficient_comm import from_msg
 from efficient_comm.handle import NodeHandle
+
+from .fall import LATCHED, STANDING
 
 
 def _rotation(pose: PoseStamped) -> np.ndarray:
@@ -51,6 +56,7 @@ class Figures:
 
     seconds: float = 0.0
     frames: int = 0
+    frames_down: int = 0  # taken while the robot was falling or fallen: not scored
     detections: int = 0
     joint_states: int = 0
     commands: int = 0
@@ -88,6 +94,7 @@ class SoccerMonitor:
         self.node = node
         self.camera: PoseStamped | None = None
         self.ball: PoseStamped | None = None
+        self.posture = STANDING
         # Commands caused by an image reach us before the image itself when composed
         # depth-first (the detector subscribed first), so either side may come first.
         self._image_stamps: deque[int] = deque(maxlen=64)
@@ -101,9 +108,19 @@ class SoccerMonitor:
         node.create_subscription(PointStamped, "ball/detection", self._on_detection, qos=10)
         node.create_subscription(JointState, "joint_states", self._on_state, qos=10)
         node.create_subscription(JointState, "joint_commands", self._on_command, qos=10)
+        node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
 
     def _both(self) -> tuple[Figures, Figures]:
         return self._window, self._total
+
+    def _on_posture(self, posture: String) -> None:
+        self.posture = posture.data
+
+    def _truth(self) -> tuple[PoseStamped, PoseStamped] | None:
+        """Camera and ball poses to score against; none while the robot is down."""
+        if self.posture != STANDING or self.camera is None or self.ball is None:
+            return None
+        return self.camera, self.ball
 
     def _on_camera(self, pose: PoseStamped) -> None:
         self.camera = pose
@@ -117,17 +134,18 @@ class SoccerMonitor:
         if (sent := self._command_times.pop(stamp, None)) is not None:
             self._latency((sent - stamp) / 1e6)
         error = None
-        if self.camera is not None and self.ball is not None:
-            error = math.degrees(ball_in_camera(self.camera, self.ball)[2])
+        if (truth := self._truth()) is not None:
+            error = math.degrees(ball_in_camera(*truth)[2])
         for figures in self._both():
             figures.frames += 1
+            figures.frames_down += self.posture != STANDING
             if error is not None:
                 figures.tracking_error_deg.append(error)
 
     def _on_detection(self, detection: PointStamped) -> None:
         error = None
-        if self.camera is not None and self.ball is not None:
-            yaw, pitch, _ = ball_in_camera(self.camera, self.ball)
+        if (truth := self._truth()) is not None:
+            yaw, pitch, _ = ball_in_camera(*truth)
             error = math.degrees(math.hypot(detection.point.x - yaw, detection.point.y - pitch))
         for figures in self._both():
             figures.detections += 1
