@@ -24,7 +24,7 @@ from rclpy.serialization import serialize_message
 from rosbags.highlevel import AnyReader
 
 from efficient_comm import to_msg
-from team_clock.bag import BagWriter
+from rosbag2_layout import BagWriter
 from team_clock.cli import main as cli_main
 from team_clock.errors import LogFormatError, MergeError, NoEstimateError
 from team_clock.merge import RobotLog, merge
@@ -201,15 +201,14 @@ def _offset(robot: str, stamp_ns: int, offset_ns: int, *, drift_ppm: float = 0.0
 
 def _log(path: Path, offsets: list[ClockOffset], *, metadata: Sequence[dict[str, str]] = (),
          events: int = 3, chunk_size: int = 1 << 20) -> Path:
-    with BagWriter(path, chunk_size=chunk_size) as w:
-        ch = w.add_topic("/team_clock/offset", OFFSET_TYPE)
+    with BagWriter(path, chunk_bytes=chunk_size, min_free_bytes=0) as w:
         for msg in offsets:
-            w.write(ch, msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec, serialize_message(msg))
-        ev = w.add_topic("/event", EVENT_TYPE)
+            w.write("/team_clock/offset", OFFSET_TYPE, serialize_message(msg),
+                    msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec)
         for k in range(events):
             p = PointStamped()
             p.header.frame_id = f"e{k}"
-            w.write(ev, 1_000_000_000 * (k + 1), serialize_message(p))
+            w.write("/event", EVENT_TYPE, serialize_message(p), 1_000_000_000 * (k + 1))
         for values in metadata:
             w.add_metadata("team_clock", values)
     return path
@@ -345,13 +344,14 @@ def test_split_bag_with_renumbered_channels_merges_each_topic_whole(tmp_path):
     s = 1_000_000_000
     order = (("/text", "std_msgs/msg/String"), ("/count", "std_msgs/msg/Int32"))
     for part, topics in enumerate((order, order[::-1])):  # ids swap in the second file
-        with BagWriter(bag / f"split_{part}.mcap") as w:
-            ids = {topic: w.add_topic(topic, type_name) for topic, type_name in topics}
+        with BagWriter(bag / f"split_{part}.mcap", min_free_bytes=0) as w:
+            for topic, type_name in topics:
+                w.add_topic(topic, type_name)
             t = (part + 1) * s
-            w.write(ids["/text"], t, serialize_message(String(data=f"t{part}")),
-                    publish_time=t - 5 * MS)
-            w.write(ids["/count"], t + 1, serialize_message(Int32(data=part)),
-                    publish_time=t + 1 - 5 * MS)
+            w.write("/text", "std_msgs/msg/String", serialize_message(String(data=f"t{part}")),
+                    t, publish_time_ns=t - 5 * MS)
+            w.write("/count", "std_msgs/msg/Int32", serialize_message(Int32(data=part)),
+                    t + 1, publish_time_ns=t + 1 - 5 * MS)
     model = OffsetModel.constant(-300 * MS, drift_ppm=50.0, robot="r")
     out = tmp_path / "merged.mcap"
     report = merge([RobotLog(bag, namespace="r", model=model)], out)
@@ -374,8 +374,8 @@ def test_split_bag_with_renumbered_channels_merges_each_topic_whole(tmp_path):
     clash.mkdir()
     for part, (msg_type, msg) in enumerate((("String", String(data="a")),
                                             ("Int32", Int32(data=1)))):
-        with BagWriter(clash / f"clash_{part}.mcap") as w:
-            w.write(w.add_topic("/x", f"std_msgs/msg/{msg_type}"), s, serialize_message(msg))
+        with BagWriter(clash / f"clash_{part}.mcap", min_free_bytes=0) as w:
+            w.write("/x", f"std_msgs/msg/{msg_type}", serialize_message(msg), s)
     with pytest.raises(MergeError, match="two types"):
         merge([RobotLog(clash, namespace="r", model=model)], tmp_path / "clash_merged")
     assert not (tmp_path / "clash_merged").exists()
