@@ -379,3 +379,70 @@ def test_split_bag_with_renumbered_channels_merges_each_topic_whole(tmp_path):
     with pytest.raises(MergeError, match="two types"):
         merge([RobotLog(clash, namespace="r", model=model)], tmp_path / "clash_merged")
     assert not (tmp_path / "clash_merged").exists()
+
+
+def _run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    exe = INSTALL / "team_clock" / "lib" / "team_clock" / "team_clock"
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=60)
+
+
+def test_commands_refuse_foreign_and_damaged_inputs_in_one_line(tmp_path):
+    s = 1_000_000_000
+    good = _log(tmp_path / "good.mcap", [_offset("a", s, 1000)], events=300, chunk_size=2048)
+    with open(good, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunk = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)[1]
+    flipped = bytearray(good.read_bytes())
+    flipped[chunk.chunk_start_offset + chunk.chunk_length // 2] ^= 0xFF
+    corrupt = tmp_path / "corrupt.mcap"
+    corrupt.write_bytes(bytes(flipped))
+    foreign = tmp_path / "notes.mcap"
+    foreign.write_text("not a log")
+    bad_meta = tmp_path / "bad_meta"
+    bad_meta.mkdir()
+    (bad_meta / "metadata.yaml").write_text("rosbag2_bagfile_information: [unclosed\n")
+    player = INSTALL / "robot_recorder" / "lib" / "robot_recorder" / "player"
+    for log in (foreign, bad_meta, corrupt, tmp_path / "missing"):
+        runs = [_run_cli("merge", "-o", str(tmp_path / f"out_{log.name}"), f"a={log}"),
+                _run_cli("merge", "-o", str(tmp_path / f"out2_{log.name}"), "--assume-synced",
+                         "a", f"a={log}"),
+                ]
+        if log is not corrupt:  # offsets and the player read only what they need first
+            runs.append(_run_cli("offsets", str(log)))
+            runs.append(subprocess.run([str(player), str(log)], capture_output=True, text=True,
+                                       timeout=60))
+        for done in runs:
+            assert done.returncode == 1, (log, done.args, done.stdout, done.stderr)
+            lines = done.stderr.strip().splitlines()
+            assert len(lines) == 1 and "error:" in lines[0], (log, done.args, done.stderr)
+            assert "Traceback" not in done.stderr
+        assert not (tmp_path / f"out_{log.name}").exists()
+
+
+def test_assume_synced_states_a_zero_bound_not_one_grown_since_1970(tmp_path):
+    s = 1_700_000_000 * 1_000_000_000  # a log of today: far from the epoch
+    log = _log(tmp_path / "laptop.mcap", [], events=3)
+    with BagWriter(tmp_path / "later.mcap", min_free_bytes=0) as w:
+        w.write("/event", EVENT_TYPE, serialize_message(PointStamped()), s)
+    done = _run_cli("merge", "-o", str(tmp_path / "out"), "--assume-synced", "laptop",
+                    "--assume-synced", "later", f"laptop={log}", f"later={tmp_path / 'later.mcap'}")
+    assert done.returncode == 0, done.stderr
+    bounds = [line for line in done.stdout.splitlines() if "offset ±" in line]
+    assert len(bounds) == 2
+    assert all("offset ±0.000 ms" in line for line in bounds), bounds
+
+
+def test_topics_already_in_the_robots_namespace_are_not_namespaced_twice(tmp_path):
+    s = 1_000_000_000
+    bag = tmp_path / "a_log.mcap"
+    with BagWriter(bag, min_free_bytes=0) as w:
+        for topic in ("/a/joint_states", "/a", "/odom", "/ab/x"):
+            w.write(topic, EVENT_TYPE, serialize_message(PointStamped()), s)
+    out = tmp_path / "merged.mcap"
+    merge([RobotLog(bag, namespace="a", model=OffsetModel.identity(robot="a"))], out)
+    with open(out, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    topics = sorted(c.topic for c in summary.channels.values())
+    assert topics == ["/a", "/a/ab/x", "/a/joint_states", "/a/odom"]

@@ -293,6 +293,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--paused", action="store_true")
     parser.add_argument("--stamps", choices=STAMP_MODES, default="original")
     ns = parser.parse_args(args_in)
+    try:  # a missing, non-MCAP or damaged bag: one line, before any node starts
+        offered_qos(ns.bag)
+    except PlaybackError as exc:
+        print(f"player: error: {exc}", file=sys.stderr)
+        return 1
     return run(lambda node: Player(node, bag=ns.bag, topics=ns.topics, remappings=ns.remap,
                                    rate=ns.rate, loop=ns.loop, start_paused=ns.paused,
                                    stamps=ns.stamps),

@@ -291,7 +291,8 @@ def read_metadata(bag: str | Path) -> BagMetadata:
     except OSError as exc:
         raise BagFormatError(f"cannot read {path}: {exc}") from exc
     except (yaml.YAMLError, KeyError, TypeError, UnicodeDecodeError) as exc:
-        raise BagFormatError(f"{path} is not rosbag2 metadata: {exc}") from exc
+        reason = " ".join(str(exc).split())  # YAML errors span lines; one line for a CLI
+        raise BagFormatError(f"{path} is not rosbag2 metadata: {reason}") from exc
     storage = info.get("storage_identifier", "mcap")
     if storage != "mcap":
         raise BagFormatError(f"{bag} uses storage {storage!r}; only mcap is supported")

@@ -160,8 +160,9 @@ class BagReader:
         """Every MCAP metadata record ``(name, key/values)`` of the bag's files, in order."""
         for file in self.files:
             with open(file, "rb") as stream:
-                reader = SeekingReader(stream, validate_crcs=True)
+                _check_magic(file, stream)
                 try:
+                    reader = SeekingReader(stream, validate_crcs=True)
                     if reader.get_summary() is not None:
                         for record in reader.iter_metadata():
                             yield record.name, dict(record.metadata)
@@ -179,8 +180,8 @@ class BagReader:
     def _file_records(self, file: Path, stream: IO[bytes], topics: list[str] | None
                       ) -> Iterator[Record]:
         _check_magic(file, stream)
-        reader = SeekingReader(stream, validate_crcs=True)
         try:
+            reader = SeekingReader(stream, validate_crcs=True)
             header = reader.get_header()
         except _DAMAGED as exc:
             raise BagFormatError(f"{file} is not an MCAP file: {exc}") from exc
@@ -241,8 +242,9 @@ def _scan(file: Path, reader: BagReader | None) -> Iterator[object]:
         except _DAMAGED as exc:  # EndOfFile, a half-written chunk, bad compression ...
             if reader is not None:
                 reader.truncated.append(file)
-                reader.problems.append(f"{file}: readable up to byte {stream.tell()}, "
-                                       f"then {exc!r}")
+                reason = " ".join(str(exc).split())[:200]  # a bytes dump can be huge
+                reader.problems.append(f"{file}: readable up to byte {stream.tell()}, then "
+                                       f"{type(exc).__name__}: {reason}")
 
 
 def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None
