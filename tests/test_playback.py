@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 from geometry_msgs.msg import PointStamped
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
@@ -294,3 +295,31 @@ def test_looping_a_one_message_bag_publishes_once_per_tick(tmp_path: Path) -> No
     sink = Sink(TestHandle("sink", container=container), text, String)
     _run(container, 0.01)
     assert 9 <= len(sink.got) <= 11  # not an endless loop inside one timer callback
+
+
+def test_the_player_offers_transient_local_where_the_recording_says_so(tmp_path: Path) -> None:
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from rosbag2_layout import BagWriter, qos_dict
+
+    topic, volatile_topic = unique_topic("map"), unique_topic("chatter")
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    bag = tmp_path / "bag"
+    with BagWriter(bag, min_free_bytes=0) as writer:
+        writer.add_topic(topic, "std_msgs/msg/String", qos_profiles=[qos_dict(latched)])
+        writer.write(topic, "std_msgs/msg/String", bytes(serialize_message(String(data="map"))),
+                     1_000)
+        writer.write(volatile_topic, "std_msgs/msg/String",
+                     bytes(serialize_message(String(data="hi"))), 1_001)
+    container = test_container()
+    player = Player(TestHandle("player", container=container), bag=bag)
+    container.advance(1.0)
+    assert player.finished and player.published == 2
+    # A late joiner asking for transient local gets the last message, as from the original.
+    got: list[str] = []
+    late = TestHandle("late", container=container)
+    late.create_subscription(String, topic, lambda m: got.append(m.data), qos=latched)
+    late.create_subscription(String, volatile_topic, lambda m: got.append(m.data), qos=10)
+    container.advance(0.1)
+    assert got == ["map"]

@@ -9,7 +9,8 @@ import signal
 from pathlib import Path
 from typing import Any
 
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+import yaml
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from efficient_comm import Container
@@ -125,3 +126,31 @@ def test_standalone_recorder_process_records_another_process_and_closes_on_sigin
         assert proc.wait(20) == 0
     assert (bag / "metadata.yaml").exists()  # closed properly on Ctrl-C
     assert [m.data for _, m in read_rosbags(bag)] == [f"m{i}" for i in range(20)]
+
+
+def test_a_latched_message_published_before_the_recorder_started_is_recorded(
+        tmp_path: Path) -> None:
+    topic = unique_topic("latched")
+    domain = isolated_domain_id()
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    args: list[str | Path] = [executable("robot_recorder", "recorder"), "--ros-args",
+            "-p", f"topics:=['{topic}']", "-p", f"output_dir:={tmp_path}",
+            "-p", "status_period_s:=0.2", "-p", "min_free_bytes:=0", "-p", "autostart:=true"]
+    with peer(domain, "map_server") as talker:
+        pub = talker.node.create_publisher(String, topic, latched)
+        pub.publish(String(data="the map"))  # before any recorder exists
+        with child(args, domain_id=domain, log=tmp_path / "recorder.log") as proc:
+            statuses: list[Any] = []
+            talker.node.create_subscription(RecorderStatus, "/recorder/status",
+                                            statuses.append, 10)
+            assert talker.wait_for(lambda: bool(statuses) and statuses[-1].messages == 1,
+                                   timeout_s=60), (tmp_path / "recorder.log").read_text()
+            bag = Path(statuses[-1].bag)
+            os.killpg(proc.pid, signal.SIGINT)
+            assert proc.wait(20) == 0
+    assert [m.data for _, m in read_rosbags(bag)] == ["the map"]
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    (entry,) = [t["topic_metadata"] for t in info["topics_with_message_count"]
+                if t["topic_metadata"]["name"] == topic]
+    assert [q["durability"] for q in entry["offered_qos_profiles"]] == ["transient_local"]
