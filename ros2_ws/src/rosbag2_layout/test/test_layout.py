@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import pytest
 import yaml
@@ -89,8 +89,9 @@ def test_recover_keeps_messages_qos_and_metadata_records(tmp_path: Path) -> None
     assert reader.metadata_records()["team_clock"] == {"robot": "a", "offset_ns": "5"}
     assert reader.topic_records()["/latched"].qos_profiles[0]["durability"] == "transient_local"
     with AnyReader([out]) as any_reader:
-        texts = [any_reader.deserialize(raw, conn.msgtype).data
-                 for conn, _, raw in any_reader.messages()]
+        decoded: list[Any] = [any_reader.deserialize(raw, conn.msgtype)
+                              for conn, _, raw in any_reader.messages()]
+        texts = [m.data for m in decoded]
     assert texts == [f"m{i}" for i in range(readable)]
 
 
@@ -127,7 +128,8 @@ def test_offered_qos_is_written_as_rosbag2_jazzy_writes_it(tmp_path: Path) -> No
     assert set(profiles[0]["deadline"]) == {"sec", "nsec"}
     with Rosbag2Reader(bag) as reader:  # rosbags reads both places the same way
         (conn,) = reader.connections
-        assert conn.ext.offered_qos_profiles[0].durability.name == "TRANSIENT_LOCAL"
+        ext: Any = conn.ext
+        assert ext.offered_qos_profiles[0].durability.name == "TRANSIENT_LOCAL"
     played = qos_profile(BagReader(bag).topic_records()["/latched"].qos_profiles[0])
     assert played.durability == DurabilityPolicy.TRANSIENT_LOCAL
 
