@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -17,11 +18,11 @@ from efficient_comm import Container
 from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import isolated_domain_id, unique_topic
 from robot_recorder import Recorder
+from robot_recorder.testing import read_rosbags
 from robot_recorder.writer import IDLE, RECORDING
 from robot_recorder_interfaces.msg import RecorderStatus, TopicSelection
 from robot_recorder_interfaces.srv import SetTopics, Snapshot, Split, Start, Stop
 
-from ._recording import read_rosbags
 from ._ros import Peer, child, executable, peer
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
@@ -154,3 +155,9 @@ def test_a_latched_message_published_before_the_recorder_started_is_recorded(
     (entry,) = [t["topic_metadata"] for t in info["topics_with_message_count"]
                 if t["topic_metadata"]["name"] == topic]
     assert [q["durability"] for q in entry["offered_qos_profiles"]] == ["transient_local"]
+
+
+def test_player_program_runs(tmp_path: Path) -> None:
+    result = subprocess.run([str(executable("robot_recorder", "player")), "--help"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and "--stamps" in result.stdout

@@ -28,9 +28,8 @@ from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import TestHandle, test_container, unique_topic
 from robot_recorder import FileSystem, PlaybackError, Recorder, RecorderConfigError
 from robot_recorder.bag import read_messages, recover
+from robot_recorder.testing import drained, read_rosbags
 from robot_recorder.writer import FAILED, IDLE
-
-from ._recording import drained, read_rosbags
 
 CHILD = Path(__file__).with_name("_recorder_child.py")
 

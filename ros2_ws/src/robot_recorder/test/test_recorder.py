@@ -25,11 +25,10 @@ from robot_recorder import (
     parse_selection,
 )
 from robot_recorder.bag import read_messages, read_metadata_records
+from robot_recorder.testing import drained, read_mcap, read_rosbags
 from rosbag2_layout import UnknownTypeError as BagTypeError
 from rosbag2_layout import full_definition
 from throttle_publisher import ThrottledPublisher
-
-from ._recording import drained, read_mcap, read_rosbags
 
 
 class Robot:
