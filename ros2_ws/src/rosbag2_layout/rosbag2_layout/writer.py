@@ -81,6 +81,7 @@ class _FileInfo:
     start_ns: int = 0
     end_ns: int = 0
     messages: int = 0
+    complete: bool = False  # finished with summary and footer: listed in metadata.yaml
 
 
 @dataclass
@@ -373,6 +374,7 @@ class BagWriter:
                 f.writer.add_metadata(name, dict(data))
             f.writer.finish()  # type: ignore[no-untyped-call]
             f.stream.close()
+            f.info.complete = True
         except OSError as exc:
             _close_quietly(f.stream)
             self._fail(f"closing {f.info.path}: {exc}", exc, metadata=True)
@@ -401,6 +403,7 @@ class BagWriter:
             try:
                 f.writer.finish()  # type: ignore[no-untyped-call]
                 f.stream.close()
+                f.info.complete = True
             except OSError:
                 _close_quietly(f.stream)
         with contextlib.suppress(OSError):
@@ -419,12 +422,15 @@ class BagWriter:
         raise BagWriteError(message) from exc
 
     def _write_metadata(self) -> None:
-        # Called only when no file is open (at creation, after a close, split or failure),
-        # so every file listed is complete and every topic count is of listed files.
+        # Called when no file is open (at creation, after a close, split or failure). Only
+        # files that were finished are listed: one a write error cut short has no summary,
+        # and rosbag2 and rosbags refuse a listed file without one. Readers here still find
+        # it beside the listed ones, and recover() makes it whole.
         if self.single_file:
             return
         metadata = bag_metadata(
-            files=[(f.path.name, f.start_ns, f.end_ns, f.messages) for f in self.files],
+            files=[(f.path.name, f.start_ns, f.end_ns, f.messages) for f in self.files
+                   if f.complete],
             topics=[(t.name, t.type, t.qos_profiles, t.messages) for t in self.topics.values()],
             custom_data={"writer": self._library, **self._custom_data},
         )
