@@ -161,3 +161,43 @@ def test_player_program_runs(tmp_path: Path) -> None:
     result = subprocess.run([str(executable("robot_recorder", "player")), "--help"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0 and "--stamps" in result.stdout
+
+
+def test_a_late_joiner_gets_the_latched_message_from_a_player_process(tmp_path: Path) -> None:
+    from rclpy.serialization import serialize_message
+
+    from robot_recorder_interfaces.srv import PlayerControl
+    from rosbag2_layout import BagWriter, qos_dict
+
+    topic = unique_topic("map")
+    domain = isolated_domain_id()
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    bag = tmp_path / "bag"
+    with BagWriter(bag, min_free_bytes=0) as writer:
+        writer.add_topic(topic, "std_msgs/msg/String", qos_profiles=[qos_dict(latched)])
+        writer.write(topic, "std_msgs/msg/String",
+                     bytes(serialize_message(String(data="the map"))), 1_000)
+    config = tmp_path / "player.yaml"
+    config.write_text(yaml.safe_dump({"components": [{
+        "class": "robot_recorder.player:Player", "name": "player",
+        "parameters": {"/player": {"ros__parameters": {"bag": str(bag)}}}}]}))
+    args: list[str | Path] = [executable("efficient_comm", "container"), "--config", config,
+                              "--name", "replay"]
+    with peer(domain, "late") as late, \
+            child(args, domain_id=domain, log=tmp_path / "container.log"):
+        client = late.node.create_client(PlayerControl, "/player/control")
+        assert late.wait_for(client.service_is_ready, timeout_s=60), (
+            tmp_path / "container.log").read_text()
+
+        def position() -> int:
+            future = client.call_async(PlayerControl.Request(
+                command=PlayerControl.Request.SET_RATE, rate=1.0))
+            assert late.wait_for(future.done, timeout_s=30)
+            return int(future.result().position_ns)
+
+        assert late.wait_for(lambda: position() == -1, timeout_s=30)  # played: at the end
+        got: list[str] = []
+        late.node.create_subscription(String, topic, lambda m: got.append(str(m.data)),
+                                      latched)
+        assert late.wait_for(lambda: got == ["the map"], timeout_s=30), got
