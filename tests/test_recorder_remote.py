@@ -198,6 +198,9 @@ def test_a_late_joiner_gets_the_latched_message_from_a_player_process(tmp_path: 
 
         assert late.wait_for(lambda: position() == -1, timeout_s=30)  # played: at the end
         got: list[str] = []
-        late.node.create_subscription(String, topic, lambda m: got.append(str(m.data)),
-                                      latched)
+
+        def on_map(msg: Any) -> None:
+            got.append(msg.data)
+
+        late.node.create_subscription(String, topic, on_map, latched)
         assert late.wait_for(lambda: got == ["the map"], timeout_s=30), got
