@@ -12,11 +12,13 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from rosbag2_layout import BagMessage, BagReader, QosDict, Rosbag2Error
+from rosbag2_layout import mcap_files as _mcap_files
 from rosbag2_layout import recover as _recover
 
 from .errors import PlaybackError
 
-__all__ = ["BagMessage", "offered_qos", "read_messages", "read_metadata_records", "recover"]
+__all__ = ["BagMessage", "mcap_files", "offered_qos", "read_messages", "read_metadata_records",
+           "recover"]
 
 
 @contextlib.contextmanager
@@ -44,6 +46,12 @@ def read_messages(
         finally:
             if problems is not None:
                 problems.extend(reader.problems)
+
+
+def mcap_files(bag: str | Path) -> list[Path]:
+    """The MCAP files of a bag in recording order (``[bag]`` for one file)."""
+    with _playback_errors():
+        return _mcap_files(bag)
 
 
 def read_metadata_records(bag: str | Path) -> dict[str, dict[str, str]]:
