@@ -36,7 +36,7 @@ from mcap.writer import Writer
 from rclpy.serialization import serialize_message
 
 from efficient_comm import to_msg
-from team_clock.bag import BagWriter
+from rosbag2_layout import BagWriter
 from team_clock.merge import RobotLog, merge
 from team_clock.testing import SimDelay, SimTeam, flash_times
 from team_clock_interfaces.msg import ClockOffset
@@ -114,21 +114,21 @@ def _synthetic_logs(tmp: Path, messages: int) -> list[Path]:
     paths = []
     for i, robot in enumerate(("ref", "a", "b")):
         path = tmp / f"synthetic_{robot}"
-        with BagWriter(path) as w:
-            offsets = w.add_topic("/team_clock/offset", "team_clock_interfaces/msg/ClockOffset")
-            events = w.add_topic("/points", "geometry_msgs/msg/PointStamped")
+        with BagWriter(path, min_free_bytes=0) as w:
+            offsets = ("/team_clock/offset", "team_clock_interfaces/msg/ClockOffset")
+            events = ("/points", "geometry_msgs/msg/PointStamped")
             start = 1_700_000_000_000_000_000 + i * 250 * MS
             for s in range(messages // 100 + 1):
                 msg = ClockOffset(robot=robot, reference="ref", offset_ns=-i * 250 * MS,
                                   valid=True, uncertainty_ns=1000)
                 msg.stamp = to_msg(start + s * 1_000_000_000)
-                w.write(offsets, start + s * 1_000_000_000, serialize_message(msg))
+                w.write(*offsets, serialize_message(msg), start + s * 1_000_000_000)
             point = PointStamped()
             point.header.frame_id = "base_link"
             for n in range(messages):
                 t = start + n * 10 * MS
                 point.header.stamp = to_msg(t)
-                w.write(events, t, serialize_message(point))
+                w.write(*events, serialize_message(point), t)
         paths.append(path)
     return paths
 

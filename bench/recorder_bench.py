@@ -69,8 +69,7 @@ def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> d
     from efficient_comm import Container, from_msg, to_msg
     from efficient_comm.handle import NodeHandle
     from robot_recorder import BagWriter, Recorder
-    from robot_recorder.cdr import trim
-    from robot_recorder.msgdefs import type_name
+    from rosbag2_layout import trim, type_name
 
     joint_names = [f"joint_{i}" for i in range(20)]
 

@@ -11,7 +11,8 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+import yaml
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from efficient_comm import Container
@@ -24,6 +25,7 @@ from efficient_comm.testing import (
     unique_topic,
 )
 from robot_recorder import Recorder
+from robot_recorder.testing import read_rosbags
 from robot_recorder.writer import IDLE, RECORDING
 from robot_recorder_interfaces.msg import RecorderStatus, TopicSelection
 from robot_recorder_interfaces.srv import (
@@ -35,7 +37,6 @@ from robot_recorder_interfaces.srv import (
     Stop,
 )
 
-from ._recording import read_rosbags
 from ._ros import Peer, child, executable, peer
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
@@ -271,3 +272,80 @@ def test_player_command_waits_for_subscribers_and_exits_at_the_end(tmp_path: Pat
                             env=ros_env(isolated_domain_id()))
     assert result.returncode == 0, result.stderr
     assert "nobody subscribes" in result.stderr + result.stdout
+
+
+def test_a_latched_message_published_before_the_recorder_started_is_recorded(
+        tmp_path: Path) -> None:
+    topic = unique_topic("latched")
+    domain = isolated_domain_id()
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    args: list[str | Path] = [executable("robot_recorder", "recorder"), "--ros-args",
+            "-p", f"topics:=['{topic}']", "-p", f"output_dir:={tmp_path}",
+            "-p", "status_period_s:=0.2", "-p", "min_free_bytes:=0", "-p", "autostart:=true"]
+    with peer(domain, "map_server") as talker:
+        pub = talker.node.create_publisher(String, topic, latched)
+        pub.publish(String(data="the map"))  # before any recorder exists
+        with child(args, domain_id=domain, log=tmp_path / "recorder.log") as proc:
+            statuses: list[Any] = []
+            talker.node.create_subscription(RecorderStatus, "/recorder/status",
+                                            statuses.append, 10)
+            assert talker.wait_for(lambda: bool(statuses) and statuses[-1].messages == 1,
+                                   timeout_s=60), (tmp_path / "recorder.log").read_text()
+            bag = Path(statuses[-1].bag)
+            os.killpg(proc.pid, signal.SIGINT)
+            assert proc.wait(20) == 0
+    assert [m.data for _, m in read_rosbags(bag)] == ["the map"]
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    (entry,) = [t["topic_metadata"] for t in info["topics_with_message_count"]
+                if t["topic_metadata"]["name"] == topic]
+    assert [q["durability"] for q in entry["offered_qos_profiles"]] == ["transient_local"]
+
+
+def test_player_program_runs(tmp_path: Path) -> None:
+    result = subprocess.run([str(executable("robot_recorder", "player")), "--help"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and "--stamps" in result.stdout
+
+
+def test_a_late_joiner_gets_the_latched_message_from_a_player_process(tmp_path: Path) -> None:
+    from rclpy.serialization import serialize_message
+
+    from robot_recorder_interfaces.srv import PlayerControl
+    from rosbag2_layout import BagWriter, qos_dict
+
+    topic = unique_topic("map")
+    domain = isolated_domain_id()
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    bag = tmp_path / "bag"
+    with BagWriter(bag, min_free_bytes=0) as writer:
+        writer.add_topic(topic, "std_msgs/msg/String", qos_profiles=[qos_dict(latched)])
+        writer.write(topic, "std_msgs/msg/String",
+                     bytes(serialize_message(String(data="the map"))), 1_000)
+    config = tmp_path / "player.yaml"
+    config.write_text(yaml.safe_dump({"components": [{
+        "class": "robot_recorder.player:Player", "name": "player",
+        "parameters": {"/player": {"ros__parameters": {"bag": str(bag)}}}}]}))
+    args: list[str | Path] = [executable("efficient_comm", "container"), "--config", config,
+                              "--name", "replay"]
+    with peer(domain, "late") as late, \
+            child(args, domain_id=domain, log=tmp_path / "container.log"):
+        client = late.node.create_client(PlayerControl, "/player/control")
+        assert late.wait_for(client.service_is_ready, timeout_s=60), (
+            tmp_path / "container.log").read_text()
+
+        def position() -> int:
+            future = client.call_async(PlayerControl.Request(
+                command=PlayerControl.Request.SET_RATE, rate=1.0))
+            assert late.wait_for(future.done, timeout_s=30)
+            return int(future.result().position_ns)
+
+        assert late.wait_for(lambda: position() == -1, timeout_s=30)  # played: at the end
+        got: list[str] = []
+
+        def on_map(msg: Any) -> None:
+            got.append(msg.data)
+
+        late.node.create_subscription(String, topic, on_map, latched)
+        assert late.wait_for(lambda: got == ["the map"], timeout_s=30), got

@@ -21,6 +21,7 @@ import pytest
 from mcap.reader import SeekingReader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
+from rosbags.rosbag2 import Reader as Rosbag2Reader
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
@@ -28,9 +29,8 @@ from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import TestHandle, test_container, unique_topic
 from robot_recorder import FileSystem, PlaybackError, Recorder, RecorderConfigError
 from robot_recorder.bag import read_messages, recover
+from robot_recorder.testing import drained, read_rosbags
 from robot_recorder.writer import FAILED, IDLE
-
-from ._recording import drained, read_rosbags
 
 CHILD = Path(__file__).with_name("_recorder_child.py")
 
@@ -107,6 +107,11 @@ def test_sigkill_leaves_a_file_readable_up_to_its_last_chunk(tmp_path: Path) -> 
     problems: list[str] = []
     assert [int(m.data[8:-1].decode()) for m in read_messages(bag, problems=problems)] == seen
     assert problems and str(mcap) in problems[0]
+    # The bag still has a metadata.yaml (listing the files completed: none), so rosbags and
+    # rosbag2 open it as it is.
+    assert (bag / "metadata.yaml").is_file()
+    with Rosbag2Reader(bag) as reader:
+        assert reader.message_count == 0
     # recover() writes a complete bag that rosbags reads.
     assert recover(bag, tmp_path / "recovered") == len(seen)
     assert [int(m.data) for _, m in read_rosbags(tmp_path / "recovered")] == seen
@@ -120,6 +125,11 @@ class _FullAfter(FileSystem):
 
     def open_new(self, path: Path) -> IO[bytes]:
         return _Stream(super().open_new(path), self)  # type: ignore[return-value]
+
+    def write_text(self, path: Path, text: str) -> None:
+        if len(text) > self.left:  # metadata.yaml too: a full disk refuses every write
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        super().write_text(path, text)
 
 
 class _Stream:
@@ -169,6 +179,9 @@ def test_full_disk_stops_recording_cleanly_and_the_robot_keeps_running(tmp_path:
     numbers = _numbers(bag)
     assert numbers and numbers == list(range(len(numbers)))  # complete chunks stay readable
     assert len(numbers) < 40
+    with Rosbag2Reader(bag) as reader:  # metadata.yaml from before the disk filled up
+        assert reader.message_count == 0
+    assert recover(bag, tmp_path / "recovered") == len(numbers)
     # A new recording starts again once there is space.
     fs.left = 1 << 30
     recorder.start(tmp_path / "again").result(10)

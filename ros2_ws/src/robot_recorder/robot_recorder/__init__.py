@@ -4,15 +4,23 @@ Where things live:
 
 * ``recorder``  the component: subscriptions, remote control, status;
 * ``writer``    the writer thread (queue, serialization, ring buffer for snapshots);
-* ``storage``   bag directories of MCAP files in the rosbag2 layout, splitting, guards;
-* ``msgdefs``   message types by name and their complete ``ros2msg`` definitions;
 * ``selection`` which topics, and throttle options;
-* ``bag``       reading bags back (also files cut short by a crash);
+* ``bag``       reading bags back (also files cut short by a crash), recovering them;
 * ``player``    publishing a bag into a running system.
+
+The bag format (MCAP in the rosbag2 layout, ``metadata.yaml``, message definitions) is
+rosbag2_layout's; ``BagWriter`` and ``FileSystem`` are re-exported from there.
 
 Everything public is re-exported here once.
 """
 
+from rosbag2_layout import BagWriter as BagWriter
+from rosbag2_layout import FileSystem as FileSystem
+
+from .bag import BagMessage as BagMessage
+from .bag import read_messages as read_messages
+from .bag import read_metadata_records as read_metadata_records
+from .bag import recover as recover
 from .errors import PlaybackError as PlaybackError
 from .errors import RecorderConfigError as RecorderConfigError
 from .errors import RecorderError as RecorderError
@@ -23,5 +31,3 @@ from .recorder import DEFAULT_CLOCK_TOPIC as DEFAULT_CLOCK_TOPIC
 from .recorder import Recorder as Recorder
 from .selection import TopicSelection as TopicSelection
 from .selection import parse_selection as parse_selection
-from .storage import BagWriter as BagWriter
-from .storage import FileSystem as FileSystem

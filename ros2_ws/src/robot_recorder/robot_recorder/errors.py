@@ -7,9 +7,16 @@
     ├── UnknownTypeError      a message type whose module or .msg definition is not installed
     ├── StorageError          writing failed (disk full, free-space guard, I/O error)
     └── PlaybackError         a bag that cannot be played (missing, unreadable, unknown type)
+
+The bag format itself is rosbag2_layout's: its errors reach the recorder's callers as these
+(``UnknownTypeError`` and ``StorageError`` also derive from rosbag2_layout's, so catching
+either package's class works).
 """
 
 from __future__ import annotations
+
+from rosbag2_layout import BagWriteError
+from rosbag2_layout import UnknownTypeError as BagTypeError
 
 
 class RecorderError(Exception):
@@ -20,11 +27,11 @@ class RecorderConfigError(RecorderError, ValueError):
     """A topic selection, option or path the recorder refuses before starting anything."""
 
 
-class UnknownTypeError(RecorderError, LookupError):
+class UnknownTypeError(RecorderError, BagTypeError):
     """A message type that is not installed (no Python module or no .msg file)."""
 
 
-class StorageError(RecorderError, OSError):
+class StorageError(RecorderError, BagWriteError):
     """Writing the recording failed; the recording stopped and what was written is readable."""
 
 

@@ -19,14 +19,15 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from efficient_comm import from_msg, to_msg
 from efficient_comm.handle import NodeHandle
+from rosbag2_layout import QosDict, UnknownTypeError, import_type
 
-from .bag import BagMessage, read_messages
-from .errors import PlaybackError, RecorderConfigError, UnknownTypeError
-from .msgdefs import import_type
+from .bag import BagMessage, offered_qos, read_messages
+from .errors import PlaybackError, RecorderConfigError
 
 __all__ = ["STAMP_MODES", "OffsetModel", "Player", "main"]
 
@@ -112,6 +113,7 @@ class Player:
         self._times = [m.log_time_ns for m in self._messages]
         self._publishers: dict[str, Any] = {}
         self._types: dict[str, type] = {}
+        recorded_qos = offered_qos(path)
         for m in self._messages:
             if m.topic not in self._publishers:
                 try:
@@ -120,7 +122,8 @@ class Player:
                     raise PlaybackError(f"{path}: cannot play {m.topic}: {exc}") from exc
                 self._types[m.topic] = msg_type
                 self._publishers[m.topic] = node.create_publisher(
-                    msg_type, self._remap.get(m.topic, m.topic), qos=10)
+                    msg_type, self._remap.get(m.topic, m.topic),
+                    qos=play_qos(recorded_qos.get(m.topic, [])))
         self.position = 0  # index of the next message
         self.published = 0
         self.finished = False
@@ -291,6 +294,18 @@ class Player:
         return response
 
 
+def play_qos(offered: Sequence[QosDict]) -> QoSProfile:
+    """What the player offers for a topic whose publishers offered ``offered`` when it was
+    recorded: transient local where they all were (so late joiners get the last messages,
+    as from the original publisher), best effort where they all were; depth 10 at least."""
+    latched = bool(offered) and all(q["durability"] == "transient_local" for q in offered)
+    best_effort = bool(offered) and all(q["reliability"] == "best_effort" for q in offered)
+    return QoSProfile(
+        depth=max([10, *(q["depth"] for q in offered)]),
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+
+
 def _model_from_bag(path: Path) -> OffsetModel:
     try:
         from team_clock.model import OffsetModel as TeamModel
@@ -334,6 +349,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ns = parser.parse_args(args_in)
     if ns.wait_timeout < 0:
         parser.error(f"--wait-timeout must be >= 0, not {ns.wait_timeout}")
+    try:  # a missing, non-MCAP or damaged bag: one line, before any node starts
+        offered_qos(ns.bag)
+    except PlaybackError as exc:
+        print(f"player: error: {exc}", file=sys.stderr)
+        return 1
     return run(lambda node: Player(node, bag=ns.bag, topics=ns.topics, remappings=ns.remap,
                                    rate=ns.rate, loop=ns.loop, start_paused=ns.paused,
                                    stamps=ns.stamps, wait_for_subscribers=not ns.no_wait,

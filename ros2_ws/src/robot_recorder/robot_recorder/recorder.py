@@ -32,12 +32,18 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from efficient_comm import ConsecutiveExecutor, Container, ManualClock, to_msg
 from efficient_comm.composed import ComposedHandle
 from efficient_comm.handle import NodeHandle, Subscription
+from rosbag2_layout import (
+    FileSystem,
+    UnknownTypeError,
+    full_definition,
+    import_type,
+    qos_dict,
+    type_name,
+)
 from throttle_publisher import ThrottledSubscription
 
-from .errors import RecorderConfigError, RecorderError, UnknownTypeError
-from .msgdefs import full_definition, import_type, type_name
+from .errors import RecorderConfigError, RecorderError
 from .selection import TopicSelection, parse_selection
-from .storage import FileSystem
 from .writer import RECORDING, RecordWriter, TopicState
 
 __all__ = ["DEFAULT_CLOCK_TOPIC", "Recorder"]
@@ -247,9 +253,11 @@ class Recorder:
 
     def _subscribe(self, name: str, selection: TopicSelection, msg_type: type,
                    type_str: str) -> None:
+        qos, offered = _record_qos(self._node, name)
         state = self.writer.topics.get(name)
         if state is None or state.type_name != type_str:
             state = self.writer.topics[name] = TopicState(name, type_str)
+        state.qos_profiles = tuple(qos_dict(q) for q in offered)
         enqueue, clock = self.writer.enqueue, self._node.clock
 
         def on_message(msg: Any, state: TopicState = state) -> None:
@@ -259,7 +267,6 @@ class Recorder:
         if name == self._clock_name:
             callback = self._own_estimates(on_message, msg_type)
 
-        qos = _record_qos(self._node, name)
         throttle = selection.throttle()
         endpoint: Any
         if throttle is not None:
@@ -508,18 +515,27 @@ def _graph_types(node: NodeHandle) -> dict[str, str]:
     return found
 
 
-def _record_qos(node: NodeHandle, topic: str) -> QoSProfile:
-    """Reliable unless a known publisher is best effort (a reliable reader would miss it)."""
+def _record_qos(node: NodeHandle, topic: str) -> tuple[QoSProfile, list[QoSProfile]]:
+    """The QoS to record ``topic`` with, and the profiles its known publishers offer.
+
+    Reliable unless a known publisher is best effort (a reliable reader would miss it);
+    transient local when every known publisher offers it, so the message a latched
+    publisher sent before the recorder started is recorded too (a transient-local reader
+    would not match a volatile publisher, so one volatile publisher makes it volatile).
+    """
     container = _container(node)
     offered = container.bus.publisher_qos(topic) if container is not None else []
     rclpy_node = getattr(node, "rclpy_node", None)
     if rclpy_node is not None:
         offered += [i.qos_profile for i in rclpy_node.get_publishers_info_by_topic(topic)]
     best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
+    latched = bool(offered) and all(
+        q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                       reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
                                    else ReliabilityPolicy.RELIABLE),
-                      durability=DurabilityPolicy.VOLATILE)
+                      durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                                  else DurabilityPolicy.VOLATILE)), offered
 
 
 def _timer_pacer(node: NodeHandle, before_s: float, after_s: float

@@ -3,7 +3,7 @@
 A recorder's subscription callback only appends ``(topic, message, receive time)`` to a
 bounded queue; messages are shared by reference in a container, so nothing is copied. This
 thread serializes (CDR), keeps the pre-event ring buffer, and writes through
-:class:`~robot_recorder.storage.BagWriter` (compression happens there, per chunk).
+:class:`rosbag2_layout.BagWriter` (compression happens there, per chunk).
 Commands (start, stop, split, snapshot) travel through the same queue, so a stop writes every
 message received before it.
 
@@ -13,10 +13,11 @@ queue means the writer cannot keep up, and blocking the callback would stall the
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,9 +25,18 @@ from typing import Any
 
 from rclpy.serialization import serialize_message
 
-from .cdr import trim
-from .errors import RecorderConfigError, RecorderError, StorageError
-from .storage import BagWriter, FileSystem
+from rosbag2_layout import (
+    BagConfigError,
+    BagWriteError,
+    BagWriter,
+    FileSystem,
+    QosDict,
+    Rosbag2Error,
+    trim,
+)
+from rosbag2_layout import UnknownTypeError as BagTypeError
+
+from .errors import RecorderConfigError, RecorderError, StorageError, UnknownTypeError
 
 __all__ = ["RecordWriter", "TopicState", "message_fields"]
 
@@ -42,6 +52,8 @@ class TopicState:
 
     name: str
     type_name: str
+    #: The QoS profiles its publishers offered (stored in the bag, offered again on play).
+    qos_profiles: tuple[QosDict, ...] = ()
     messages: int = 0  # written to the current recording (writer thread)
     bytes: int = 0  # serialized bytes written (writer thread)
     queue_drops: int = 0  # queue full (callback thread)
@@ -252,7 +264,11 @@ class RecordWriter:
         if bag is None:
             return
         try:
-            bag.write(topic.name, topic.type_name, data, receive_ns)
+            with _storage_errors():
+                if topic.name not in bag.topics:
+                    bag.add_topic(topic.name, topic.type_name,
+                                  qos_profiles=list(topic.qos_profiles))
+                bag.write(topic.name, topic.type_name, data, receive_ns)
         except StorageError as exc:
             topic.write_drops += 1
             self._failed(str(exc))
@@ -281,7 +297,8 @@ class RecordWriter:
         bag = self._bag
         if bag is not None:
             try:
-                bag.tick()
+                with _storage_errors():
+                    bag.tick()
             except Exception as exc:  # StorageError, or anything unforeseen: stop, report
                 self._failed(str(exc) if isinstance(exc, StorageError) else repr(exc))
 
@@ -315,8 +332,9 @@ class RecordWriter:
             return 0.0
 
     def _new_bag(self, bag: Path) -> BagWriter:
-        return BagWriter(bag, file_metadata=self._file_metadata, fs=self._fs,
-                         **self._bag_options)
+        with _storage_errors():
+            return BagWriter(bag, file_metadata=self._file_metadata, fs=self._fs,
+                             library="robot_recorder", **self._bag_options)
 
     def _start(self, bag: Path) -> Path:
         if self._bag is not None:
@@ -339,7 +357,8 @@ class RecordWriter:
         if bag is None:
             return None
         try:
-            bag.close()
+            with _storage_errors():
+                bag.close()
         except StorageError as exc:
             self._failed(str(exc))
             raise
@@ -350,7 +369,8 @@ class RecordWriter:
         if self._bag is None:
             raise RecorderError("not recording")
         try:
-            return self._bag.split()
+            with _storage_errors():
+                return self._bag.split()
         except StorageError as exc:
             self._failed(str(exc))
             raise
@@ -360,12 +380,16 @@ class RecordWriter:
             raise RecorderConfigError("snapshots are off (snapshot_bytes = 0)")
         bag = self._new_bag(path)
         count = 0
-        try:
-            for topic, data, receive_ns in list(self._ring):
-                bag.write(topic.name, topic.type_name, data, receive_ns)
-                count += 1
-        finally:
-            bag.close()
+        with _storage_errors():
+            try:
+                for topic, data, receive_ns in list(self._ring):
+                    if topic.name not in bag.topics:
+                        bag.add_topic(topic.name, topic.type_name,
+                                      qos_profiles=list(topic.qos_profiles))
+                    bag.write(topic.name, topic.type_name, data, receive_ns)
+                    count += 1
+            finally:
+                bag.close()
         return path, count
 
     def _failed(self, message: str) -> None:
@@ -387,6 +411,21 @@ class RecordWriter:
         fields = message_fields(self._clock_msg)
         fields["topic"] = self._clock_topic
         return {"team_clock": fields}
+
+
+@contextlib.contextmanager
+def _storage_errors() -> Iterator[None]:
+    """rosbag2_layout's errors as robot_recorder's (one root for the recorder's callers)."""
+    try:
+        yield
+    except BagWriteError as exc:
+        raise StorageError(str(exc)) from exc
+    except BagConfigError as exc:
+        raise RecorderConfigError(str(exc)) from exc
+    except BagTypeError as exc:
+        raise UnknownTypeError(str(exc)) from exc
+    except Rosbag2Error as exc:
+        raise RecorderError(str(exc)) from exc
 
 
 def message_fields(msg: Any, prefix: str = "") -> dict[str, str]:

@@ -7,7 +7,7 @@ Where things live (docs/TEAM_CLOCK.md explains the method):
 * ``sync``      the ``ClockSync`` component: exchanges, relaying through the team, publishing
   ``/team_clock/offset``;
 * ``model``     ``OffsetModel``: a recorded robot's local time -> team reference time;
-* ``bag``       reading and writing MCAP in the rosbag2 layout; ``merge`` aligning logs;
+* ``bag``       reading logs (the format is rosbag2_layout's); ``merge`` aligning logs;
 * ``testing``   a simulated lossy, delayed team network for tests.
 
 Public here: the estimator, ``OffsetModel``, ``merge`` and its report, the errors. The

@@ -25,7 +25,9 @@ from pathlib import Path
 
 from mcap.records import Channel, Message, Schema
 
-from .bag import BagWriter, LogReader
+from rosbag2_layout import BagConfigError, BagWriter, Rosbag2Error
+
+from .bag import LogReader
 from .errors import MergeError, OtherRobotError
 from .model import OffsetModel
 
@@ -110,13 +112,14 @@ def merge(
                in enumerate(zip(readers, reports, strict=True))]
     # Keyed by topic and type, not channel id: each file of a split bag numbers its
     # channels afresh, so one id can stand for different topics in one log.
-    channels: dict[tuple[int, str, str], int] = {}
+    channels: dict[tuple[int, str, str], str] = {}
     has_header: dict[tuple[int, str, str], bool] = {}
     first_seen: dict[int, int] = {}  # log index -> earliest / latest local log time
     last_seen: dict[int, int] = {}
     try:
-        writer = BagWriter(output, compression=compression)
-    except OSError as exc:
+        writer = BagWriter(Path(output), compression=compression, min_free_bytes=0,
+                           library="team_clock")
+    except (Rosbag2Error, OSError) as exc:
         raise MergeError(f"cannot create {output}: {exc}") from exc
     try:
         for report in reports:
@@ -131,21 +134,24 @@ def merge(
             report = reports[index]
             assert schema is not None  # schemaless channels are skipped in _aligned
             key = (index, channel.topic, schema.name)
-            out_id = channels.get(key)
-            if out_id is None:
-                out_id = writer.add_topic(
-                    f"/{report.namespace}{_absolute(channel.topic)}", schema.name,
-                    definition=schema.data, schema_encoding=schema.encoding,
-                    metadata=channel.metadata,
-                )
-                channels[key] = out_id
+            out_topic = channels.get(key)
+            if out_topic is None:
+                out_topic = _namespaced(report.namespace, channel.topic)
+                try:
+                    writer.add_topic(
+                        out_topic, schema.name, definition=schema.data,
+                        schema_encoding=schema.encoding,
+                        qos_profiles=channel.metadata.get("offered_qos_profiles", ""))
+                except BagConfigError as exc:
+                    raise MergeError(str(exc)) from exc
+                channels[key] = out_topic
                 has_header[key] = _starts_with_header(schema)
             data = message.data
             if stamps and has_header[key]:
                 data = _move_stamp(data, message.log_time, report, stamp_window_ns)
             publish_time = message.publish_time
-            writer.write(out_id, ref_time, data, sequence=message.sequence,
-                         publish_time=ref_time if publish_time == message.log_time
+            writer.write(out_topic, schema.name, data, ref_time, sequence=message.sequence,
+                         publish_time_ns=ref_time if publish_time == message.log_time
                          else report.model.to_reference(publish_time))
             report.messages += 1
             first_seen[index] = min(first_seen.get(index, message.log_time), message.log_time)
@@ -192,7 +198,7 @@ def _aligned(
 ) -> Iterator[tuple[int, int, int, Schema | None, Channel, Message]]:
     """``(reference time, order, log index, ...)`` tuples, sortable without comparing records."""
     order = 0
-    for schema, channel, message in reader.messages():
+    for schema, channel, message in reader.records():
         if schema is None or not schema.data or channel.message_encoding != "cdr":
             report.skipped["schemaless" if schema is None or not schema.data else
                            f"encoding {channel.message_encoding}"] += 1
@@ -201,8 +207,15 @@ def _aligned(
         yield report.model.to_reference(message.log_time), order, index, schema, channel, message
 
 
-def _absolute(topic: str) -> str:
-    return topic if topic.startswith("/") else f"/{topic}"
+def _namespaced(namespace: str, topic: str) -> str:
+    """``topic`` under ``/namespace``, unless it is there already: a robot's recorder
+    often records its topics with the robot's namespace (``/a/x``), which must not
+    become ``/a/a/x``."""
+    absolute = topic if topic.startswith("/") else f"/{topic}"
+    prefix = f"/{namespace}"
+    if absolute == prefix or absolute.startswith(prefix + "/"):
+        return absolute
+    return prefix + absolute
 
 
 def _starts_with_header(schema: Schema | None) -> bool:

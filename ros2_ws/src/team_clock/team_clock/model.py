@@ -86,9 +86,11 @@ class OffsetModel:
         """For a log whose clock is the reference, or is said to be on reference time.
 
         The reference robot is left unnamed: the claim is the caller's (a log synchronised
-        by other means), so a merge cannot hold it against the other logs' reference.
+        by other means), so a merge cannot hold it against the other logs' reference. Its
+        bound is zero at every time (no holdover growth): nothing was estimated that could
+        drift away, and a bound grown from the epoch (±900 s today) would say nothing.
         """
-        return cls([Knot(0, 0, 0.0, 0)], robot=robot)
+        return cls([Knot(0, 0, 0.0, 0)], robot=robot, holdover_ppm=0.0)
 
     @classmethod
     def constant(cls, offset_ns: int, *, drift_ppm: float = 0.0, stamp_ns: int = 0,
@@ -225,7 +227,7 @@ class OffsetModel:
         messages = []
         decoders: dict[int, Any] = {}
         topics = [t for t in reader.topics() if t == OFFSET_SUFFIX or t.endswith(OFFSET_SUFFIX)]
-        for schema, channel, message in reader.messages(topics=topics) if topics else ():
+        for schema, channel, message in reader.records(topics=topics) if topics else ():
             decode = decoders.get(channel.id)
             if decode is None:
                 decode = decoders[channel.id] = _decoder(schema, path)

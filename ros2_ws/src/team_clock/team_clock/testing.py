@@ -248,7 +248,7 @@ class SimLogger:
 
     def __init__(self, node: NodeHandle, *, clock: Clock, robot: str, path: Path) -> None:
         self._clock = clock
-        self.writer = BagWriter(path)
+        self.writer = BagWriter(path, min_free_bytes=0, library="team_clock")
         self._offsets = self.writer.add_topic(OFFSET_TOPIC,
                                               "team_clock_interfaces/msg/ClockOffset")
         self._events = self.writer.add_topic(EVENT_TOPIC, "geometry_msgs/msg/PointStamped")
@@ -257,20 +257,21 @@ class SimLogger:
         node.create_subscription(PointStamped, FLASH_TOPIC, self._on_flash)
 
     def _on_offset(self, msg: ClockOffset) -> None:
-        self.writer.write(self._offsets, self._clock.now_ns(), serialize_message(msg))
+        self.writer.write(self._offsets.name, self._offsets.type, serialize_message(msg),
+                          self._clock.now_ns())
 
     def _on_flash(self, flash: PointStamped) -> None:
         now = self._clock.now_ns()
         event = PointStamped()
         event.header.frame_id = flash.header.frame_id
         event.header.stamp = to_msg(now)
-        self.writer.write(self._events, now, serialize_message(event))
+        self.writer.write(self._events.name, self._events.type, serialize_message(event), now)
 
 
 def flash_times(path: Path) -> dict[str, dict[str, tuple[int, int]]]:
     """``{namespace: {flash: (log time, header stamp)}}`` of a log ("" for a robot's own)."""
     out: dict[str, dict[str, tuple[int, int]]] = {}
-    for _, channel, message in LogReader(Path(path)).messages():
+    for _, channel, message in LogReader(Path(path)).records():
         if channel.topic.endswith(EVENT_TOPIC):
             event = deserialize_message(message.data, PointStamped)
             stamp = event.header.stamp.sec * 1_000_000_000 + event.header.stamp.nanosec

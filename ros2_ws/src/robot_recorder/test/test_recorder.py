@@ -22,14 +22,13 @@ from robot_recorder import (
     Recorder,
     RecorderConfigError,
     TopicSelection,
-    UnknownTypeError,
     parse_selection,
 )
 from robot_recorder.bag import read_messages, read_metadata_records
-from robot_recorder.msgdefs import full_definition
+from robot_recorder.testing import drained, read_mcap, read_rosbags
+from rosbag2_layout import UnknownTypeError as BagTypeError
+from rosbag2_layout import full_definition
 from throttle_publisher import ThrottledPublisher
-
-from ._recording import drained, read_mcap, read_rosbags
 
 
 class Robot:
@@ -224,7 +223,7 @@ def test_unknown_type_is_reported_not_recorded(tmp_path: Path) -> None:
         assert "nosuch_msgs" in recorder.status().error
     finally:
         recorder.close()
-    with pytest.raises(UnknownTypeError):
+    with pytest.raises(BagTypeError):
         full_definition("std_msgs/msg/NoSuchType")
 
 
@@ -247,8 +246,7 @@ def test_serialized_length_is_exact(msg: Any) -> None:
     from rclpy.serialization import serialize_message
     from rosbags.typesys import Stores, get_typestore
 
-    from robot_recorder.cdr import trim
-    from robot_recorder.msgdefs import type_name
+    from rosbag2_layout import trim, type_name
 
     store = get_typestore(Stores.ROS2_JAZZY)
     data = trim(msg, serialize_message(msg))

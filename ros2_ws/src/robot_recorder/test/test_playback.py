@@ -7,13 +7,13 @@ All on a manual clock (test containers), so timings are exact.
 from __future__ import annotations
 
 import math
-import subprocess
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from geometry_msgs.msg import PointStamped
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
@@ -21,8 +21,6 @@ from efficient_comm import from_msg, to_msg
 from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import TestHandle, test_container, unique_topic
 from robot_recorder import PlaybackError, Player, Recorder, RecorderConfigError
-
-from ._ros import executable
 
 MS = 1_000_000
 
@@ -250,12 +248,6 @@ def test_recorded_camera_feeds_the_live_ball_detector(tmp_path: Path) -> None:
     assert all(abs(m.point.x - left) < 0.02 for _, m in sink.got), sink.got[0][1].point
 
 
-def test_player_program_runs(tmp_path: Path) -> None:
-    result = subprocess.run([str(executable("robot_recorder", "player")), "--help"],
-                            capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0 and "--stamps" in result.stdout
-
-
 def test_aligned_stamps_from_the_clock_estimate_recorded_in_the_bag(tmp_path: Path) -> None:
     clock_msgs = pytest.importorskip("team_clock_interfaces.msg")
     pytest.importorskip("team_clock.model")
@@ -294,3 +286,31 @@ def test_looping_a_one_message_bag_publishes_once_per_tick(tmp_path: Path) -> No
     sink = Sink(TestHandle("sink", container=container), text, String)
     _run(container, 0.01)
     assert 9 <= len(sink.got) <= 11  # not an endless loop inside one timer callback
+
+
+def test_the_player_offers_transient_local_where_the_recording_says_so(tmp_path: Path) -> None:
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from rosbag2_layout import BagWriter, qos_dict
+
+    topic, volatile_topic = unique_topic("map"), unique_topic("chatter")
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    bag = tmp_path / "bag"
+    with BagWriter(bag, min_free_bytes=0) as writer:
+        writer.add_topic(topic, "std_msgs/msg/String", qos_profiles=[qos_dict(latched)])
+        writer.write(topic, "std_msgs/msg/String", bytes(serialize_message(String(data="map"))),
+                     1_000)
+        writer.write(volatile_topic, "std_msgs/msg/String",
+                     bytes(serialize_message(String(data="hi"))), 1_001)
+    container = test_container()
+    player = Player(TestHandle("player", container=container), bag=bag)
+    container.advance(1.0)
+    assert player.finished and player.published == 2
+    # A late joiner asking for transient local gets the last message, as from the original.
+    got: list[str] = []
+    late = TestHandle("late", container=container)
+    late.create_subscription(String, topic, lambda m: got.append(m.data), qos=latched)
+    late.create_subscription(String, volatile_topic, lambda m: got.append(m.data), qos=10)
+    container.advance(0.1)
+    assert got == ["map"]

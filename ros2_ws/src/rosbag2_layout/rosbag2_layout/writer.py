@@ -1,19 +1,22 @@
-"""A bag directory of MCAP files in the rosbag2 layout, written by one thread.
+"""Writing a bag: a directory of MCAP files in the rosbag2 layout (or one ``.mcap`` file).
 
 Layout, as rosbag2's MCAP storage writes it so ROS tools read it: profile ``ros2``, one
 schema per type with encoding ``ros2msg`` and the complete definition, channels with
-message encoding ``cdr``, zstd-compressed chunks, and ``metadata.yaml`` (rosbag2 format
-version 9) beside the files ``<bag>_0.mcap``, ``<bag>_1.mcap``, ...
+message encoding ``cdr`` and the offered QoS profiles in their metadata, zstd-compressed
+chunks, and ``metadata.yaml`` (rosbag2 format version 9, :mod:`.metadata`) beside the
+files ``<bag>_0.mcap``, ``<bag>_1.mcap``, ...
 
 Robustness is decided here:
 
 * chunks are closed at least every ``chunk_interval_s`` (and at ``chunk_bytes``) and handed
   to the operating system, so a process killed with SIGKILL leaves a file readable up to its
-  last completed chunk (:func:`robot_recorder.bag.recover` rewrites such a file whole);
-* files split by size and by duration; ``metadata.yaml`` is rewritten whenever a file
-  closes, so it always lists every completed file;
+  last completed chunk (:func:`rosbag2_layout.recover` rewrites such a file whole);
+* ``metadata.yaml`` exists from the moment the directory does and is rewritten whenever a
+  file closes, so it always lists every completed file: a bag cut short by a crash or a
+  full disk still opens in rosbag2 and rosbags (with the completed files);
+* files split by size and by duration;
 * a free-space guard closes the bag cleanly while ``min_free_bytes`` are still free, and a
-  write error (disk full) closes what can be closed and raises :class:`StorageError`.
+  write error (disk full) closes what can be closed and raises :class:`BagWriteError`.
 
 The file system is a seam (:class:`FileSystem`): tests inject failures through it.
 """
@@ -21,23 +24,21 @@ The file system is a seam (:class:`FileSystem`): tests inject failures through i
 from __future__ import annotations
 
 import contextlib
-import datetime
 import shutil
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-import yaml
 from mcap.writer import CompressionType, Writer
 
-from .errors import RecorderConfigError, StorageError
+from .errors import BagConfigError, BagWriteError
+from .metadata import QosDict, bag_metadata, dump_qos, metadata_text, parse_qos
 from .msgdefs import full_definition
 
-__all__ = ["BagWriter", "FileSystem", "TopicMetadata"]
+__all__ = ["BagWriter", "FileSystem", "TopicInfo"]
 
-METADATA_VERSION = 9
 # The free-space guard asks the file system at every flush and after each chunk's worth of
 # bytes (at most this many).
 _FREE_CHECK_BYTES = 4 << 20
@@ -62,11 +63,14 @@ class FileSystem:
 
 
 @dataclass
-class TopicMetadata:
-    """What the bag knows about one topic."""
+class TopicInfo:
+    """What the bag knows about one topic: its type, schema, offered QoS and counts."""
 
     name: str
     type: str
+    qos_profiles: list[QosDict] = field(default_factory=list)
+    definition: bytes | None = None  # None: the installed .msg files' (msgdefs)
+    schema_encoding: str = "ros2msg"
     messages: int = 0
     bytes: int = 0
 
@@ -77,6 +81,7 @@ class _FileInfo:
     start_ns: int = 0
     end_ns: int = 0
     messages: int = 0
+    complete: bool = False  # finished with summary and footer: listed in metadata.yaml
 
 
 @dataclass
@@ -93,7 +98,14 @@ class _OpenFile:
 
 
 class BagWriter:
-    """Writes one bag directory. Not thread-safe: one thread (the recorder's writer) owns it."""
+    """Writes one bag directory (or, for a path ending in ``.mcap``, that one file with no
+    ``metadata.yaml`` and no splitting). An existing target is refused, so nothing is ever
+    overwritten. Not thread-safe: one thread owns it. A context manager (closes on exit,
+    :meth:`abort` removes everything on an exception).
+
+    ``file_metadata()`` gives MCAP metadata records written into each file as it closes
+    (so they reflect the latest state); :meth:`add_metadata` adds fixed ones.
+    """
 
     def __init__(
         self,
@@ -107,14 +119,21 @@ class BagWriter:
         compression: str = "zstd",
         file_metadata: Callable[[], Mapping[str, Mapping[str, str]]] | None = None,
         fs: FileSystem | None = None,
+        library: str = "rosbag2_layout",
+        custom_data: Mapping[str, str] | None = None,
     ) -> None:
         if compression not in ("zstd", "lz4", "none"):
-            raise RecorderConfigError(f"compression must be zstd, lz4 or none, not {compression!r}")
+            raise BagConfigError(f"compression must be zstd, lz4 or none, not {compression!r}")
         if chunk_interval_s <= 0 or chunk_bytes <= 0:
-            raise RecorderConfigError("chunk_interval_s and chunk_bytes must be positive")
+            raise BagConfigError("chunk_interval_s and chunk_bytes must be positive")
         if max_file_bytes < 0 or max_file_duration_s < 0 or min_free_bytes < 0:
-            raise RecorderConfigError("split limits and min_free_bytes must be >= 0 (0 = none)")
+            raise BagConfigError("split limits and min_free_bytes must be >= 0 (0 = none)")
         self.path = Path(bag)
+        #: One ``.mcap`` file rather than a bag directory.
+        self.single_file = self.path.suffix == ".mcap"
+        self._library = library
+        self._custom_data = dict(custom_data or {})
+        self._records: dict[str, dict[str, str]] = {}
         self._fs = fs or FileSystem()
         self._compression = {
             "zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE
@@ -125,18 +144,72 @@ class BagWriter:
         self._max_file_ns = int(max_file_duration_s * 1e9)
         self._min_free_bytes = min_free_bytes
         self._file_metadata = file_metadata
-        self.topics: dict[str, TopicMetadata] = {}
+        self.topics: dict[str, TopicInfo] = {}
         self.files: list[_FileInfo] = []
         self._open: _OpenFile | None = None
         self._since_free_check = 0
         self.closed = False
+        if self.path.exists():
+            raise BagConfigError(f"{self.path} exists already; refusing to overwrite it")
+        directory = self.path.parent if self.single_file else self.path
         try:
-            self.path.mkdir(parents=True, exist_ok=False)
+            directory.mkdir(parents=True, exist_ok=self.single_file)
         except FileExistsError as exc:
-            raise RecorderConfigError(f"bag directory {self.path} exists already") from exc
+            raise BagConfigError(f"bag directory {self.path} exists already") from exc
         except OSError as exc:
-            raise StorageError(f"cannot create bag directory {self.path}: {exc}") from exc
+            raise BagWriteError(f"cannot create bag directory {directory}: {exc}") from exc
+        if self.single_file:
+            self._open_file(0)  # created at once, so the target is taken
+        else:
+            try:
+                self._write_metadata()  # a bag cut short at any point still has one
+            except OSError as exc:
+                self._remove_all()
+                raise BagWriteError(f"cannot write {self.path}/metadata.yaml: {exc}") from exc
         self._check_free()
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, exc_type: object, *_: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def add_topic(
+        self,
+        topic: str,
+        type_name: str,
+        *,
+        qos_profiles: Sequence[QosDict] | str = (),
+        definition: str | bytes | None = None,
+        schema_encoding: str = "ros2msg",
+    ) -> TopicInfo:
+        """Declare ``topic`` before its first message: its offered QoS profiles (as
+        :func:`.metadata.qos_dict` gives them, or channel-metadata YAML text) and, when
+        copying from another bag, its schema as stored there. Undeclared topics get no
+        profiles and the installed definition. Declaring again with the same type updates
+        the profiles for files opened from now on and for ``metadata.yaml``."""
+        profiles = parse_qos(qos_profiles) if isinstance(qos_profiles, str) \
+            else list(qos_profiles)
+        data = definition.encode() if isinstance(definition, str) else definition
+        info = self.topics.get(topic)
+        if info is None:
+            if data is None and schema_encoding == "ros2msg":
+                full_definition(type_name)  # refuse an unknown type now, not mid-recording
+            info = self.topics[topic] = TopicInfo(topic, type_name, profiles, data,
+                                                  schema_encoding)
+        elif info.type != type_name:
+            raise BagConfigError(f"{topic} is already {info.type}, not {type_name}: "
+                                 "one topic cannot hold two types in one bag")
+        else:
+            info.qos_profiles = profiles
+        return info
+
+    def add_metadata(self, name: str, values: Mapping[str, str]) -> None:
+        """An MCAP metadata record written into every file of the bag (at its close)."""
+        self._records[name] = dict(values)
 
     # -- writing ---------------------------------------------------------------------------
 
@@ -149,10 +222,11 @@ class BagWriter:
         """Serialized message bytes written to the bag so far."""
         return sum(t.bytes for t in self.topics.values())
 
-    def write(self, topic: str, type_name: str, data: bytes, log_time_ns: int) -> None:
+    def write(self, topic: str, type_name: str, data: bytes, log_time_ns: int, *,
+              publish_time_ns: int | None = None, sequence: int = 0) -> None:
         """Add one serialized (CDR) message; splits, flushes and guards as configured."""
         if self.closed:
-            raise StorageError(f"bag {self.path} is closed")
+            raise BagWriteError(f"bag {self.path} is closed")
         f = self._open
         if f is not None and self._should_split(f, log_time_ns):
             self._close_file()
@@ -163,7 +237,9 @@ class BagWriter:
             channel = f.channels.get(topic)
             if channel is None:
                 channel = self._channel(f, topic, type_name)
-            f.writer.add_message(channel, log_time_ns, data, log_time_ns)
+            f.writer.add_message(channel, log_time_ns, data,
+                                 log_time_ns if publish_time_ns is None else publish_time_ns,
+                                 sequence)
         except OSError as exc:
             self._fail(f"writing {f.info.path}: {exc}", exc)
         info = f.info
@@ -222,15 +298,38 @@ class BagWriter:
         finally:
             self.closed = True
 
+    def abort(self) -> None:
+        """Stop and delete everything written (the file, or the bag directory): a half
+        written bag must not look like a complete one."""
+        f, self._open = self._open, None
+        if f is not None:
+            _close_quietly(f.stream)
+        self.closed = True
+        self._remove_all()
+
+    def _remove_all(self) -> None:
+        for info in self.files:
+            with contextlib.suppress(OSError):
+                info.path.unlink()
+        if not self.single_file:
+            for name in ("metadata.yaml", "metadata.yaml.tmp"):
+                with contextlib.suppress(OSError):
+                    (self.path / name).unlink()
+            with contextlib.suppress(OSError):
+                self.path.rmdir()
+
     # -- internals -------------------------------------------------------------------------
 
     def _should_split(self, f: _OpenFile, log_time_ns: int) -> bool:
+        if self.single_file:
+            return False
         if self._max_file_bytes and f.bytes >= self._max_file_bytes:
             return True
         return bool(self._max_file_ns and log_time_ns - f.opened_ns >= self._max_file_ns)
 
     def _open_file(self, log_time_ns: int) -> _OpenFile:
-        path = self.path / f"{self.path.name}_{len(self.files)}.mcap"
+        path = self.path if self.single_file \
+            else self.path / f"{self.path.name}_{len(self.files)}.mcap"
         try:
             stream = self._fs.open_new(path)
         except OSError as exc:
@@ -241,23 +340,25 @@ class BagWriter:
         f = _OpenFile(info, stream, writer, log_time_ns, flushed_at=time.monotonic())
         self._open = f
         try:
-            writer.start(profile="ros2", library="robot_recorder")
+            writer.start(profile="ros2", library=self._library)
         except OSError as exc:
             self._fail(f"writing {path}: {exc}", exc)
         return f
 
     def _channel(self, f: _OpenFile, topic: str, type_name: str) -> int:
-        meta = self.topics.get(topic)
-        if meta is None:
-            meta = self.topics[topic] = TopicMetadata(topic, type_name)
-        elif meta.type != type_name:
-            raise RecorderConfigError(f"{topic} was recorded as {meta.type}, not {type_name}")
-        schema = f.schemas.get(type_name)
+        info = self.topics.get(topic)
+        if info is None or info.type != type_name:
+            info = self.add_topic(topic, type_name)  # raises on a type clash
+        data = info.definition
+        if data is None:
+            data = full_definition(type_name).encode()
+        key = f"{info.schema_encoding}:{type_name}:{hash(data)}"
+        schema = f.schemas.get(key)
         if schema is None:
-            definition = full_definition(type_name)
-            schema = f.writer.register_schema(type_name, "ros2msg", definition.encode())
-            f.schemas[type_name] = schema
-        channel = f.writer.register_channel(topic, "cdr", schema, {"offered_qos_profiles": ""})
+            schema = f.writer.register_schema(type_name, info.schema_encoding, data)
+            f.schemas[key] = schema
+        channel = f.writer.register_channel(
+            topic, "cdr", schema, {"offered_qos_profiles": dump_qos(info.qos_profiles)})
         f.channels[topic] = channel
         return channel
 
@@ -266,11 +367,14 @@ class BagWriter:
         if f is None:
             return
         try:
+            records: dict[str, Mapping[str, str]] = dict(self._records)
             if self._file_metadata is not None:
-                for name, data in self._file_metadata().items():
-                    f.writer.add_metadata(name, dict(data))
+                records.update(self._file_metadata())
+            for name, data in records.items():
+                f.writer.add_metadata(name, dict(data))
             f.writer.finish()  # type: ignore[no-untyped-call]
             f.stream.close()
+            f.info.complete = True
         except OSError as exc:
             _close_quietly(f.stream)
             self._fail(f"closing {f.info.path}: {exc}", exc, metadata=True)
@@ -299,12 +403,13 @@ class BagWriter:
             try:
                 f.writer.finish()  # type: ignore[no-untyped-call]
                 f.stream.close()
+                f.info.complete = True
             except OSError:
                 _close_quietly(f.stream)
         with contextlib.suppress(OSError):
             self._write_metadata()
         self.closed = True
-        raise StorageError(message)
+        raise BagWriteError(message)
 
     def _fail(self, message: str, exc: OSError, *, metadata: bool = True) -> Any:
         f, self._open = self._open, None
@@ -314,51 +419,22 @@ class BagWriter:
             with contextlib.suppress(OSError):
                 self._write_metadata()
         self.closed = True
-        raise StorageError(message) from exc
+        raise BagWriteError(message) from exc
 
     def _write_metadata(self) -> None:
-        # Called only when no file is open (after a close, split or failure), so every
-        # file listed is complete and every topic count is of listed files.
-        files = self.files
-        start = min((f.start_ns for f in files if f.messages), default=0)
-        end = max((f.end_ns for f in files if f.messages), default=0)
-        info: dict[str, Any] = {
-            "version": METADATA_VERSION,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": end - start},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": sum(f.messages for f in files),
-            "topics_with_message_count": [
-                {
-                    "topic_metadata": {
-                        "name": t.name,
-                        "type": t.type,
-                        "serialization_format": "cdr",
-                        "offered_qos_profiles": [],
-                        "type_description_hash": "",
-                    },
-                    "message_count": t.messages,
-                }
-                for t in self.topics.values()
-            ],
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [f.path.name for f in files],
-            "files": [
-                {
-                    "path": f.path.name,
-                    "starting_time": {"nanoseconds_since_epoch": f.start_ns},
-                    "duration": {"nanoseconds": f.end_ns - f.start_ns},
-                    "message_count": f.messages,
-                }
-                for f in files
-            ],
-            "custom_data": {"recorder": "robot_recorder",
-                            "written": datetime.datetime.now(datetime.UTC).isoformat()},
-            "ros_distro": "jazzy",
-        }
-        text = yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False)
-        self._fs.write_text(self.path / "metadata.yaml", text)
+        # Called when no file is open (at creation, after a close, split or failure). Only
+        # files that were finished are listed: one a write error cut short has no summary,
+        # and rosbag2 and rosbags refuse a listed file without one. Readers here still find
+        # it beside the listed ones, and recover() makes it whole.
+        if self.single_file:
+            return
+        metadata = bag_metadata(
+            files=[(f.path.name, f.start_ns, f.end_ns, f.messages) for f in self.files
+                   if f.complete],
+            topics=[(t.name, t.type, t.qos_profiles, t.messages) for t in self.topics.values()],
+            custom_data={"writer": self._library, **self._custom_data},
+        )
+        self._fs.write_text(self.path / "metadata.yaml", metadata_text(metadata))
 
 
 def _close_quietly(stream: IO[bytes]) -> None:

@@ -1,20 +1,28 @@
-"""Helpers for the recorder and player suites: components that publish, bag readers."""
+"""Helpers for testing code that records: read a bag back with independent decoders, wait
+for the writer thread.
+
+Decoding with rosbags and with the mcap reader plus mcap-ros2-support (both only from the
+schemas stored in the bag, never from the installed message classes) proves a bag is what
+other ROS tools read, not just what our own reader accepts. Both are test dependencies,
+imported when a helper is called.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-from mcap.reader import make_reader
-from rosbags.rosbag2 import Reader
-from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.msg import get_types_from_msg
+from .writer import RecordWriter
 
-from robot_recorder.writer import RecordWriter
+__all__ = ["drained", "read_mcap", "read_rosbags"]
 
 
 def read_rosbags(bag: Path) -> list[tuple[str, Any]]:
     """(topic, message) of every message, decoded by rosbags from the schemas in the bag."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys.msg import get_types_from_msg
+
     store = get_typestore(Stores.EMPTY)
     out = []
     with Reader(bag) as reader:
@@ -28,6 +36,7 @@ def read_rosbags(bag: Path) -> list[tuple[str, Any]]:
 
 def read_mcap(path: Path) -> list[tuple[str, Any]]:
     """(topic, message) decoded by the mcap reader with mcap-ros2-support, for one file."""
+    from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     with open(path, "rb") as f:
@@ -43,4 +52,5 @@ def read_mcap(path: Path) -> list[tuple[str, Any]]:
 
 
 def drained(writer: RecordWriter) -> None:
+    """Wait until the writer thread has handled everything enqueued so far."""
     writer.drain().result(10)

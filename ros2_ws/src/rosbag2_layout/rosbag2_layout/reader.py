@@ -1,0 +1,283 @@
+"""Reading bags: every message of a bag directory or ``.mcap`` file, also of files cut short.
+
+A bag is one ``.mcap`` file or a bag directory: ``metadata.yaml`` and the files it lists,
+then any further ``.mcap`` file in the directory (the file a killed recorder was writing is
+not listed yet), or without ``metadata.yaml`` every ``.mcap`` file in recording order. A
+file listed in ``metadata.yaml`` but missing is refused (:class:`BagNotFoundError`): a bag
+with a hole must not pass for a complete one.
+
+A file with a summary is read in log-time order, one chunk in memory at a time. A file
+without one (its writer was killed, or the disk filled) is read sequentially up to its last
+complete record and noted in :attr:`BagReader.truncated` and :attr:`BagReader.problems`.
+A file that is not MCAP at all raises :class:`BagFormatError`.
+"""
+
+from __future__ import annotations
+
+import heapq
+import re
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Chunk, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.summary import Summary
+from zstandard import ZstdError
+
+from .errors import BagFormatError, BagNotFoundError
+from .metadata import QosDict, parse_qos, read_metadata
+
+__all__ = ["BagMessage", "BagReader", "TopicRecord", "mcap_files"]
+
+#: What the mcap readers raise on damaged or cut-off input (they use struct and asserts too;
+#: the decompressors raise their own errors, lz4 a RuntimeError).
+_DAMAGED = (McapError, ValueError, EOFError, AssertionError, struct.error, ZstdError,
+            RuntimeError, KeyError)
+_MAGIC = b"\x89MCAP0\r\n"
+
+Record = tuple[Schema | None, Channel, Message]
+
+
+@dataclass(frozen=True, slots=True)
+class BagMessage:
+    """One recorded message: topic, ``pkg/msg/Type``, CDR bytes and times (ns)."""
+
+    topic: str
+    type: str
+    data: bytes
+    log_time_ns: int
+    publish_time_ns: int = 0
+    sequence: int = 0
+
+
+@dataclass(frozen=True)
+class TopicRecord:
+    """A topic as the bag stores it (first file that holds it)."""
+
+    name: str
+    type: str
+    qos_profiles: list[QosDict]
+    schema: Schema | None
+    channel: Channel
+
+
+def mcap_files(bag: str | Path) -> list[Path]:
+    """The MCAP files of a bag in recording order (``[bag]`` for one file)."""
+    path = Path(bag)
+    if path.is_file():
+        return [path]
+    if not path.is_dir():
+        raise BagNotFoundError(f"no bag at {path} (an .mcap file or a rosbag2 directory)")
+    listed: list[Path] = []
+    if (path / "metadata.yaml").is_file():
+        info = read_metadata(path)
+        listed = [path / Path(p).name for p in info["relative_file_paths"]]
+        if missing := [str(p) for p in listed if not p.exists()]:
+            raise BagNotFoundError(f"{path}: files listed in metadata.yaml are missing: "
+                                   f"{missing}")
+        if compressed := [str(p) for p in listed if p.suffix != ".mcap"]:
+            raise BagFormatError(f"{path}: file-compressed bags are not supported: "
+                                 f"{compressed}")
+    found = sorted(path.glob("*.mcap"), key=_index)
+    files = listed + [p for p in found if p not in listed]
+    if not files:
+        raise BagFormatError(f"{path} holds no .mcap file")
+    return files
+
+
+def _index(path: Path) -> tuple[str, int, str]:
+    """Sort key: ``bag_2.mcap`` before ``bag_10.mcap``."""
+    match = re.search(r"^(.*)_(\d+)\.mcap$", path.name)
+    return (match.group(1), int(match.group(2)), path.name) if match else (path.stem, 0, "")
+
+
+@dataclass
+class BagReader:
+    """The messages, topics and metadata records of one bag.
+
+    ``truncated`` names the files that ended before their last record was complete, and
+    ``problems`` says where each ended. Such a file has no index to order by, so its
+    messages come in the order they were written (a recorder's are close to time order).
+    """
+
+    path: Path
+    files: list[Path] = field(init=False)
+    truncated: list[Path] = field(default_factory=list, init=False)
+    problems: list[str] = field(default_factory=list, init=False)
+
+    def __post_init__(self) -> None:
+        self.path = Path(self.path)
+        self.files = mcap_files(self.path)
+
+    def records(self, *, topics: list[str] | None = None) -> Iterator[Record]:
+        """``(schema, channel, message)`` of every readable message, file by file."""
+        for file in self.files:
+            with open(file, "rb") as stream:
+                yield from self._file_records(file, stream, topics)
+
+    def messages(self, *, topics: list[str] | None = None) -> Iterator[BagMessage]:
+        """Every readable message as a :class:`BagMessage`."""
+        for schema, channel, message in self.records(topics=topics):
+            yield BagMessage(channel.topic, schema.name if schema else "", message.data,
+                             message.log_time, message.publish_time, message.sequence)
+
+    def topic_records(self) -> dict[str, TopicRecord]:
+        """Every topic of the bag with its type, offered QoS profiles and schema."""
+        found: dict[str, TopicRecord] = {}
+
+        def add(schema: Schema | None, channel: Channel) -> None:
+            if channel.topic not in found:
+                found[channel.topic] = TopicRecord(
+                    channel.topic, schema.name if schema else "",
+                    parse_qos(channel.metadata.get("offered_qos_profiles", "")),
+                    schema, channel)
+
+        for file in self.files:
+            summary = _summary(file)
+            if summary is not None:
+                for channel in summary.channels.values():
+                    add(summary.schemas.get(channel.schema_id), channel)
+                continue
+            schemas: dict[int, Schema] = {}
+            for record in _scan(file, None):
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    add(schemas.get(record.schema_id), record)
+        return found
+
+    def topics(self) -> set[str]:
+        """Every topic name of the bag."""
+        return set(self.topic_records())
+
+    def metadata(self) -> Iterator[tuple[str, dict[str, str]]]:
+        """Every MCAP metadata record ``(name, key/values)`` of the bag's files, in order."""
+        for file in self.files:
+            with open(file, "rb") as stream:
+                _check_magic(file, stream)
+                try:
+                    reader = SeekingReader(stream, validate_crcs=True)
+                    if reader.get_summary() is not None:
+                        for record in reader.iter_metadata():
+                            yield record.name, dict(record.metadata)
+                        continue
+                except _DAMAGED:
+                    pass
+            for scanned in _scan(file, None):
+                if isinstance(scanned, Metadata):
+                    yield scanned.name, dict(scanned.metadata)
+
+    def metadata_records(self) -> dict[str, dict[str, str]]:
+        """MCAP metadata records by name (later files win), e.g. ``"team_clock"``."""
+        return dict(self.metadata())
+
+    def _file_records(self, file: Path, stream: IO[bytes], topics: list[str] | None
+                      ) -> Iterator[Record]:
+        _check_magic(file, stream)
+        try:
+            reader = SeekingReader(stream, validate_crcs=True)
+            header = reader.get_header()
+        except _DAMAGED as exc:
+            raise BagFormatError(f"{file} is not an MCAP file: {exc}") from exc
+        if header.profile not in ("ros2", ""):
+            raise BagFormatError(f"{file} has MCAP profile {header.profile!r}, not 'ros2'")
+        try:
+            summary = reader.get_summary()
+        except _DAMAGED:
+            summary = None
+        if summary is not None:
+            try:
+                if summary.chunk_indexes:
+                    yield from _in_time_order(stream, summary, topics)
+                else:
+                    yield from reader.iter_messages(topics=topics, log_time_order=True)
+            except _DAMAGED as exc:
+                raise BagFormatError(f"{file} is damaged: {exc}") from exc
+            return
+        # No summary: the writer did not finish (killed, disk full). Read what is complete.
+        wanted = None if topics is None else set(topics)
+        schemas: dict[int, Schema] = {}
+        channels: dict[int, Channel] = {}
+        for record in _scan(file, self):
+            if isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Message):
+                channel = channels.get(record.channel_id)
+                if channel is None or (wanted is not None and channel.topic not in wanted):
+                    continue
+                yield schemas.get(channel.schema_id), channel, record
+
+
+def _check_magic(file: Path, stream: IO[bytes]) -> None:
+    start = stream.read(len(_MAGIC))
+    stream.seek(0)
+    if start != _MAGIC:
+        raise BagFormatError(f"{file} is not an MCAP file (it does not start with MCAP's "
+                             "magic bytes)")
+
+
+def _summary(file: Path) -> Summary | None:
+    with open(file, "rb") as stream:
+        _check_magic(file, stream)
+        try:
+            return SeekingReader(stream, validate_crcs=True).get_summary()
+        except _DAMAGED:
+            return None
+
+
+def _scan(file: Path, reader: BagReader | None) -> Iterator[object]:
+    """Records of one file in order, ending where a crash cut it (noted on ``reader``)."""
+    with open(file, "rb") as stream:
+        _check_magic(file, stream)
+        try:
+            yield from StreamReader(stream, record_size_limit=1 << 31).records
+        except _DAMAGED as exc:  # EndOfFile, a half-written chunk, bad compression ...
+            if reader is not None:
+                reader.truncated.append(file)
+                reason = " ".join(str(exc).split())[:200]  # a bytes dump can be huge
+                reader.problems.append(f"{file}: readable up to byte {stream.tell()}, then "
+                                       f"{type(exc).__name__}: {reason}")
+
+
+def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None
+                   ) -> Iterator[Record]:
+    """Messages in log-time order, one chunk in memory at a time.
+
+    Chunks are read by their start time; a message is released once no later chunk can
+    hold an earlier one (its time is below the next chunk's start). The mcap reader's own
+    time ordering does the same with a Python-level comparison per heap step, which makes
+    it the slowest part of a merge; plain tuples compare in C.
+    """
+    wanted = None if topics is None else set(topics)
+    chunks = summary.chunk_indexes
+    if wanted is not None:  # skip chunks without the wanted channels (their index says)
+        ids = {cid for cid, ch in summary.channels.items() if ch.topic in wanted}
+        chunks = [c for c in chunks if not c.message_index_offsets
+                  or ids.intersection(c.message_index_offsets)]
+    chunks = sorted(chunks, key=lambda c: (c.message_start_time, c.chunk_start_offset))
+    heap: list[tuple[int, int, Schema | None, Channel, Message]] = []
+    order = 0
+    for i, index in enumerate(chunks):
+        stream.seek(index.chunk_start_offset + 1 + 8)  # opcode, record length
+        chunk = Chunk.read(ReadDataStream(stream))
+        for record in breakup_chunk(chunk, validate_crc=True):
+            if not isinstance(record, Message):
+                continue
+            channel = summary.channels[record.channel_id]
+            if wanted is not None and channel.topic not in wanted:
+                continue
+            order += 1
+            heapq.heappush(heap, (record.log_time, order, summary.schemas.get(channel.schema_id),
+                                  channel, record))
+        horizon = chunks[i + 1].message_start_time if i + 1 < len(chunks) else None
+        while heap and (horizon is None or heap[0][0] < horizon):
+            _, _, schema, channel, message = heapq.heappop(heap)
+            yield schema, channel, message
