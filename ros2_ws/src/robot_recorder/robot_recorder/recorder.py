@@ -34,15 +34,15 @@ from efficient_comm.composed import ComposedHandle
 from efficient_comm.handle import NodeHandle, Subscription
 from rosbag2_layout import (
     FileSystem,
-    UnknownTypeError,
     full_definition,
     import_type,
     qos_dict,
     type_name,
 )
+from rosbag2_layout import UnknownTypeError as BagTypeError
 from throttle_publisher import ThrottledSubscription
 
-from .errors import RecorderConfigError, RecorderError
+from .errors import RecorderConfigError, RecorderError, UnknownTypeError
 from .selection import TopicSelection, parse_selection
 from .writer import RECORDING, RecordWriter, TopicState
 
@@ -486,9 +486,12 @@ _TAP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 def _checked_type(type_str: str) -> tuple[type, str]:
     """The message class and canonical name of ``type_str``; :class:`UnknownTypeError` if
     it is not installed or its definition could not be written into the bag."""
-    msg_type = import_type(type_str)
-    canonical = type_name(msg_type)
-    full_definition(canonical)  # refuse now what could not be written later
+    try:
+        msg_type = import_type(type_str)
+        canonical = type_name(msg_type)
+        full_definition(canonical)  # refuse now what could not be written later
+    except BagTypeError as exc:  # the recorder's own class: callers catch RecorderError
+        raise UnknownTypeError(str(exc)) from exc
     return msg_type, canonical
 
 
