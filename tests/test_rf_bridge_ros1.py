@@ -382,7 +382,7 @@ def test_standalone_process_between_dds_and_ros1(ros1: Ros1System, tmp_path: Any
     """The README's example as a user runs it (``ros2 run rf_bridge rf_bridge``): a String
     to ROS 1 and nav_msgs/Odometry from a rospy publisher, a ROS 2 peer over DDS."""
     import yaml
-    from nav_msgs.msg import Odometry  # type: ignore[import-untyped]
+    from nav_msgs.msg import Odometry
 
     from efficient_comm.testing import isolated_domain_id
 
