@@ -13,6 +13,9 @@ Where things live:
 Everything public is re-exported here once.
 """
 
+from .bag import BagMessage as BagMessage
+from .bag import read_messages as read_messages
+from .bag import recover as recover
 from .errors import PlaybackError as PlaybackError
 from .errors import RecorderConfigError as RecorderConfigError
 from .errors import RecorderError as RecorderError

@@ -1,0 +1,145 @@
+"""A daemon-free node for one command: joins the domain, waits for discovery, goes.
+
+ros2cli asks its daemon, which has been listening all along; without one, a command must
+join the domain and listen itself. Rather than sleeping a fixed time, :meth:`CliNode.settle`
+answers as soon as the graph stops changing, and :meth:`CliNode.wait_for` as soon as what a
+command needs (a topic, a node, a service) has appeared.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from .errors import CliError
+
+#: The graph is taken as complete once it has not changed for this long.
+QUIET_S = 0.3
+#: ... or after this long, whatever it still does (a domain with nodes coming and going).
+SETTLE_MAX_S = 3.0
+#: How long a command waits for the node, topic or service it was asked about.
+WAIT_S = 5.0
+_POLL_S = 0.02
+
+
+class CliNode:
+    """One hidden rclpy node (``_ros2cli_<pid>``, as ros2cli names its own) in its own context."""
+
+    def __init__(self, *, name: str | None = None, parameter_services: bool = False) -> None:
+        self.context = Context()
+        # No rclpy signal handlers: Ctrl-C is Python's KeyboardInterrupt and SIGTERM ends the
+        # process, as for any command line tool (rclpy's own handlers trap SIGTERM).
+        rclpy.init(context=self.context, args=[],
+                   signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            self.node = Node(name or f"_ros2cli_{os.getpid()}", context=self.context,
+                             start_parameter_services=parameter_services,
+                             enable_rosout=False)
+        except BaseException:
+            self.context.try_shutdown()
+            raise
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._started = time.monotonic()
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+    def spin_once(self, timeout_s: float = _POLL_S) -> None:
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def _signature(self) -> tuple[Any, ...]:
+        node = self.node
+        return (
+            sorted(node.get_node_names_and_namespaces()),
+            sorted((n, tuple(t)) for n, t in node.get_topic_names_and_types()),
+            sorted((n, tuple(t)) for n, t in node.get_service_names_and_types()),
+        )
+
+    def settle(self, *, quiet_s: float = QUIET_S, max_s: float = SETTLE_MAX_S) -> None:
+        """Wait until the graph has not changed for ``quiet_s`` (at most ``max_s``)."""
+        deadline = self._started + max_s
+        last = self._signature()
+        changed = time.monotonic()
+        while True:
+            now = time.monotonic()
+            if now - changed >= quiet_s or now >= deadline:
+                return
+            self.spin_once()
+            current = self._signature()
+            if current != last:
+                last, changed = current, time.monotonic()
+
+    def wait_for(self, predicate: Callable[[], bool], *, timeout_s: float = WAIT_S) -> bool:
+        """Spin until ``predicate()`` holds; False after ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() >= deadline:
+                return False
+            self.spin_once()
+        return True
+
+    def call(self, srv_type: type, service: str, request: Any, *,
+             timeout_s: float = WAIT_S) -> Any:
+        """Call ``service`` once and return the response; CliError if it is not there."""
+        client = self.node.create_client(srv_type, service)
+        try:
+            if not self.wait_for(client.service_is_ready, timeout_s=timeout_s):
+                raise CliError(f"service {service} is not available (waited {timeout_s:g} s)")
+            future = client.call_async(request)
+            if not self.wait_for(future.done, timeout_s=timeout_s):
+                raise CliError(f"service {service} did not answer within {timeout_s:g} s")
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    # -- graph queries shared by several commands ------------------------------------------
+
+    def node_names(self, *, include_hidden: bool = False) -> list[str]:
+        """Full names of the nodes in the graph (without this command's own)."""
+        names = []
+        for name, namespace in self.node.get_node_names_and_namespaces():
+            if not include_hidden and name.startswith("_"):
+                continue
+            names.append(full_name(name, namespace))
+        return sorted(names)
+
+    def has_node(self, name: str) -> bool:
+        return name in self.node_names(include_hidden=True)
+
+    def require_node(self, name: str) -> tuple[str, str]:
+        """Wait for ``name`` to appear; returns (name, namespace) or raises CliError."""
+        fqn = absolute(name)
+        if not self.wait_for(lambda: self.has_node(fqn)):
+            raise CliError(f"Node not found: {fqn}")
+        namespace, _, base = fqn.rpartition("/")
+        return base, namespace or "/"
+
+
+def absolute(name: str) -> str:
+    """``talker`` -> ``/talker``, as ros2cli reads node names."""
+    return name if name.startswith("/") else "/" + name
+
+
+def full_name(name: str, namespace: str) -> str:
+    return (namespace.rstrip("/") + "/" + name) if namespace != "/" else "/" + name
+
+
+@contextmanager
+def cli_node(*, name: str | None = None, parameter_services: bool = False) -> Iterator[CliNode]:
+    node = CliNode(name=name, parameter_services=parameter_services)
+    try:
+        yield node
+    finally:
+        node.close()
