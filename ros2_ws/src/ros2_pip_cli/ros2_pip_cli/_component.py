@@ -16,7 +16,7 @@ import yaml
 from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
 
 from ._graph import CliNode, absolute, cli_node, full_name
-from ._main import Commands, add_verbs, verb
+from ._main import Commands, add_spin_time, add_verbs, verb
 from .errors import CliError
 
 _LIST_TYPE = "efficient_comm_interfaces/srv/ListComponents"
@@ -26,6 +26,7 @@ def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "component", "Various component related sub-commands "
                       "(efficient_comm containers)")
     p = verb(verbs, "list", "Output a list of running containers and components", _list)
+    add_spin_time(p)
     p.add_argument("container_node_name", nargs="?", help="Name of the container node to list")
     p.add_argument("--containers-only", action="store_true",
                    help="List found containers nodes only")
@@ -84,7 +85,7 @@ def _list(args: argparse.Namespace) -> int:
                 for uid, node in _components(cli, name):
                     print(f"{uid}  {node}")
             return 0
-        cli.settle()
+        cli.settle(min_s=args.spin_time)
         for name in containers(cli):
             print(name)
             if not args.containers_only:

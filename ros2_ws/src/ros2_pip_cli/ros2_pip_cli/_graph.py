@@ -22,10 +22,14 @@ from rclpy.signals import SignalHandlerOptions
 
 from .errors import CliError
 
-#: The graph is taken as complete once it has not changed for this long.
-QUIET_S = 0.3
+#: The graph is taken as complete once it has not changed for this long and every endpoint
+#: seen has its node's name (the names come in a second step of discovery) ...
+QUIET_S = 0.5
 #: ... or after this long, whatever it still does (a domain with nodes coming and going).
-SETTLE_MAX_S = 3.0
+SETTLE_MAX_S = 5.0
+#: A participant already running answers a newcomer with its next periodic announcement
+#: (Fast DDS: every 3 s), so while no other node has been heard, listen this long.
+ALONE_S = 3.5
 #: How long a command waits for the node, topic or service it was asked about.
 WAIT_S = 5.0
 _POLL_S = 0.02
@@ -67,14 +71,30 @@ class CliNode:
             sorted((n, tuple(t)) for n, t in node.get_service_names_and_types()),
         )
 
-    def settle(self, *, quiet_s: float = QUIET_S, max_s: float = SETTLE_MAX_S) -> None:
-        """Wait until the graph has not changed for ``quiet_s`` (at most ``max_s``)."""
-        deadline = self._started + max_s
+    def _named(self) -> bool:
+        """True when every endpoint in the graph belongs to a node whose name is known."""
+        node = self.node
+        for topic, _ in node.get_topic_names_and_types():
+            infos = [*node.get_publishers_info_by_topic(topic),
+                     *node.get_subscriptions_info_by_topic(topic)]
+            if any(i.node_name == "_NODE_NAME_UNKNOWN_" for i in infos):
+                return False
+        return True
+
+    def settle(self, *, quiet_s: float = QUIET_S, max_s: float = SETTLE_MAX_S,
+               min_s: float = 0.0) -> None:
+        """Wait until the graph has not changed for ``quiet_s`` and every endpoint has its
+        node's name, at least ``min_s`` (``--spin-time``) and at most ``max_s`` from start."""
+        deadline = self._started + max(max_s, min_s)
+        earliest = self._started + min_s
         last = self._signature()
         changed = time.monotonic()
         while True:
             now = time.monotonic()
-            if now - changed >= quiet_s or now >= deadline:
+            if now >= deadline:
+                return
+            heard = len(last[0]) > 1 or now >= self._started + ALONE_S
+            if now - changed >= quiet_s and now >= earliest and heard and self._named():
                 return
             self.spin_once()
             current = self._signature()

@@ -7,6 +7,7 @@ parser sets ``run`` to a function of the parsed arguments returning an exit code
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 from collections.abc import Callable, Sequence
@@ -60,6 +61,13 @@ def verb(verbs: Commands, name: str, help_text: str,
     return parser
 
 
+def add_spin_time(parser: argparse.ArgumentParser) -> None:
+    """ros2cli's ``--spin-time`` (without its daemon): listen at least this long."""
+    parser.add_argument("--spin-time", type=float, default=0.0, metavar="SPIN_TIME",
+                        help="Wait at least this many seconds for discovery (default: until "
+                             "the graph is stable)")
+
+
 def build_parser() -> Parser:
     from . import _bag, _component, _interface, _node, _param, _pkg, _service, _topic
 
@@ -98,3 +106,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # `ros2 topic echo /x | head`
         sys.stderr.close()
         return 0
+    except Exception as exc:  # a bug or an rclpy failure: still one line, with its kind
+        if os.environ.get("ROS2_PIP_CLI_TRACEBACK"):
+            raise
+        print(f"error: {exc!r} (ROS2_PIP_CLI_TRACEBACK=1 shows where)", file=sys.stderr)
+        return 1

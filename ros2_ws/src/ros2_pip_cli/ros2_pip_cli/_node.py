@@ -6,13 +6,14 @@ import argparse
 import sys
 
 from ._graph import absolute, cli_node
-from ._main import Commands, add_verbs, verb
+from ._main import Commands, add_spin_time, add_verbs, verb
 from .errors import CliError
 
 
 def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "node", "Various node related sub-commands")
     p = verb(verbs, "list", "Output a list of available nodes", _list)
+    add_spin_time(p)
     p.add_argument("-a", "--all", action="store_true", help="Display all nodes even hidden ones")
     p.add_argument("-c", "--count-nodes", action="store_true",
                    help="Only display the number of nodes discovered")
@@ -24,9 +25,9 @@ def register(commands: Commands) -> None:
 
 def _list(args: argparse.Namespace) -> int:
     with cli_node() as node:
-        node.settle()
+        node.settle(min_s=args.spin_time)
         names = node.node_names(include_hidden=args.all)
-    own = node.node.get_fully_qualified_name()
+        own = node.node.get_fully_qualified_name()
     names = [n for n in names if n != own]
     if args.count_nodes:
         print(len(names))

@@ -18,7 +18,7 @@ from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters
 from rclpy.parameter import Parameter, parameter_dict_from_yaml_file, parameter_value_to_python
 
 from ._graph import CliNode, absolute, cli_node
-from ._main import Commands, add_verbs, verb
+from ._main import Commands, add_spin_time, add_verbs, verb
 from .errors import CliError
 
 _LABELS = {
@@ -38,6 +38,7 @@ _LABELS = {
 def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "param", "Various param related sub-commands")
     p = verb(verbs, "list", "Output a list of available parameters", _list)
+    add_spin_time(p)
     p.add_argument("node_name", nargs="?", help="Name of the ROS node")
     p.add_argument("--param-type", action="store_true", help="Print parameter types with "
                    "parameter names")
@@ -80,7 +81,7 @@ def _list(args: argparse.Namespace) -> int:
             cli.require_node(args.node_name)
             nodes = [absolute(args.node_name)]
         else:
-            cli.settle()
+            cli.settle(min_s=args.spin_time)
             nodes = cli.node_names()
         pattern = re.compile(args.filter) if args.filter else None
         for node in nodes:
@@ -114,10 +115,7 @@ def _get(args: argparse.Namespace) -> int:
     if value.type not in _LABELS:
         raise CliError(f"Unknown parameter type '{value.type}'")
     label = _LABELS[value.type][0]
-    python = parameter_value_to_python(value) if value.type != ParameterType.PARAMETER_NOT_SET \
-        else None
-    if isinstance(python, (list, tuple)) or hasattr(python, "tolist"):
-        python = list(python.tolist() if hasattr(python, "tolist") else python)
+    python = _python(value) if value.type != ParameterType.PARAMETER_NOT_SET else None
     if args.hide_type:
         print(python)
     elif python is None:
@@ -125,6 +123,16 @@ def _get(args: argparse.Namespace) -> int:
     else:
         print(label, python)
     return 0
+
+
+def _python(value: Any) -> Any:
+    """A ParameterValue as YAML-friendly Python (arrays as lists, as ros2cli prints them)."""
+    python = parameter_value_to_python(value)
+    if hasattr(python, "tolist"):
+        return python.tolist()
+    if isinstance(python, (tuple, list)):
+        return list(python)
+    return python
 
 
 def parameter_from_text(name: str, text: str) -> ParameterMsg:
@@ -135,9 +143,6 @@ def parameter_from_text(name: str, text: str) -> ParameterMsg:
         value = text
     if value is None or isinstance(value, dict):
         value = text
-    if isinstance(value, list) and value and all(isinstance(v, int) for v in value) \
-            and any(isinstance(v, float) for v in value):
-        value = [float(v) for v in value]
     if isinstance(value, list) and len({type(v) for v in value}) > 1:
         if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
             value = [float(v) for v in value]
@@ -172,11 +177,7 @@ def _dump(args: argparse.Namespace) -> int:
         values = _values(cli, node, names) if names else []
     params: dict[str, Any] = {}
     for name, value in zip(names, values, strict=False):
-        python = parameter_value_to_python(value)
-        if hasattr(python, "tolist"):
-            python = python.tolist()
-        elif isinstance(python, (tuple, list)):
-            python = list(python)
+        python = _python(value)
         target = params
         *groups, leaf = name.split(".")
         for group in groups:  # ros2cli nests dotted names

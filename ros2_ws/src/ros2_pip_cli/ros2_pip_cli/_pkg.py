@@ -88,10 +88,10 @@ def run_command(argv: list[str]) -> int:
     command = [*prefix, str(found[0]), *args]
     sys.stdout.flush()
     try:
-        os.execvp(command[0], command)
+        os.execvp(command[0], command)  # replaces this process: its exit status is ours
     except OSError as exc:
         raise CliError(f"cannot run {shlex.join(command)}: {exc}") from exc
-    return 0  # not reached: execvp replaced this process
+    raise AssertionError("unreachable: execvp returns only by raising")
 
 
 def _list(_args: argparse.Namespace) -> int:

@@ -6,7 +6,7 @@ import argparse
 import time
 
 from ._graph import CliNode, cli_node
-from ._main import Commands, add_verbs, verb
+from ._main import Commands, add_spin_time, add_verbs, verb
 from ._messages import import_interface, parse_values, set_message_fields
 from .errors import CliError
 
@@ -14,6 +14,7 @@ from .errors import CliError
 def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "service", "Various service related sub-commands")
     p = verb(verbs, "list", "Output a list of available services", _list)
+    add_spin_time(p)
     p.add_argument("-t", "--show-types", action="store_true",
                    help="Additionally show the service type")
     p.add_argument("-c", "--count-services", action="store_true",
@@ -39,7 +40,7 @@ def _hidden(name: str) -> bool:
 
 def _list(args: argparse.Namespace) -> int:
     with cli_node() as node:
-        node.settle()
+        node.settle(min_s=args.spin_time)
         services = sorted((n, list(t)) for n, t in node.node.get_service_names_and_types()
                           if args.include_hidden_services or not _hidden(n))
     if args.count_services:

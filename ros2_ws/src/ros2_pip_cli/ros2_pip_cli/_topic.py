@@ -23,7 +23,7 @@ from rclpy.qos import (
 from rclpy.serialization import deserialize_message
 
 from ._graph import CliNode, cli_node
-from ._main import Commands, add_verbs, verb
+from ._main import Commands, add_spin_time, add_verbs, verb
 from ._messages import import_interface, message_to_yaml, parse_values, set_message_fields
 from .errors import CliError
 
@@ -35,6 +35,7 @@ TRUNCATE_LENGTH = 128
 def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "topic", "Various topic related sub-commands")
     p = verb(verbs, "list", "Output a list of available topics", _list)
+    add_spin_time(p)
     p.add_argument("-t", "--show-types", action="store_true",
                    help="Additionally show the topic type")
     p.add_argument("-c", "--count-topics", action="store_true",
@@ -141,7 +142,7 @@ def _topics(node: CliNode, *, include_hidden: bool = True) -> list[tuple[str, li
 
 def _list(args: argparse.Namespace) -> int:
     with cli_node() as node:
-        node.settle()
+        node.settle(min_s=args.spin_time)
         topics = _topics(node, include_hidden=args.include_hidden_topics)
     if args.count_topics:
         print(len(topics))
