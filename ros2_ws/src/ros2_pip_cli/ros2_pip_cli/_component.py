@@ -120,7 +120,9 @@ def _load(args: argparse.Namespace) -> int:
         container = _require_container(cli, args.container_node_name)
         response = cli.call(LoadComponent, f"{container}/load_component", request)
     if not response.success:
-        raise CliError(f"Failed to load component: {response.error_message}")
+        # The container's message may carry the constructor's traceback: its last line says why.
+        why = (response.error_message.strip().splitlines() or ["no reason given"])[-1]
+        raise CliError(f"Failed to load component: {why}")
     if args.quiet:
         print(f"{response.unique_id}  {response.full_node_name}")
     else:
