@@ -17,6 +17,7 @@ changes that (the docs then say in words what else the lines need):
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -134,10 +135,8 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
             log = tmp_path / f"cmd{n}.log"
             proc = _start(command, cwd, env, log)
             if block.directive == "runs-until-stopped":
-                try:
+                with contextlib.suppress(subprocess.TimeoutExpired):
                     proc.wait(timeout=STOPPED_AFTER_S)
-                except subprocess.TimeoutExpired:
-                    pass
                 still_running = proc.poll() is None
                 _stop(proc)
                 text = log.read_text(errors="replace")
