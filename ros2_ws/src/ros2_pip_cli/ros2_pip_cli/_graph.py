@@ -22,14 +22,14 @@ from rclpy.signals import SignalHandlerOptions
 
 from .errors import CliError
 
-#: The graph is taken as complete once it has not changed for this long and every endpoint
-#: seen has its node's name (the names come in a second step of discovery) ...
+#: A running Fast DDS participant answers a newcomer only with its next periodic announcement
+#: (every 3 s), so a command that lists the whole graph listens at least this long ...
+ANNOUNCE_S = 3.5
+#: ... and then until the graph has not changed for this long and every endpoint seen has
+#: its node's name (names come in a second step of discovery) ...
 QUIET_S = 0.5
-#: ... or after this long, whatever it still does (a domain with nodes coming and going).
-SETTLE_MAX_S = 5.0
-#: A participant already running answers a newcomer with its next periodic announcement
-#: (Fast DDS: every 3 s), so while no other node has been heard, listen this long.
-ALONE_S = 3.5
+#: ... or until this long, whatever the graph still does (nodes coming and going).
+SETTLE_MAX_S = 6.0
 #: How long a command waits for the node, topic or service it was asked about.
 WAIT_S = 5.0
 _POLL_S = 0.02
@@ -81,10 +81,10 @@ class CliNode:
                 return False
         return True
 
-    def settle(self, *, quiet_s: float = QUIET_S, max_s: float = SETTLE_MAX_S,
-               min_s: float = 0.0) -> None:
-        """Wait until the graph has not changed for ``quiet_s`` and every endpoint has its
-        node's name, at least ``min_s`` (``--spin-time``) and at most ``max_s`` from start."""
+    def settle(self, *, min_s: float = ANNOUNCE_S, quiet_s: float = QUIET_S,
+               max_s: float = SETTLE_MAX_S) -> None:
+        """Listen at least ``min_s`` from start, then until the graph has been stable for
+        ``quiet_s`` with every endpoint named; at most ``max(max_s, min_s)``."""
         deadline = self._started + max(max_s, min_s)
         earliest = self._started + min_s
         last = self._signature()
@@ -93,8 +93,7 @@ class CliNode:
             now = time.monotonic()
             if now >= deadline:
                 return
-            heard = len(last[0]) > 1 or now >= self._started + ALONE_S
-            if now - changed >= quiet_s and now >= earliest and heard and self._named():
+            if now - changed >= quiet_s and now >= earliest and self._named():
                 return
             self.spin_once()
             current = self._signature()

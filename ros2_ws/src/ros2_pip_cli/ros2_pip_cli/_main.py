@@ -13,6 +13,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
+from ._graph import ANNOUNCE_S
 from .errors import CliError, UsageError
 
 HINT = "a regular ROS 2 install (ros2cli) has the full command line"
@@ -63,9 +64,10 @@ def verb(verbs: Commands, name: str, help_text: str,
 
 def add_spin_time(parser: argparse.ArgumentParser) -> None:
     """ros2cli's ``--spin-time`` (without its daemon): listen at least this long."""
-    parser.add_argument("--spin-time", type=float, default=0.0, metavar="SPIN_TIME",
-                        help="Wait at least this many seconds for discovery (default: until "
-                             "the graph is stable)")
+    parser.add_argument("--spin-time", type=float, default=ANNOUNCE_S, metavar="SPIN_TIME",
+                        help="Listen at least this many seconds for discovery, then until the "
+                             f"graph is stable (default: {ANNOUNCE_S}, one announcement period "
+                             "of Fast DDS)")
 
 
 def build_parser() -> Parser:

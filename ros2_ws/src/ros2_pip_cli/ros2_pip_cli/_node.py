@@ -45,7 +45,7 @@ def _info(args: argparse.Namespace) -> int:
     fqn = absolute(args.node_name)
     with cli_node() as cli:
         name, namespace = cli.require_node(fqn)
-        cli.settle()
+        cli.settle(min_s=0.0)
         count = cli.node_names(include_hidden=True).count(fqn)
         if count > 1:
             print(f"There are {count} nodes in the graph with the exact name \"{fqn}\". You are "

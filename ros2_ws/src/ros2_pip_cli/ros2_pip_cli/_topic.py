@@ -30,6 +30,8 @@ from .errors import CliError
 HZ_WINDOW = 10000
 BW_WINDOW = 100
 TRUNCATE_LENGTH = 128
+#: Queue depth of echo, hz and bw unless --qos-depth says otherwise (see _subscription_qos).
+FOLLOW_DEPTH = 100
 
 
 def register(commands: Commands) -> None:
@@ -74,10 +76,12 @@ def register(commands: Commands) -> None:
                         f"(default: {HZ_WINDOW})")
     p.add_argument("--wall-time", action="store_true",
                    help="accepted for compatibility: rates are always measured in wall time")
+    _add_qos_arguments(p, "sensor_data")
     p = verb(verbs, "bw", "Display bandwidth used by topic", _bw)
     p.add_argument("topic")
     p.add_argument("--window", "-w", type=int, default=BW_WINDOW, metavar="WINDOW",
                    help=f"maximum window size, in # of messages (default: {BW_WINDOW})")
+    _add_qos_arguments(p, "sensor_data")
     p = verb(verbs, "pub", "Publish a message to a topic", _pub)
     p.add_argument("topic_name")
     p.add_argument("message_type", help="Type of the ROS message (e.g. 'std_msgs/String')")
@@ -168,7 +172,7 @@ def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) ->
 def _info(args: argparse.Namespace) -> int:
     with cli_node() as node:
         types = topic_types(node, args.topic_name)
-        node.settle()
+        node.settle(min_s=0.0)
         types = dict(node.node.get_topic_names_and_types()).get(args.topic_name, types)
         end = "\n\n" if args.verbose else "\n"
         print(f"Type: {types[0] if len(types) == 1 else types}", end=end)
@@ -196,6 +200,9 @@ def _subscription_qos(node: CliNode, topic: str, args: argparse.Namespace) -> Qo
     profile, explicit = _qos(args)
     if explicit:
         return profile
+    # A deeper queue than the preset's 5, so bursts (a slow terminal, a GC pause) are
+    # absorbed instead of dropped.
+    profile.depth = FOLLOW_DEPTH
     infos = node.node.get_publishers_info_by_topic(topic)
     if not infos:
         return profile
@@ -312,7 +319,10 @@ def _raw_monitor(args: argparse.Namespace, topic: str, on_message: Any, report: 
                     print(f"WARNING: topic [{topic}] does not appear to be published yet",
                           flush=True)
                     warned = True
-        qos = QoSPresetProfiles.SENSOR_DATA.value
+        # Reliable when every publisher is (as echo): best effort would lose the fragments of
+        # large messages and report a rate lower than what is published.
+        node.wait_for(lambda: node.node.count_publishers(topic) > 0, timeout_s=0.5)
+        qos = _subscription_qos(node, topic, args)
         node.node.create_subscription(msg_class, topic, on_message, qos, raw=True)
         next_report = time.monotonic() + 1.0
         while True:
