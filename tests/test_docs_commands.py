@@ -3,8 +3,9 @@
 Each ```bash block is one test: its commands (``\\``-continued lines joined, comments
 dropped) run one after another in a temporary copy-by-symlink of the repository, on an
 isolated DDS domain, each within 60 s, and must exit 0 without a traceback. ```yaml blocks
-marked ``file=NAME`` are written there first. An HTML comment on the line before a block
-changes that (the docs then say in words what else the lines need):
+(or any block) marked ``file=NAME`` are written there first; ``export``, ``cd`` and
+``source`` lines apply to the block's later commands, as in one shell. An HTML comment on
+the line before a block changes that (the docs then say in words what else it needs):
 
 * ``<!-- doc-test: skip reason="..." -->``: not run (root, a regular ROS 2 install, minutes
   of running time);
@@ -12,7 +13,7 @@ changes that (the docs then say in words what else the lines need):
   without a traceback or ``error:``, after 5 s;
 * ``<!-- doc-test: background -->``: the first command runs in the background (a peer the
   others talk to) for the rest of the block;
-* ``<!-- doc-test: file=NAME -->`` before a yaml block: write it as NAME.
+* ``<!-- doc-test: file=NAME -->`` before a yaml (or python ...) block: write it as NAME.
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ def blocks() -> list[Block]:
             body = lines[start + 1:end]
             match = _DIRECTIVE.search(lines[start - 1]) if start else None
             directive = match.group(1) if match else ""
-            if fence.group(1) == "yaml" and directive.startswith("file="):
+            if directive.startswith("file="):
                 files[directive[len("file="):]] = "\n".join(body) + "\n"
             elif fence.group(1) == "bash":
                 found.append(Block(doc, start + 1, _commands(body), directive, dict(files)))
@@ -94,6 +95,7 @@ def _sandbox(tmp: Path, files: dict[str, str]) -> Path:
         if entry.name not in (".git",):
             (tmp / entry.name).symlink_to(entry)
     for name, text in files.items():
+        (tmp / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp / name).write_text(text)
     return tmp
 
@@ -126,7 +128,8 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
     (tmp_path / "repo").mkdir()
     cwd = _sandbox(tmp_path / "repo", block.files)
     env = cli_env(isolated_domain_id())
-    commands = list(block.commands)
+    setup = [c for c in block.commands if c.split()[0] in ("export", "cd", "source")]
+    commands = [" && ".join([*setup, c]) for c in block.commands if c not in setup]
     background: subprocess.Popen[bytes] | None = None
     try:
         if block.directive == "background":
@@ -154,7 +157,7 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
                 f"{block.id}: {command} exited {proc.returncode}:\n{text}"
         if background is not None:
             text = (tmp_path / "background.log").read_text(errors="replace")
-            assert background.poll() is None, f"background {block.commands[0]} ended:\n{text}"
+            assert background.poll() is None, f"background {commands[0]} ended:\n{text}"
     finally:
         if background is not None:
             _stop(background)
