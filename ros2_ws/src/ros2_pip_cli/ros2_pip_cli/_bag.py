@@ -110,7 +110,7 @@ def _record(args: argparse.Namespace) -> int:
             recorder = node.component
             recorder.start(out).result(_RECORD_START_S)
             print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
-            known: set[str] = set(topics)
+            known: dict[str, str] = dict.fromkeys(topics, "")
             next_scan = 0.0
             try:
                 while True:
@@ -127,15 +127,18 @@ def _record(args: argparse.Namespace) -> int:
     return 0
 
 
-def _record_all(node: Standalone, recorder: Recorder, known: set[str]) -> set[str]:
-    """Add the topics that appeared since the last look (``-a``), as rosbag2 does."""
+def _record_all(node: Standalone, recorder: Recorder, known: dict[str, str]) -> dict[str, str]:
+    """Add the topics that appeared since the last look (``-a``), as rosbag2 does.
+
+    Types are given from the graph, so the recorder need not find them itself.
+    """
     own = node.node.get_fully_qualified_name() + "/"
-    graph = {name for name, _ in node.node.get_topic_names_and_types()
-             if not name.startswith(own)}
-    if graph <= known:
+    graph = {name: types[0] for name, types in node.node.get_topic_names_and_types()
+             if types and not name.startswith(own)}
+    if graph.keys() <= known.keys():
         return known
-    known = known | graph
-    recorder.set_topics([TopicSelection(name=name) for name in sorted(known)])
+    known = {**graph, **known}
+    recorder.set_topics([TopicSelection(name=name, type=known[name]) for name in sorted(known)])
     return known
 
 
