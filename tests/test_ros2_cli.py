@@ -179,3 +179,11 @@ def test_what_is_not_offered_says_what_is(args: list[str], offered: str) -> None
     assert result.returncode == 2
     assert offered in result.stderr and "regular ROS 2 install" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+
+
+def test_the_workspace_installs_no_ros2_command() -> None:
+    """Only the venv's launcher is called ros2: a sourced regular install keeps ros2cli's."""
+    install = ROOT / "ros2_ws" / "install"
+    assert not [p for p in install.glob("**/ros2") if p.is_file()]
+    assert (ROOT / ".venv" / "bin" / "ros2").is_file()
+    assert "entry_points" not in (ROOT / "ros2_ws/src/ros2_pip_cli/setup.py").read_text()
