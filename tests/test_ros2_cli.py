@@ -59,6 +59,12 @@ def test_echo_prints_yaml_documents(peer: Peer, tmp_path: Path) -> None:
     assert re.fullmatch(r"data: hello \d+\n---\n", once), once
     field = run(peer, "topic", "echo", "--once", peer.topic, "--field", "data")
     assert re.fullmatch(r"hello \d+\n---\n", field), field
+    qos = run(peer, "topic", "echo", "--once", "--qos-reliability", "best_effort",
+              "--qos-durability", "volatile", "--qos-depth", "1", peer.topic,
+              "std_msgs/msg/String")
+    assert re.fullmatch(r"data: hello \d+\n---\n", qos), qos
+    flow = run(peer, "topic", "echo", "--once", "--flow-style", peer.topic)
+    assert re.fullmatch(r"\{data: hello \d+\}\n---\n", flow), flow
     with running([ros2_path(), "topic", "echo", peer.topic], domain_id=peer.domain_id,
                  log=tmp_path / "echo.log") as echo:
         text = echo.wait_for(lambda t: t.count("---\n") >= 5)

@@ -76,3 +76,28 @@ def test_bag_record_info_play_reindex(tmp_path: Path) -> None:
                       domain_id=domain_id)
         assert played.returncode == 0, played.stderr
         echo.wait_for(lambda t: re.search(r"data: hello \d+\n---\n", t) is not None)
+
+
+def test_bag_record_split_compression_and_play_options(tmp_path: Path) -> None:
+    domain_id = isolated_domain_id()
+    topic = unique_topic("split")
+    with running([sys.executable, str(PEER), topic], domain_id=domain_id,
+                 log=tmp_path / "peer.log") as peer:
+        peer.wait_for(lambda t: "ready" in t)
+        with running([ros2_path(), "bag", "record", topic, "-o", "split", "-s", "mcap",
+                      "--max-bag-size", "3000", "--compression-mode", "file",
+                      "--compression-format", "lz4"],
+                     domain_id=domain_id, log=tmp_path / "record.log", cwd=tmp_path) as rec:
+            bag = tmp_path / "split"
+            rec.wait_for(lambda t: len(list(bag.glob("*.mcap"))) >= 3, timeout=60)
+            assert rec.stop(signal.SIGINT) == 0, rec.text()
+    info = ros2("bag", "info", str(bag), domain_id=domain_id).stdout
+    assert re.search(r"Files:             split_0\.mcap\n {19}split_1\.mcap\n", info), info
+    assert ros2("bag", "record", "-s", "sqlite3", "-a", domain_id=domain_id).returncode == 2
+    played = unique_topic("played")
+    with running([ros2_path(), "topic", "echo", played, "std_msgs/msg/String"],
+                 domain_id=domain_id, log=tmp_path / "echo.log") as echo:
+        result = ros2("bag", "play", str(bag), "--topics", topic, "--remap", f"{topic}:={played}",
+                      "--rate", "4", "--start-offset", "0.5", domain_id=domain_id)
+        assert result.returncode == 0, result.stderr
+        echo.wait_for(lambda t: "data: hello" in t)
