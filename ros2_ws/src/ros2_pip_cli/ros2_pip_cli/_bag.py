@@ -10,11 +10,9 @@ from __future__ import annotations
 import argparse
 import datetime
 import shutil
-import signal
 import time
 from collections import Counter
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import yaml
@@ -29,6 +27,7 @@ from robot_recorder import (
     recover,
 )
 
+from ._graph import StopSignal
 from ._main import Commands, add_verbs, verb
 from .errors import CliError, UsageError
 
@@ -79,11 +78,6 @@ def _storage(storage: str) -> None:
                          "(a regular ROS 2 install (ros2cli) has the other storage plug-ins)")
 
 
-def _on_sigterm(_signum: int, _frame: FrameType | None) -> None:
-    """SIGTERM stops recording or playing in order, as Ctrl-C does."""
-    raise KeyboardInterrupt
-
-
 def _record(args: argparse.Namespace) -> int:
     _storage(args.storage)
     topics = [*args.topics_positional, *args.topics]
@@ -99,8 +93,6 @@ def _record(args: argparse.Namespace) -> int:
               "status_period_s": 1.0}
     ros_args = ["ros2"]
     ros_args += ["--ros-args", *[a for k, v in params.items() for a in ("-p", f"{k}:={v}")]]
-    signal.signal(signal.SIGTERM, _on_sigterm)
-    recorder: Recorder | None = None
 
     def make(handle: Any) -> Recorder:
         return Recorder(handle, topics=topics, output_dir=out.parent, autostart=False)
@@ -112,14 +104,12 @@ def _record(args: argparse.Namespace) -> int:
             print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
             known: dict[str, str] = dict.fromkeys(topics, "")
             next_scan = 0.0
-            try:
-                while True:
+            with StopSignal() as stop:
+                while not stop.requested:
                     node.spin_once(0.05)
                     if args.all and time.monotonic() >= next_scan:
                         next_scan = time.monotonic() + 0.5
                         known = _record_all(node, recorder, known)
-            except KeyboardInterrupt:
-                pass
             recorder.stop().result(_RECORD_START_S)
     except (EfficientCommError, RecorderError) as exc:
         raise CliError(str(exc)) from exc
@@ -146,8 +136,6 @@ def _play(args: argparse.Namespace) -> int:
     _storage(args.storage)
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
-    signal.signal(signal.SIGTERM, _on_sigterm)
-
     def make(handle: Any) -> Player:
         return Player(handle, bag=args.bag_path, topics=args.topics, remappings=args.remap,
                       rate=args.rate, loop=args.loop)
@@ -157,11 +145,9 @@ def _play(args: argparse.Namespace) -> int:
             player: Player = node.component
             if args.start_offset > 0:
                 player.seek(player.start_ns + int(args.start_offset * 1e9))
-            try:
-                while not player.finished:
+            with StopSignal() as stop:
+                while not (player.finished or stop.requested):
                     node.spin_once(0.05)
-            except KeyboardInterrupt:
-                pass
     except (EfficientCommError, RecorderError) as exc:
         raise CliError(str(exc).splitlines()[0]) from exc
     return 0

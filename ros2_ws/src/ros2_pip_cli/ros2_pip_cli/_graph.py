@@ -9,9 +9,11 @@ command needs (a topic, a node, a service) has appeared.
 from __future__ import annotations
 
 import os
+import signal
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from types import FrameType
 from typing import Any
 
 import rclpy
@@ -162,3 +164,28 @@ def cli_node(*, name: str | None = None, parameter_services: bool = False) -> It
         yield node
     finally:
         node.close()
+
+
+class StopSignal:
+    """Ctrl-C and SIGTERM set :attr:`requested` instead of raising (a context manager).
+
+    A KeyboardInterrupt raised inside an executor's ``spin_once`` leaves a callback half
+    dispatched; with the flag, commands that run until stopped (echo, hz, bag record) end
+    between callbacks and close their bag, node and context in order.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> StopSignal:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._previous[sig] = signal.signal(sig, self._request)
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    def _request(self, _signum: int, _frame: FrameType | None) -> None:
+        self.requested = True

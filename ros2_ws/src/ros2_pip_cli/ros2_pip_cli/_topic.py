@@ -22,7 +22,7 @@ from rclpy.qos import (
 )
 from rclpy.serialization import deserialize_message
 
-from ._graph import CliNode, cli_node
+from ._graph import CliNode, StopSignal, cli_node
 from ._main import Commands, add_spin_time, add_verbs, verb
 from ._messages import import_interface, message_to_yaml, parse_values, set_message_fields
 from .errors import CliError
@@ -269,8 +269,10 @@ def _echo(args: argparse.Namespace) -> int:
                 done = True
 
         node.node.create_subscription(msg_class, args.topic_name, on_message, qos, raw=True)
-        while not done and (deadline is None or time.monotonic() < deadline):
-            node.spin_once(0.1)
+        with StopSignal() as stop:
+            while not (done or stop.requested) and (deadline is None
+                                                    or time.monotonic() < deadline):
+                node.spin_once(0.1)
     return 0
 
 
@@ -325,13 +327,15 @@ def _raw_monitor(args: argparse.Namespace, topic: str, on_message: Any, report: 
         qos = _subscription_qos(node, topic, args)
         node.node.create_subscription(msg_class, topic, on_message, qos, raw=True)
         next_report = time.monotonic() + 1.0
-        while True:
-            node.spin_once(max(0.0, next_report - time.monotonic()))
-            if time.monotonic() >= next_report:
-                next_report += 1.0
-                text = report()
-                if text:
-                    print(text, flush=True)
+        with StopSignal() as stop:
+            while not stop.requested:
+                node.spin_once(min(0.1, max(0.0, next_report - time.monotonic())))
+                if time.monotonic() >= next_report:
+                    next_report += 1.0
+                    text = report()
+                    if text:
+                        print(text, flush=True)
+    return 0
 
 
 def _hz(args: argparse.Namespace) -> int:
@@ -398,16 +402,17 @@ def _pub(args: argparse.Namespace) -> int:
         count = 0
         period = 1.0 / args.rate
         next_at = time.monotonic()
-        while times == 0 or count < times:
-            now = time.monotonic()
-            if now < next_at:
-                node.spin_once(next_at - now)
-                continue
-            next_at += period
-            count += 1
-            if args.print and count % args.print == 0:
-                print(f"publishing #{count}: {msg!r}\n", flush=True)
-            pub.publish(msg)
+        with StopSignal() as stop:
+            while (times == 0 or count < times) and not stop.requested:
+                now = time.monotonic()
+                if now < next_at:
+                    node.spin_once(min(0.1, next_at - now))
+                    continue
+                next_at += period
+                count += 1
+                if args.print and count % args.print == 0:
+                    print(f"publishing #{count}: {msg!r}\n", flush=True)
+                pub.publish(msg)
         end = time.monotonic() + args.keep_alive
         while time.monotonic() < end:
             node.spin_once(end - time.monotonic())
