@@ -145,7 +145,8 @@ def graph_answers(env: dict[str, str]) -> dict[str, float]:
             _stop(p)
 
 
-def keeping_up(env: dict[str, str], kind: str, rate: float, tmp: Path) -> dict[str, float]:
+def keeping_up(env: dict[str, str], kind: str, rate: float, tmp: Path,
+               listen_s: float = LISTEN_S) -> dict[str, float]:
     topic = f"/bench_{kind}"
     out: dict[str, float] = {}
     for verb in ("hz", "echo"):
@@ -156,10 +157,10 @@ def keeping_up(env: dict[str, str], kind: str, rate: float, tmp: Path) -> dict[s
                 args += ["--no-arr"]
             cli = subprocess.Popen(args, env=env, stdout=stream, stderr=subprocess.STDOUT,
                                    text=True, start_new_session=True)
-            pub = _python(PUBLISHER_CODE, kind, topic, str(rate), str(LISTEN_S), env=env,
+            pub = _python(PUBLISHER_CODE, kind, topic, str(rate), str(listen_s), env=env,
                           stdout=subprocess.PIPE)
             try:
-                text, _ = pub.communicate(timeout=LISTEN_S + 60)
+                text, _ = pub.communicate(timeout=listen_s + 60)
             finally:
                 _stop(pub)
                 time.sleep(0.5)
@@ -188,14 +189,16 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--out", default=str(ROOT / "bench" / "out" / "cli_bench.json"))
+    parser.add_argument("--listen", type=float, default=LISTEN_S,
+                        help=f"seconds each rate measurement publishes (default: {LISTEN_S})")
     args = parser.parse_args()
     runs: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.repeat):
             env = cli_env(isolated_domain_id())
             run: dict[str, Any] = {"graph": graph_answers(env)}
-            run["string_1khz"] = keeping_up(env, "string", 1000.0, Path(tmp))
-            run["image_30hz_1mib"] = keeping_up(env, "image", 30.0, Path(tmp))
+            run["string_1khz"] = keeping_up(env, "string", 1000.0, Path(tmp), args.listen)
+            run["image_30hz_1mib"] = keeping_up(env, "image", 30.0, Path(tmp), args.listen)
             runs.append(run)
             print(f"run {i + 1}: {json.dumps(run)}", file=sys.stderr, flush=True)
 
