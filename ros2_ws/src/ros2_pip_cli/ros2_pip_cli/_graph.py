@@ -33,7 +33,7 @@ QUIET_S = 0.5
 #: ... or until this long, whatever the graph still does (nodes coming and going).
 SETTLE_MAX_S = 6.0
 #: How long a command waits for the node, topic or service it was asked about.
-WAIT_S = 5.0
+WAIT_S = 10.0
 _POLL_S = 0.02
 
 
