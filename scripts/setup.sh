@@ -33,6 +33,26 @@ fi
 "$venv/bin/python" scripts/fix_wheel_cmake_paths.py
 bash scripts/setup_gl.sh  # the simulator's offscreen camera (EGL, OSMesa)
 
+# The `ros2` command (ros2_pip_cli): ros2cli has no wheels, so the venv gets a launcher of its
+# own. Only the venv: on a regular ROS 2 install nothing shadows the real ros2cli. It finds the
+# package through PYTHONPATH, i.e. whatever workspace `source scripts/env.sh` sourced.
+launcher=$(cat <<'LAUNCHER'
+#!/usr/bin/env bash
+# Written by scripts/setup.sh: the ros2 command of the pip install (ros2_pip_cli), venv only.
+exec "$(dirname "$0")/python" -c 'import sys
+try:
+    from ros2_pip_cli import main
+except ImportError as exc:
+    sys.exit(f"ros2: {exc}: source scripts/env.sh first (it puts the workspace on the paths)")
+sys.exit(main())' "$@"
+LAUNCHER
+)
+if [[ $(cat "$venv/bin/ros2" 2>/dev/null) != "$launcher" ]]; then
+  printf '%s\n' "$launcher" >"$venv/bin/ros2"
+  chmod +x "$venv/bin/ros2"
+  echo "setup: wrote $venv/bin/ros2"
+fi
+
 echo "setup: building ros2_ws"
 # CMake finds rosidl typesupports through both paths. colcon then warns that .venv has no
 # local_setup.* files: expected, the wheels' prefix is not a colcon workspace.

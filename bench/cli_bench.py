@@ -1,0 +1,231 @@
+"""The ros2 command (ros2_pip_cli): how soon it answers, and whether echo and hz keep up.
+
+1. Graph answers: with three plain rclpy peer processes running (each a node with a topic),
+   the wall time of ``ros2 topic list`` and ``ros2 node list`` against a plain rclpy script
+   that knows what to expect and exits as soon as it has seen it (the best any discovery
+   can do, Python start-up included). Ratio = command / baseline.
+2. Keeping up: a publisher process sends std_msgs/String at 1 kHz, or 1 MiB
+   sensor_msgs/Image at 30 Hz, numbering each message; ``ros2 topic hz`` reports a rate
+   (ratio to the rate sent) and ``ros2 topic echo`` prints messages (ratio of the numbers
+   printed to those sent while it listened).
+
+Run: ``source scripts/env.sh && python bench/cli_bench.py [--repeat 3]``. Medians printed
+as a Markdown table; every run's values in bench/out/cli_bench.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from efficient_comm.testing import isolated_domain_id  # noqa: E402
+from tests._cli import cli_env, ros2_path  # noqa: E402
+
+LISTEN_S = 6.0
+PEERS = 3
+MIB = 1 << 20
+
+PEER_CODE = """
+import sys, rclpy
+from rclpy.node import Node
+from std_msgs.msg import String
+rclpy.init()
+node = Node(sys.argv[1])
+node.create_publisher(String, sys.argv[2], 10)
+print("ready", flush=True)
+try:
+    rclpy.spin(node)
+except KeyboardInterrupt:
+    pass
+"""
+
+BASELINE_CODE = """
+import sys, rclpy
+from rclpy.node import Node
+want_nodes, want_topics = set(sys.argv[1].split(",")), set(sys.argv[2].split(","))
+rclpy.init()
+node = Node("_baseline")
+while True:
+    rclpy.spin_once(node, timeout_sec=0.01)
+    nodes = {"/" + n for n, _ in node.get_node_names_and_namespaces()}
+    topics = {t for t, _ in node.get_topic_names_and_types()}
+    if want_nodes <= nodes and want_topics <= topics:
+        break
+print("\\n".join(sorted(topics)))
+"""
+
+PUBLISHER_CODE = """
+import sys, time, rclpy
+from rclpy.node import Node
+kind, topic, rate, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4])
+rclpy.init()
+node = Node("bench_publisher")
+if kind == "string":
+    from std_msgs.msg import String
+    pub = node.create_publisher(String, topic, 10)
+    make = lambda n: String(data=str(n))
+else:
+    from sensor_msgs.msg import Image
+    pub = node.create_publisher(Image, topic, 10)
+    img = Image(height=512, width=512, encoding="rgba8", step=2048)
+    img.data = bytes(1 << 20)
+    def make(n):
+        img.header.frame_id = str(n)
+        return img
+while pub.get_subscription_count() == 0:
+    rclpy.spin_once(node, timeout_sec=0.01)
+print("matched", flush=True)
+period, start, n = 1.0 / rate, time.monotonic(), 0
+while time.monotonic() - start < seconds:
+    due = start + n * period
+    now = time.monotonic()
+    if now < due:
+        time.sleep(due - now)
+    n += 1
+    pub.publish(make(n))
+elapsed = time.monotonic() - start
+print(f"sent {n} {elapsed:.6f}", flush=True)
+"""
+
+
+def _python(code: str, *args: str, env: dict[str, str], **kw: Any) -> subprocess.Popen[str]:
+    return subprocess.Popen([sys.executable, "-c", code, *args], env=env, text=True,
+                            start_new_session=True, **kw)
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def graph_answers(env: dict[str, str]) -> dict[str, float]:
+    peers = []
+    names = [f"peer{i}" for i in range(PEERS)]
+    topics = [f"/bench_topic{i}" for i in range(PEERS)]
+    try:
+        for name, topic in zip(names, topics, strict=True):
+            p = _python(PEER_CODE, name, topic, env=env, stdout=subprocess.PIPE)
+            peers.append(p)
+            assert p.stdout is not None and p.stdout.readline().strip() == "ready"
+        time.sleep(1.0)  # the peers have found each other: a steady system is the case measured
+        out: dict[str, float] = {}
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-c", BASELINE_CODE, ",".join("/" + n for n in names),
+                        ",".join(topics)], env=env, check=True, capture_output=True, timeout=60)
+        out["baseline_s"] = time.perf_counter() - t0
+        for verb in ("topic", "node"):
+            t0 = time.perf_counter()
+            result = subprocess.run([ros2_path(), verb, "list"], env=env, capture_output=True,
+                                    text=True, timeout=60)
+            out[f"{verb}_list_s"] = time.perf_counter() - t0
+            expected = topics if verb == "topic" else ["/" + n for n in names]
+            out[f"{verb}_list_complete"] = float(
+                set(expected) <= set(result.stdout.split()))
+        return out
+    finally:
+        for p in peers:
+            _stop(p)
+
+
+def keeping_up(env: dict[str, str], kind: str, rate: float, tmp: Path,
+               listen_s: float = LISTEN_S) -> dict[str, float]:
+    topic = f"/bench_{kind}"
+    out: dict[str, float] = {}
+    for verb in ("hz", "echo"):
+        log = tmp / f"{kind}_{verb}.log"
+        with open(log, "w") as stream:
+            args = [ros2_path(), "topic", verb, topic]
+            if verb == "echo" and kind == "image":
+                args += ["--no-arr"]
+            cli = subprocess.Popen(args, env=env, stdout=stream, stderr=subprocess.STDOUT,
+                                   text=True, start_new_session=True)
+            pub = _python(PUBLISHER_CODE, kind, topic, str(rate), str(listen_s), env=env,
+                          stdout=subprocess.PIPE)
+            try:
+                text, _ = pub.communicate(timeout=listen_s + 60)
+            finally:
+                _stop(pub)
+                time.sleep(0.5)
+                _stop(cli)
+        match = re.search(r"sent (\d+) ([\d.]+)", text)
+        assert match, text
+        sent, elapsed = int(match.group(1)), float(match.group(2))
+        sent_rate = sent / elapsed
+        output = log.read_text(errors="replace")
+        if verb == "hz":
+            rates = [float(r) for r in re.findall(r"average rate: ([\d.]+)", output)]
+            assert rates, output
+            out["hz_seen"], out["hz_sent"] = rates[-1], sent_rate
+        else:
+            field = "data" if kind == "string" else "frame_id"
+            numbers = [int(n) for n in re.findall(rf"{field}: '?(\d+)'?\n", output)]
+            assert numbers, output[:2000]
+            window = max(numbers) - min(numbers) + 1
+            out["echo_printed"] = len(set(numbers))
+            out["echo_ratio"] = len(set(numbers)) / window
+            out["echo_window"] = window
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--out", default=str(ROOT / "bench" / "out" / "cli_bench.json"))
+    parser.add_argument("--listen", type=float, default=LISTEN_S,
+                        help=f"seconds each rate measurement publishes (default: {LISTEN_S})")
+    args = parser.parse_args()
+    runs: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(args.repeat):
+            env = cli_env(isolated_domain_id())
+            run: dict[str, Any] = {"graph": graph_answers(env)}
+            run["string_1khz"] = keeping_up(env, "string", 1000.0, Path(tmp), args.listen)
+            run["image_30hz_1mib"] = keeping_up(env, "image", 30.0, Path(tmp), args.listen)
+            runs.append(run)
+            print(f"run {i + 1}: {json.dumps(run)}", file=sys.stderr, flush=True)
+
+    def med(section: str, key: str) -> float:
+        return float(statistics.median(r[section][key] for r in runs))
+
+    base = med("graph", "baseline_s")
+    print(f"| measure (median of {len(runs)}) | value | ratio |")
+    print("|---|---|---|")
+    print(f"| plain rclpy script waiting for the known graph | {base:.2f} s | 1.00 |")
+    for verb in ("topic", "node"):
+        value = med("graph", f"{verb}_list_s")
+        complete = sum(r["graph"][f"{verb}_list_complete"] for r in runs)
+        print(f"| `ros2 {verb} list` ({complete:.0f}/{len(runs)} complete) | {value:.2f} s | "
+              f"{value / base:.2f} |")
+    for section, label in (("string_1khz", "String 1 kHz"),
+                           ("image_30hz_1mib", "Image 1 MiB 30 Hz")):
+        seen, sent = med(section, "hz_seen"), med(section, "hz_sent")
+        print(f"| `ros2 topic hz`, {label}: rate seen / sent | {seen:.1f} / {sent:.1f} Hz | "
+              f"{seen / sent:.3f} |")
+        print(f"| `ros2 topic echo`, {label}: messages printed / sent while listening | "
+              f"{med(section, 'echo_printed'):.0f} / {med(section, 'echo_window'):.0f} | "
+              f"{med(section, 'echo_ratio'):.3f} |")
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(runs, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

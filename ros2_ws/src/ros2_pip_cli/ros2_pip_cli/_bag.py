@@ -1,0 +1,271 @@
+"""``ros2 bag record|play|info|reindex``, backed by robot_recorder (MCAP, rosbag2 layout).
+
+rosbag2 is not published as wheels; robot_recorder writes and reads the same layout
+(a directory of MCAP files and ``metadata.yaml``), so the bags of one are the bags of the
+other. The flags are rosbag2's where they make sense; ``info`` prints rosbag2's summary.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import shutil
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from efficient_comm import EfficientCommError, Standalone
+from robot_recorder import (
+    Player,
+    Recorder,
+    RecorderError,
+    TopicSelection,
+    read_messages,
+    recover,
+)
+
+from ._graph import StopSignal
+from ._main import Commands, add_verbs, verb
+from .errors import CliError, UsageError
+
+_RECORD_START_S = 10.0
+
+
+def register(commands: Commands) -> None:
+    verbs = add_verbs(commands, "bag", "Various rosbag related sub-commands "
+                      "(MCAP in the rosbag2 layout, by robot_recorder)")
+    p = verb(verbs, "record", "Record ROS data to a bag", _record)
+    p.add_argument("topics_positional", nargs="*", metavar="topics",
+                   help="List of topics to record")
+    p.add_argument("--topics", nargs="+", default=[], help="List of topics to record")
+    p.add_argument("-a", "--all", action="store_true", help="Record all topics")
+    p.add_argument("-o", "--output", help="Destination of the bagfile to create "
+                   "(default: rosbag2_YYYY_MM_DD-HH_MM_SS)")
+    p.add_argument("-s", "--storage", default="mcap", help="Storage identifier: mcap only")
+    p.add_argument("--compression-mode", choices=["none", "file", "message"], default="none",
+                   help="none: uncompressed; file or message: MCAP chunks compressed with "
+                        "--compression-format (MCAP compresses per chunk)")
+    p.add_argument("--compression-format", choices=["zstd", "lz4"], default="zstd")
+    p.add_argument("-b", "--max-bag-size", type=int, default=0,
+                   help="Maximum size in bytes before the bagfile will be split (0: off)")
+    p.add_argument("-d", "--max-bag-duration", type=float, default=0,
+                   help="Maximum duration in seconds before the bagfile will be split (0: off)")
+    p = verb(verbs, "play", "Play back ROS data from a bag", _play)
+    p.add_argument("bag_path")
+    p.add_argument("-r", "--rate", type=float, default=1.0, help="Rate at which to play back")
+    p.add_argument("-l", "--loop", action="store_true", help="Enable loop playback")
+    p.add_argument("--topics", nargs="+", default=None, help="Topics to replay")
+    p.add_argument("--remap", "-m", nargs="+", default=[], metavar="FROM:=TO",
+                   help="List of topics to be remapped")
+    p.add_argument("--start-offset", type=float, default=0.0,
+                   help="Start the playback this many seconds into the bag")
+    p.add_argument("-s", "--storage", default="mcap", help="Storage identifier: mcap only")
+    p = verb(verbs, "info", "Print information about a bag to the screen", _info)
+    p.add_argument("bag_path")
+    p.add_argument("-s", "--storage", default="mcap", help="Storage identifier: mcap only")
+    p = verb(verbs, "reindex", "Reconstruct metadata.yaml of a bag from its MCAP files",
+             _reindex)
+    p.add_argument("bag_path")
+    p.add_argument("storage_id", nargs="?", default="mcap", help="mcap only")
+
+
+def _storage(storage: str) -> None:
+    if storage != "mcap":
+        raise UsageError(f"storage {storage!r}: this install reads and writes mcap only "
+                         "(a regular ROS 2 install (ros2cli) has the other storage plug-ins)")
+
+
+def _record(args: argparse.Namespace) -> int:
+    _storage(args.storage)
+    topics = [*args.topics_positional, *args.topics]
+    if not topics and not args.all:
+        raise CliError("Need to specify at least one option out of --all, --topics or "
+                       "positional topics")
+    out = Path(args.output or datetime.datetime.now().strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
+    if out.exists():
+        raise CliError(f"Output folder '{out}' already exists.")
+    compression = "none" if args.compression_mode == "none" else args.compression_format
+    params = {"compression": compression, "max_file_bytes": args.max_bag_size,
+              "max_file_duration_s": float(args.max_bag_duration), "min_free_bytes": 0,
+              "status_period_s": 1.0}
+    ros_args = ["ros2"]
+    ros_args += ["--ros-args", *[a for k, v in params.items() for a in ("-p", f"{k}:={v}")]]
+
+    def make(handle: Any) -> Recorder:
+        return Recorder(handle, topics=topics, output_dir=out.parent, autostart=False)
+
+    try:
+        with Standalone(make, name="rosbag2_recorder", args=ros_args) as node:
+            recorder = node.component
+            recorder.start(out).result(_RECORD_START_S)
+            print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
+            known: dict[str, str] = dict.fromkeys(topics, "")
+            next_scan = 0.0
+            with StopSignal() as stop:
+                while not stop.requested:
+                    node.spin_once(0.05)
+                    if args.all and time.monotonic() >= next_scan:
+                        next_scan = time.monotonic() + 0.5
+                        known = _record_all(node, recorder, known)
+            recorder.stop().result(_RECORD_START_S)
+    except (EfficientCommError, RecorderError) as exc:
+        raise CliError(str(exc)) from exc
+    print(f"Recording stopped: '{out}'", flush=True)
+    return 0
+
+
+def _record_all(node: Standalone, recorder: Recorder, known: dict[str, str]) -> dict[str, str]:
+    """Add the topics that appeared since the last look (``-a``), as rosbag2 does.
+
+    Types are given from the graph, so the recorder need not find them itself.
+    """
+    own = node.node.get_fully_qualified_name() + "/"
+    graph = {name: types[0] for name, types in node.node.get_topic_names_and_types()
+             if types and not name.startswith(own)}
+    if graph.keys() <= known.keys():
+        return known
+    known = {**graph, **known}
+    recorder.set_topics([TopicSelection(name=name, type=known[name]) for name in sorted(known)])
+    return known
+
+
+def _play(args: argparse.Namespace) -> int:
+    _storage(args.storage)
+    if not args.rate > 0:
+        raise CliError("--rate must be > 0")
+    def make(handle: Any) -> Player:
+        return Player(handle, bag=args.bag_path, topics=args.topics, remappings=args.remap,
+                      rate=args.rate, loop=args.loop)
+
+    try:
+        with Standalone(make, name="rosbag2_player", args=["ros2"]) as node:
+            player: Player = node.component
+            if args.start_offset > 0:
+                player.seek(player.start_ns + int(args.start_offset * 1e9))
+            with StopSignal() as stop:
+                while not (player.finished or stop.requested):
+                    node.spin_once(0.05)
+    except (EfficientCommError, RecorderError) as exc:
+        raise CliError(str(exc).splitlines()[0]) from exc
+    return 0
+
+
+def _size(num: float) -> str:
+    units = ["B", "KiB", "MiB", "GiB", "TiB"]
+    index = 0
+    while num >= 1024 and index < 4:
+        num /= 1024
+        index += 1
+    return f"{num:.0f} {units[index]}" if index == 0 else f"{num:.1f} {units[index]}"
+
+
+def _stamp(ns: int) -> str:
+    seconds, frac = divmod(ns, 1_000_000_000)
+    local = datetime.datetime.fromtimestamp(seconds)
+    day = f"{local.day:2d}"
+    return (f"{local.strftime('%b')} {day} {local.year} {local.strftime('%H:%M:%S')}."
+            f"{frac:09d} ({seconds}.{frac:09d})")
+
+
+def _metadata(bag: Path) -> dict[str, Any]:
+    """rosbag2's metadata of ``bag``: its metadata.yaml, or computed from the MCAP files."""
+    meta = bag / "metadata.yaml"
+    if meta.is_file():
+        try:
+            info: dict[str, Any] = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
+            return info
+        except (yaml.YAMLError, KeyError, TypeError) as exc:
+            raise CliError(f"{meta} is not rosbag2 metadata: {exc}") from exc
+    info = _metadata_from_messages(bag)
+    info["relative_file_paths"] = sorted(p.name for p in bag.glob("*.mcap"))
+    return info
+
+
+def _info(args: argparse.Namespace) -> int:
+    _storage(args.storage)
+    bag = Path(args.bag_path)
+    if not bag.exists():
+        raise CliError(f"No bag at '{bag}'")
+    try:
+        info = _metadata(bag) if bag.is_dir() else _metadata_of_file(bag)
+    except RecorderError as exc:
+        raise CliError(str(exc)) from exc
+    files = list(info.get("relative_file_paths") or [])
+    size = sum(p.stat().st_size for p in (bag.iterdir() if bag.is_dir() else [bag])
+               if p.is_file())
+    start = int(info["starting_time"]["nanoseconds_since_epoch"])
+    duration = int(info["duration"]["nanoseconds"])
+    pad = " " * 19
+    lines = ["", "Files:             " + (f"\n{pad}".join(files))]
+    lines += [f"Bag size:          {_size(size)}",
+              f"Storage id:        {info.get('storage_identifier', 'mcap')}",
+              f"ROS Distro:        {info.get('ros_distro') or 'unknown'}",
+              f"Duration:          {duration // 1_000_000_000}."
+              f"{duration % 1_000_000_000:09d}s",
+              f"Start:             {_stamp(start)}",
+              f"End:               {_stamp(start + duration)}",
+              f"Messages:          {info.get('message_count', 0)}"]
+    topics = [
+        f"Topic: {t['topic_metadata']['name']} | Type: {t['topic_metadata']['type']} | "
+        f"Count: {t['message_count']} | Serialization Format: "
+        f"{t['topic_metadata'].get('serialization_format', 'cdr')}"
+        for t in info.get("topics_with_message_count") or []]
+    lines.append("Topic information: " + (f"\n{pad}".join(topics)))
+    lines += ["Service:           0", "Service information: "]
+    print("\n".join(lines))
+    return 0
+
+
+def _metadata_of_file(path: Path) -> dict[str, Any]:
+    info = _metadata_from_messages(path)
+    info["relative_file_paths"] = [path.name]
+    return info
+
+
+def _metadata_from_messages(path: Path) -> dict[str, Any]:
+    counts: Counter[str] = Counter()
+    types: dict[str, str] = {}
+    stamps: list[int] = []
+    for msg in read_messages(path, problems=[]):
+        counts[msg.topic] += 1
+        types.setdefault(msg.topic, msg.type)
+        stamps.append(msg.log_time_ns)
+    start = min(stamps, default=0)
+    return {
+        "storage_identifier": "mcap",
+        "duration": {"nanoseconds": max(stamps, default=0) - start},
+        "starting_time": {"nanoseconds_since_epoch": start},
+        "message_count": sum(counts.values()),
+        "topics_with_message_count": [
+            {"topic_metadata": {"name": t, "type": types[t], "serialization_format": "cdr"},
+             "message_count": n} for t, n in counts.items()],
+    }
+
+
+def _reindex(args: argparse.Namespace) -> int:
+    """Rewrite the bag from every readable message, so its metadata.yaml is complete again.
+
+    robot_recorder's ``recover`` writes a complete bag (files cut short by a crash included);
+    the old files are replaced only once the new bag is written.
+    """
+    _storage(args.storage_id)
+    bag = Path(args.bag_path)
+    if not bag.is_dir():
+        raise CliError(f"No bag directory at '{bag}'")
+    fresh = bag.with_name(bag.name + ".reindex")
+    if fresh.exists():
+        shutil.rmtree(fresh)
+    try:
+        count = recover(bag, fresh)
+    except RecorderError as exc:
+        shutil.rmtree(fresh, ignore_errors=True)
+        raise CliError(str(exc)) from exc
+    old = bag.with_name(bag.name + ".old")
+    bag.rename(old)
+    fresh.rename(bag)
+    shutil.rmtree(old)
+    print(f"Reindexed '{bag}': {count} messages")
+    return 0

@@ -1,0 +1,100 @@
+"""``ros2 service list|type|call``, in ros2cli's formats."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from ._graph import CliNode, cli_node
+from ._main import Commands, add_spin_time, add_verbs, verb
+from ._messages import import_interface, parse_values, set_message_fields
+from .errors import CliError
+
+
+def register(commands: Commands) -> None:
+    verbs = add_verbs(commands, "service", "Various service related sub-commands")
+    p = verb(verbs, "list", "Output a list of available services", _list)
+    add_spin_time(p)
+    p.add_argument("-t", "--show-types", action="store_true",
+                   help="Additionally show the service type")
+    p.add_argument("-c", "--count-services", action="store_true",
+                   help="Only display the number of services discovered")
+    p.add_argument("--include-hidden-services", action="store_true",
+                   help="Consider hidden services as well")
+    p = verb(verbs, "type", "Output a service's type", _type)
+    p.add_argument("service_name")
+    p = verb(verbs, "call", "Call a service", _call)
+    p.add_argument("service_name", help="Name of the ROS service to call (e.g. '/add_two_ints')")
+    p.add_argument("service_type", nargs="?",
+                   help="Type of the ROS service (e.g. 'std_srvs/srv/Empty'); "
+                        "looked up in the graph when left out")
+    p.add_argument("values", nargs="?", default="{}",
+                   help="Values to fill the request with in YAML format, e.g. '{a: 1, b: 2}'")
+    p.add_argument("-r", "--rate", type=float, metavar="N",
+                   help="Repeat the call at a specific rate in Hz")
+
+
+def _hidden(name: str) -> bool:
+    return any(part.startswith("_") for part in name.split("/"))
+
+
+def _list(args: argparse.Namespace) -> int:
+    with cli_node() as node:
+        node.settle(min_s=args.spin_time)
+        services = sorted((n, list(t)) for n, t in node.node.get_service_names_and_types()
+                          if args.include_hidden_services or not _hidden(n))
+    if args.count_services:
+        print(len(services))
+        return 0
+    for name, types in services:
+        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+    return 0
+
+
+def _types(node: CliNode, service: str) -> list[str]:
+    found: list[str] = []
+
+    def seen() -> bool:
+        found[:] = dict(node.node.get_service_names_and_types()).get(service, [])
+        return bool(found)
+
+    if not node.wait_for(seen):
+        raise CliError(f"Unknown service '{service}'")
+    return found
+
+
+def _type(args: argparse.Namespace) -> int:
+    with cli_node() as node:
+        for name in _types(node, args.service_name):
+            print(name)
+    return 0
+
+
+def _call(args: argparse.Namespace) -> int:
+    if args.service_type is not None and "/" not in args.service_type:
+        # `ros2 service call /x '{a: 1}'`: the type was left out, the values given.
+        args.values, args.service_type = args.service_type, None
+    if args.rate is not None and not args.rate > 0:
+        raise CliError("--rate must be > 0")
+    with cli_node() as node:
+        type_name = args.service_type or _types(node, args.service_name)[0]
+        srv = import_interface(type_name, "srv")
+        request = srv.Request()
+        set_message_fields(request, parse_values(args.values))
+        client = node.node.create_client(srv, args.service_name)
+        if not client.service_is_ready():
+            print("waiting for service to become available...", flush=True)
+            node.wait_for(client.service_is_ready, timeout_s=float("inf"))
+        while True:
+            started = time.monotonic()
+            print(f"requester: making request: {request!r}\n", flush=True)
+            future = client.call_async(request)
+            node.wait_for(future.done, timeout_s=float("inf"))
+            if future.exception() is not None:
+                raise CliError(f"Exception while calling service: {future.exception()!r}")
+            print(f"response:\n{future.result()!r}\n", flush=True)
+            if args.rate is None:
+                return 0
+            pause = started + 1.0 / args.rate - time.monotonic()
+            if pause > 0:
+                node.wait_for(lambda: False, timeout_s=pause)

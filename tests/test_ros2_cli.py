@@ -1,0 +1,195 @@
+"""The ros2 command against plain rclpy nodes in other processes, as a user types it.
+
+Each check compares with the format ros2cli prints (topic echo's YAML and ``---``, topic hz's
+lines, param get's ``Integer value is: 5``, service call's requester/response lines).
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import yaml
+
+from efficient_comm.testing import isolated_domain_id, unique_topic
+
+from ._cli import ROOT, Running, ros2, ros2_path, running
+
+PEER = ROOT / "tests" / "_cli_peer.py"
+
+
+class Peer:
+    def __init__(self, process: Running, topic: str, domain_id: int) -> None:
+        self.process, self.topic, self.domain_id = process, topic, domain_id
+
+
+@pytest.fixture(scope="module")
+def peer(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Peer]:
+    domain_id = isolated_domain_id()
+    topic = unique_topic("cli")
+    log = tmp_path_factory.mktemp("peer") / "peer.log"
+    with running([sys.executable, str(PEER), topic], domain_id=domain_id, log=log) as process:
+        process.wait_for(lambda text: "ready" in text)
+        yield Peer(process, topic, domain_id)
+
+
+def run(peer: Peer, *args: str, ok: bool = True) -> str:
+    result = ros2(*args, domain_id=peer.domain_id)
+    if ok:
+        assert result.returncode == 0, result.stderr
+        assert "Traceback" not in result.stderr
+    return result.stdout
+
+
+def test_topic_list_type_info(peer: Peer) -> None:
+    assert peer.topic in run(peer, "topic", "list").splitlines()
+    assert f"{peer.topic} [std_msgs/msg/String]" in run(peer, "topic", "list", "-t").splitlines()
+    assert run(peer, "topic", "type", peer.topic) == "std_msgs/msg/String\n"
+    info = run(peer, "topic", "info", peer.topic)
+    assert info == "Type: std_msgs/msg/String\nPublisher count: 1\nSubscription count: 0\n"
+    verbose = run(peer, "topic", "info", "-v", peer.topic)
+    assert "Node name: cli_peer" in verbose and "Reliability: RELIABLE" in verbose
+
+
+def test_echo_prints_yaml_documents(peer: Peer, tmp_path: Path) -> None:
+    once = run(peer, "topic", "echo", "--once", peer.topic)
+    assert re.fullmatch(r"data: hello \d+\n---\n", once), once
+    field = run(peer, "topic", "echo", "--once", peer.topic, "--field", "data")
+    assert re.fullmatch(r"hello \d+\n---\n", field), field
+    qos = run(peer, "topic", "echo", "--once", "--qos-reliability", "best_effort",
+              "--qos-durability", "volatile", "--qos-depth", "1", peer.topic,
+              "std_msgs/msg/String")
+    assert re.fullmatch(r"data: hello \d+\n---\n", qos), qos
+    flow = run(peer, "topic", "echo", "--once", "--flow-style", peer.topic)
+    assert re.fullmatch(r"\{data: hello \d+\}\n---\n", flow), flow
+    with running([ros2_path(), "topic", "echo", peer.topic], domain_id=peer.domain_id,
+                 log=tmp_path / "echo.log") as echo:
+        text = echo.wait_for(lambda t: t.count("---\n") >= 5)
+    documents = [yaml.safe_load(d) for d in text.split("---\n")[:5]]
+    numbers = [int(d["data"].split()[1]) for d in documents]
+    assert numbers == list(range(numbers[0], numbers[0] + 5)), numbers
+
+
+def test_hz_and_bw_lines(peer: Peer, tmp_path: Path) -> None:
+    with running([ros2_path(), "topic", "hz", peer.topic], domain_id=peer.domain_id,
+                 log=tmp_path / "hz.log") as hz:
+        text = hz.wait_for(lambda t: t.count("window:") >= 2)
+    match = re.search(r"average rate: (\d+\.\d{3})\n\tmin: \d+\.\d{3}s max: \d+\.\d{3}s "
+                      r"std dev: \d+\.\d{5}s window: \d+\n", text)
+    assert match, text
+    assert 10 < float(match.group(1)) < 30  # the peer publishes at 20 Hz
+    with running([ros2_path(), "topic", "bw", peer.topic], domain_id=peer.domain_id,
+                 log=tmp_path / "bw.log") as bw:
+        text = bw.wait_for(lambda t: "Message size mean" in t)
+    assert text.startswith(f"Subscribed to [{peer.topic}]\n")
+    assert re.search(r"\d+ B/s from \d+ messages\n\tMessage size mean: \d+ B min: \d+ B "
+                     r"max: \d+ B\n", text), text
+
+
+def test_pub_once_reaches_the_subscriber(peer: Peer) -> None:
+    out = run(peer, "topic", "pub", "--once", peer.topic + "_in", "std_msgs/msg/String",
+              "{data: hi from pub}")
+    assert "publisher: beginning loop\n" in out
+    assert "publishing #1: std_msgs.msg.String(data='hi from pub')\n" in out
+    peer.process.wait_for(lambda t: "received: hi from pub" in t)
+
+
+def test_node_list_and_info(peer: Peer) -> None:
+    assert "/cli_peer" in run(peer, "node", "list").splitlines()
+    info = run(peer, "node", "info", "/cli_peer")
+    assert info.startswith("/cli_peer\n  Subscribers:\n")
+    assert "  Publishers:\n" in info and f"    {peer.topic}: std_msgs/msg/String\n" in info
+    assert f"    {peer.topic}_in: std_msgs/msg/String\n" in info
+    assert ("    /cli_peer/check: efficient_comm_interfaces/srv/UnloadComponent\n" in info)
+    assert info.endswith("  Action Servers:\n  Action Clients:\n")
+
+
+def test_param_verbs(peer: Peer, tmp_path: Path) -> None:
+    expected = {"count": "Integer value is: 5", "gain": "Double value is: 1.5",
+                "label": "String value is: hello", "enabled": "Boolean value is: True",
+                "ids": "Integer values are: [1, 2, 3]"}
+    for name, line in expected.items():
+        assert run(peer, "param", "get", "/cli_peer", name) == line + "\n"
+    listed = run(peer, "param", "list", "/cli_peer").splitlines()
+    assert {"  count", "  gain", "  nested.depth", "  use_sim_time"} <= set(listed)
+    assert run(peer, "param", "set", "/cli_peer", "count", "9") == "Set parameter successful\n"
+    assert run(peer, "param", "get", "/cli_peer", "count") == "Integer value is: 9\n"
+    refused = ros2("param", "set", "/cli_peer", "count", "many", domain_id=peer.domain_id)
+    assert refused.returncode == 1 and refused.stderr.startswith("Setting parameter failed")
+    dumped = yaml.safe_load(run(peer, "param", "dump", "/cli_peer"))
+    params = dumped["/cli_peer"]["ros__parameters"]
+    assert params["count"] == 9 and params["ids"] == [1, 2, 3] and params["nested"]["depth"] == 2
+    file = tmp_path / "params.yaml"
+    file.write_text("/cli_peer:\n  ros__parameters:\n    count: 11\n    label: loaded\n")
+    loaded = run(peer, "param", "load", "/cli_peer", str(file))
+    assert "Set parameter count successful\n" in loaded
+    assert run(peer, "param", "get", "/cli_peer", "label") == "String value is: loaded\n"
+    described = run(peer, "param", "describe", "/cli_peer", "count")
+    assert described.startswith("Parameter name: count\n  Type: integer\n")
+
+
+def test_service_verbs(peer: Peer) -> None:
+    listed = run(peer, "service", "list", "-t").splitlines()
+    assert "/cli_peer/check [efficient_comm_interfaces/srv/UnloadComponent]" in listed
+    assert run(peer, "service", "type", "/cli_peer/check") == \
+        "efficient_comm_interfaces/srv/UnloadComponent\n"
+    out = run(peer, "service", "call", "/cli_peer/check",
+              "efficient_comm_interfaces/srv/UnloadComponent", "{unique_id: 7}")
+    assert ("requester: making request: "
+            "efficient_comm_interfaces.srv.UnloadComponent_Request(unique_id=7)\n\n") in out
+    assert ("response:\nefficient_comm_interfaces.srv.UnloadComponent_Response("
+            "success=True, error_message='got 7')\n\n") in out
+    bad = ros2("service", "call", "/cli_peer/check",
+               "efficient_comm_interfaces/srv/UnloadComponent", "{unique: 7}",
+               domain_id=peer.domain_id)
+    assert bad.returncode == 1 and "unique" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
+
+
+def test_run_and_pkg() -> None:
+    domain_id = isolated_domain_id()
+    prefix = ros2("pkg", "prefix", "efficient_comm", domain_id=domain_id).stdout.strip()
+    assert prefix == str(ROOT / "ros2_ws" / "install" / "efficient_comm")
+    assert "efficient_comm" in ros2("pkg", "list", domain_id=domain_id).stdout.splitlines()
+    assert "efficient_comm standalone" in \
+        ros2("pkg", "executables", "efficient_comm", domain_id=domain_id).stdout.splitlines()
+    result = ros2("run", "--prefix", "echo PREFIX", "efficient_comm", "standalone", "--x", "y",
+                  domain_id=domain_id)
+    assert result.stdout == f"PREFIX {prefix}/lib/efficient_comm/standalone --x y\n"
+    missing = ros2("run", "efficient_comm", "nope", domain_id=domain_id)
+    assert missing.returncode == 1 and "standalone" in missing.stderr
+
+
+def test_interface_verbs() -> None:
+    domain_id = isolated_domain_id()
+    listed = ros2("interface", "list", domain_id=domain_id).stdout.splitlines()
+    assert listed[0] == "Messages:" and "    std_msgs/msg/String" in listed
+    assert "Services:" in listed and "    rcl_interfaces/srv/GetParameters" in listed
+    package = ros2("interface", "package", "std_msgs", domain_id=domain_id).stdout
+    assert "std_msgs/msg/Header\n" in package
+    shown = ros2("interface", "show", "std_msgs/msg/Header", domain_id=domain_id).stdout
+    assert "builtin_interfaces/Time stamp\n\tint32 sec\n\tuint32 nanosec\n" in shown
+    assert "string frame_id\n" in shown
+
+
+@pytest.mark.parametrize("args, offered", [
+    (["launch", "x"], "bag, component"),
+    (["topic", "find", "x"], "list, info, type, echo, hz, bw, pub"),
+    (["topic", "echo", "/x", "--csv"], "--once"),
+])
+def test_what_is_not_offered_says_what_is(args: list[str], offered: str) -> None:
+    result = ros2(*args, domain_id=isolated_domain_id())
+    assert result.returncode == 2
+    assert offered in result.stderr and "regular ROS 2 install" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+
+
+def test_the_workspace_installs_no_ros2_command() -> None:
+    """Only the venv's launcher is called ros2: a sourced regular install keeps ros2cli's."""
+    install = ROOT / "ros2_ws" / "install"
+    assert not [p for p in install.glob("**/ros2") if p.is_file()]
+    assert (ROOT / ".venv" / "bin" / "ros2").is_file()
+    assert "entry_points" not in (ROOT / "ros2_ws/src/ros2_pip_cli/setup.py").read_text()
