@@ -66,11 +66,12 @@ ALERT = 0x80  # the status error byte's hardware error bit (the rest is the erro
 MISSING_AFTER = 10
 ADOPT_TRIES = 3  # reads and writes while adopting a servo, before waiting a second
 #: Model number -> the first firmware with Fast Sync Read (e-Manual, Protocol 2.0: "X430/540
-#: Series (Fw v45 or above, 2XL/2XC Not Supported)"). Servos not listed get plain Sync Read.
+#: Series (Fw v45 or above, 2XL/2XC Not Supported)", "X330 (Fw v46 or above)"; model numbers
+#: as in dynamixel-sdk's model list). Servos not listed get plain Sync Read.
 FAST_SYNC_READ_FIRMWARE = {
-    1000: 45, 1010: 45, 1020: 45, 1030: 45, 1040: 45, 1050: 45,  # XH430-W/V, XM430-W
-    1060: 45, 1070: 45, 1080: 45,  # XL430-W250, XC430-W150/W240
-    1100: 45, 1110: 45, 1120: 45, 1130: 45, 1140: 45, 1150: 45,  # XH540-W/V, XM540-W
+    **dict.fromkeys((1000, 1001, 1010, 1011, 1020, 1030, 1040, 1050, 1060, 1070, 1080), 45),
+    **dict.fromkeys((1100, 1101, 1110, 1111, 1120, 1130, 1140, 1150, 1170, 1180), 45),
+    **dict.fromkeys((1190, 1200, 1210, 1220, 1230, 1240), 46),  # X330
 }
 #: Failed Fast Sync Reads in a row, each followed by a plain Sync Read that every servo
 #: answered, after which the bus is taken not to support it (a servo or adapter in the way).
