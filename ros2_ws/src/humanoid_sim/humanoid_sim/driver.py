@@ -355,8 +355,12 @@ class ServoDriver:
             self._port.closePort()
 
     def status(self) -> dict[str, Any]:
-        return {"present": sorted(self.present), "comm_errors": self.comm_errors,
-                "fast_sync_read": sorted(i for i in self.present if self._use_fast(i))}
+        return {"present": sorted(self.present), "comm_errors": self.comm_errors}
+
+    @property
+    def fast_servos(self) -> list[int]:
+        """The servos the next cycle reads with Fast Sync Read."""
+        return sorted(i for i in self.present if self._use_fast(i))
 
 
 #: ``ros2 run humanoid_sim servo_driver --ros-args -p port:=/dev/ttyUSB0 -p ids:=[1,2]``.

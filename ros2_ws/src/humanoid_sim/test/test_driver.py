@@ -74,7 +74,7 @@ def test_reads_all_servos_with_one_fast_sync_read_per_cycle(
     pty, _ = bus
     node, driver = _driver(pty)
     node.advance(1.0)
-    assert driver.status()["fast_sync_read"] == IDS
+    assert driver.fast_servos == IDS
     sent = pty.bus.instructions
     assert sent[Instruction.FAST_SYNC_READ] == driver.cycles + 1  # + the hardware errors
     assert sent[Instruction.SYNC_READ] == 0
@@ -91,7 +91,7 @@ def test_plain_sync_read_without_fast_sync_read(
     with PtyBus(Bus(IDS, IdealPlant(), firmware_version=firmware)) as pty:
         node, driver = _driver(pty, **parameters)
         node.advance(0.5)
-        assert driver.status()["fast_sync_read"] == []
+        assert driver.fast_servos == []
         assert pty.bus.instructions[Instruction.FAST_SYNC_READ] == 0
         assert pty.bus.instructions[Instruction.SYNC_READ] == driver.cycles + 1
         assert all(set(m.name) == set(NAMES) for m in node.published("joint_states"))
@@ -110,7 +110,7 @@ def test_fast_sync_read_that_keeps_failing_is_given_up(bus: tuple[PtyBus, IdealP
                         "using sync read"]
     # The first cycle's two (states, hardware errors), ten that failed, and no more.
     assert pty.bus.instructions[Instruction.FAST_SYNC_READ] == 2 + 10
-    assert driver.status()["fast_sync_read"] == [] and driver.status()["present"] == IDS
+    assert driver.fast_servos == [] and driver.status()["present"] == IDS
     assert all(set(m.name) == set(NAMES) for m in node.published("joint_states"))
     driver.close()
 
@@ -142,7 +142,7 @@ def test_an_unplugged_servo_is_reported_and_taken_back(
     node.advance(0.5)
     assert pty.bus.instructions[Instruction.FAST_SYNC_READ] - sent[Instruction.FAST_SYNC_READ] == 50
     assert pty.bus.instructions[Instruction.SYNC_READ] == sent[Instruction.SYNC_READ]
-    assert driver.status()["fast_sync_read"] == sorted(set(IDS) - {unplugged})
+    assert driver.fast_servos == sorted(set(IDS) - {unplugged})
     with pty.lock:
         pty.bus.servos[unplugged].connected = True
     node.advance(1.1)
@@ -184,7 +184,7 @@ def test_line_noise_is_counted_and_survived() -> None:
         assert pty.bus.crc_errors > 0  # noise both ways: garbled requests refused too
         assert len(node.published("joint_states")) > 50  # most cycles still got through
         assert pty.errors == []
-        assert driver.status()["fast_sync_read"] == IDS  # noise is no reason to give it up
+        assert driver.fast_servos == IDS  # noise is no reason to give it up
         assert pty.bus.instructions[Instruction.FAST_SYNC_READ] >= 90
         driver.close()
 
