@@ -66,16 +66,34 @@ def bus_cycles(cycles: int, *, fast: bool) -> dict[str, float]:
             writer.addParam(dxl_id, list((2048).to_bytes(4, "little")))
         read = reader.fastSyncRead if fast else reader.txRxPacket
         failures = 0
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         for _ in range(cycles):
             failures += read() != COMM_SUCCESS
             failures += writer.txPacket() != COMM_SUCCESS
-        elapsed = time.perf_counter() - started
+        elapsed, cpu = time.perf_counter() - started, time.process_time() - cpu
         port.closePort()
-    # Status bytes: 20 packets of 11 + 8, or one header of 8 and 20 blocks of 4 + 8.
-    reply = 8 + 20 * (4 + READ_LENGTH) if fast else 20 * (11 + READ_LENGTH)
-    return {"bus_hz": cycles / elapsed, "failures": failures,
-            "echo_hz": _pty_echo(cycles, request=14 + 20 * 1 + 3, reply=reply)}
+    return {"bus_hz": cycles / elapsed, "bus_cpu_hz": cycles / cpu, "failures": failures,
+            "echo_hz": _pty_echo(cycles, request=SYNC_READ_BYTES, reply=_reply_bytes(fast))}
+
+
+#: A sync read's instruction for 20 servos: header, ID, length, instruction, address and
+#: length, 20 IDs, CRC. A sync write of 20 goals: the same with 4 data bytes per servo.
+SYNC_READ_BYTES = 10 + 4 + 20
+SYNC_WRITE_BYTES = 10 + 4 + 20 * 5
+BAUD = 1_000_000
+
+
+def _reply_bytes(fast: bool) -> int:
+    """Status bytes: 20 packets of 11 + 8, or one header of 8 and 20 blocks of 4 + 8."""
+    from humanoid_sim.driver import READ_LENGTH
+
+    return 8 + 20 * (4 + READ_LENGTH) if fast else 20 * (11 + READ_LENGTH)
+
+
+def wire_ms(fast: bool) -> float:
+    """A cycle's bytes on a 1 Mbps wire (10 bits a byte), return delay time 0: the floor a
+    real bus sets, which the pty does not (it has no baud rate)."""
+    return (SYNC_READ_BYTES + _reply_bytes(fast) + SYNC_WRITE_BYTES) * 10 / BAUD * 1000
 
 
 def _pty_echo(cycles: int, *, request: int, reply: int) -> float:
@@ -209,12 +227,17 @@ def main() -> int:
         "bus_hz": med("bus", "bus_hz"),
         "bus_failures": sum(r["failures"] for r in runs["bus"]),
         "pty_echo_hz": med("bus", "echo_hz"),
+        "bus_cpu_hz": med("bus", "bus_cpu_hz"),
         "bus_fast_hz": med("bus_fast", "bus_hz"),
+        "bus_fast_cpu_hz": med("bus_fast", "bus_cpu_hz"),
         "bus_fast_failures": sum(r["failures"] for r in runs["bus_fast"]),
         "pty_echo_fast_hz": med("bus_fast", "echo_hz"),
         # The ratio of each run's pair (run together, under the same load), then the median.
         "bus_fast_ratio": statistics.median(
             f["bus_hz"] / p["bus_hz"] for f, p in zip(runs["bus_fast"], runs["bus"], strict=True)),
+        "bus_fast_cpu_ratio": statistics.median(
+            f["bus_cpu_hz"] / p["bus_cpu_hz"]
+            for f, p in zip(runs["bus_fast"], runs["bus"], strict=True)),
         "lockstep_rtf": med("lockstep", "rtf"),
         "lockstep_tracking_p95_deg": med("lockstep", "tracking_p95_deg"),
         "realtime_rtf": med("realtime", "rtf"),
@@ -228,13 +251,16 @@ def main() -> int:
     s = summary
     print(f"medians of {args.repeat} run(s), {args.seconds:g} s robot runs, "
           f"{args.cycles} bus cycles")
-    for label, key, echo in (("sync read", "bus", "pty_echo"),
-                             ("fast sync read", "bus_fast", "pty_echo_fast")):
+    for label, key, echo, fast in (("sync read", "bus", "pty_echo", False),
+                                   ("fast sync read", "bus_fast", "pty_echo_fast", True)):
         print(f"bus, 20 servos {label:>14} + sync write: {s[key + '_hz']:8.0f} Hz  = "
               f"{s[key + '_hz'] / TARGET_BUS_HZ:5.2f}x the 200 Hz target "
-              f"({s[key + '_failures']} failed transfers; bare pty round trip "
-              f"{s[echo + '_hz']:.0f} Hz, bus/pty {s[key + '_hz'] / s[echo + '_hz']:.2f})")
-    print(f"fast sync read / sync read: {s['bus_fast_ratio']:.2f}x the bus cycle rate")
+              f"({s[key + '_failures']} failed transfers; {s[key + '_cpu_hz']:.0f} cycles per "
+              f"CPU second; bare pty round trip {s[echo + '_hz']:.0f} Hz, bus/pty "
+              f"{s[key + '_hz'] / s[echo + '_hz']:.2f}; on a 1 Mbps wire a cycle would take "
+              f"at least {wire_ms(fast):.2f} ms)")
+    print(f"fast sync read / sync read: {s['bus_fast_ratio']:.2f}x the bus cycle rate, "
+          f"{s['bus_fast_cpu_ratio']:.2f}x per CPU second (each the median of the runs' pairs)")
     print(f"whole robot, lockstep as fast as possible: RTF {s['lockstep_rtf']:5.2f} "
           f"= {s['lockstep_rtf'] / TARGET_RTF:.2f}x the 1.0 target "
           f"(tracking p95 {s['lockstep_tracking_p95_deg']:.2f}°)")
