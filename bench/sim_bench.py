@@ -76,6 +76,59 @@ def bus_cycles(cycles: int, *, fast: bool) -> dict[str, float]:
             "echo_hz": _pty_echo(cycles, request=SYNC_READ_BYTES, reply=_reply_bytes(fast))}
 
 
+def bus_work(cycles: int) -> dict[str, float]:
+    """Microseconds of Python work of one read of 20 servos, plain and fast, without the pty.
+
+    The emulator answering the request (MuJoCo state included) and dynamixel-sdk parsing
+    the answer, in one thread, each the fastest of several batches: the work itself, which
+    the machine's load and the thread hand-over of the pty hide in the wall-clock rate.
+    """
+    from dynamixel_sdk import BROADCAST_ID, PacketHandler
+
+    from humanoid_sim.driver import ADDR_VELOCITY, READ_LENGTH
+    from humanoid_sim.dynamixel.bus import Bus
+    from humanoid_sim.dynamixel.protocol import Instruction, Parser, encode
+    from humanoid_sim.mujoco_plant import JOINTS, MujocoPlant
+
+    class Replay:
+        """What dynamixel-sdk reads a reply through: the bytes the emulator answered."""
+
+        def __init__(self) -> None:
+            self.data, self.is_using = b"", False
+
+        def readPort(self, length: int) -> bytes:  # noqa: N802 (the SDK's name)
+            out, self.data = self.data[:length], self.data[length:]
+            return out
+
+        def isPacketTimeout(self) -> bool:  # noqa: N802
+            return True
+
+    ids = list(JOINTS)
+    bus, packets, port = Bus(ids, MujocoPlant()), PacketHandler(2.0), Replay()
+    spec = ADDR_VELOCITY.to_bytes(2, "little") + READ_LENGTH.to_bytes(2, "little") + bytes(ids)
+    result: dict[str, float] = {}
+    for name, inst in (("sync", Instruction.SYNC_READ), ("fast", Instruction.FAST_SYNC_READ)):
+        (request,) = Parser().feed(encode(BROADCAST_ID, inst, spec))
+        emulator, sdk = [], []
+        for _ in range(5):
+            started = time.perf_counter()
+            for _ in range(cycles):
+                reply = bus.handle(request)
+            emulator.append((time.perf_counter() - started) / cycles)
+            started = time.perf_counter()
+            for _ in range(cycles):
+                port.data = reply
+                if inst == Instruction.FAST_SYNC_READ:
+                    packets.fastSyncReadRx(port, BROADCAST_ID, (READ_LENGTH + 4) * len(ids))
+                else:
+                    for dxl_id in ids:
+                        packets.readRx(port, dxl_id, READ_LENGTH)
+            sdk.append((time.perf_counter() - started) / cycles)
+        result[f"{name}_emulator_us"] = min(emulator) * 1e6
+        result[f"{name}_sdk_us"] = min(sdk) * 1e6
+    return result
+
+
 #: A sync read's instruction for 20 servos: header, ID, length, instruction, address and
 #: length, 20 IDs, CRC. A sync write of 20 goals: the same with 4 data bytes per servo.
 SYNC_READ_BYTES = 10 + 4 + 20
@@ -183,12 +236,14 @@ def render_only(frames: int) -> dict[str, float]:
 def child(kind: str, args: argparse.Namespace) -> dict[str, Any]:
     if kind in ("bus", "bus_fast"):
         return bus_cycles(args.cycles, fast=kind == "bus_fast")
+    if kind == "bus_work":
+        return bus_work(max(10, args.cycles // 10))
     if kind == "render":
         return render_only(args.frames)
     return robot_run(args.seconds, lockstep=kind == "lockstep")
 
 
-KINDS = ("bus", "bus_fast", "render", "lockstep", "realtime")
+KINDS = ("bus", "bus_fast", "bus_work", "render", "lockstep", "realtime")
 
 
 def main() -> int:
@@ -235,6 +290,10 @@ def main() -> int:
         # The ratio of each run's pair (run together, under the same load), then the median.
         "bus_fast_ratio": statistics.median(
             f["bus_hz"] / p["bus_hz"] for f, p in zip(runs["bus_fast"], runs["bus"], strict=True)),
+        **{f"{k}_work_us": med("bus_work", f"{k}_emulator_us") + med("bus_work", f"{k}_sdk_us")
+           for k in ("sync", "fast")},
+        **{f"{k}_{side}_us": med("bus_work", f"{k}_{side}_us")
+           for k in ("sync", "fast") for side in ("emulator", "sdk")},
         "bus_fast_cpu_ratio": statistics.median(
             f["bus_cpu_hz"] / p["bus_cpu_hz"]
             for f, p in zip(runs["bus_fast"], runs["bus"], strict=True)),
@@ -261,6 +320,11 @@ def main() -> int:
               f"at least {wire_ms(fast):.2f} ms)")
     print(f"fast sync read / sync read: {s['bus_fast_ratio']:.2f}x the bus cycle rate, "
           f"{s['bus_fast_cpu_ratio']:.2f}x per CPU second (each the median of the runs' pairs)")
+    print(f"one read of 20 servos, Python work without the pty: sync read "
+          f"{s['sync_work_us']:.0f} us (emulator {s['sync_emulator_us']:.0f}, dynamixel-sdk "
+          f"{s['sync_sdk_us']:.0f}), fast sync read {s['fast_work_us']:.0f} us (emulator "
+          f"{s['fast_emulator_us']:.0f}, dynamixel-sdk {s['fast_sdk_us']:.0f}): "
+          f"{s['sync_work_us'] / s['fast_work_us']:.2f}x less work")
     print(f"whole robot, lockstep as fast as possible: RTF {s['lockstep_rtf']:5.2f} "
           f"= {s['lockstep_rtf'] / TARGET_RTF:.2f}x the 1.0 target "
           f"(tracking p95 {s['lockstep_tracking_p95_deg']:.2f}°)")

@@ -22,6 +22,7 @@ from . import control_table as ct
 from .plant import Plant
 from .protocol import Error
 
+(_LOW_1, _HIGH_1), (_LOW_2, _HIGH_2) = ct.INDIRECT_DATA_SPANS
 #: Speed when profile_velocity is 0 ("infinite" on a real servo): the no-load speed.
 NO_LOAD_SPEED_RAD_S = 46 * 2 * math.pi / 60
 
@@ -102,8 +103,8 @@ class Servo:
     def _map(self, address: int, length: int) -> list[int] | None:
         """The table bytes a read or write of ``address``.. covers; None: all are direct."""
         end = address + length
-        if not any(low < end and address < high for low, high in ct.INDIRECT_DATA_SPANS):
-            return None
+        if not (end > _LOW_1 and address < _HIGH_1) and not (end > _LOW_2 and address < _HIGH_2):
+            return None  # the common case, checked without a loop: every read passes here
         return [self._physical(a) for a in range(address, end)]
 
     def read(self, address: int, length: int) -> tuple[int, bytes]:
