@@ -3,15 +3,15 @@
 Broadcast rules (e-Manual, Protocol 2.0): a broadcast PING is answered by every servo, in
 ID order; other broadcasts (WRITE, REG_WRITE, ACTION, REBOOT, SYNC_WRITE, BULK_WRITE, and
 FACTORY_RESET unless it would reset the IDs too) are obeyed silently; a broadcast READ is
-ignored. SYNC_READ and BULK_READ are answered by each
-listed servo in the order listed. FAST_SYNC_READ and FAST_BULK_READ are answered with one
-status packet that the listed servos build together (see :func:`.protocol.fast_status`):
-servos with firmware older than 45 do not know them, and the chain stops at the first
-listed servo that does not answer (unplugged, status return level 0, too old), because the
-servos after it continue a CRC over bytes they never received. A servo whose read fails
-(an undefined address) still fills its block, with the error and zeros, so the blocks after
-it stay where the driver expects them. A packet with a bad CRC gets a CRC error from the servo it
-names (none for broadcasts); an unknown instruction, or ACTION with nothing registered, gets
+ignored. SYNC_READ and BULK_READ are answered by each listed servo in the order listed.
+FAST_SYNC_READ and FAST_BULK_READ are answered with one status packet that the listed
+servos build together (see :func:`.protocol.fast_status`): servos with firmware older than
+45 do not know them, and the packet stops at the first listed servo that does not answer
+(unplugged, status return level 0, too old), because the servos after it would continue a
+CRC over bytes they never received. A servo whose read fails (an undefined address) still
+fills its block, with the error and zeros, so the blocks after it stay where the driver
+expects them. A packet with a bad CRC gets a CRC error from the servo it names (none for
+broadcasts); an unknown instruction, or ACTION with nothing registered, gets
 an instruction error. Status return level 0 answers only PING, 1 also the reads, 2
 everything. Unplugged servos never answer. Servos are addressed by the ID in their control
 table, so a written ID takes effect at once.
