@@ -2,10 +2,13 @@
 
 Three measures, each run in a fresh child process ``--repeat`` times, medians printed:
 
-* ``bus``: cycles per second of the servo driver's work for 20 servos, one sync read
-  (present velocity + position) and one sync write (goal position), through dynamixel-sdk,
-  the pty and the emulator with MuJoCo behind it. Target >= 200 Hz. The baseline is a bare
-  pty round trip of the same byte counts (an echo thread), the floor of the transport.
+* ``bus`` and ``bus_fast``: cycles per second of the servo driver's work for 20 servos, one
+  read of present velocity + position and one sync write (goal position), through
+  dynamixel-sdk, the pty and the emulator with MuJoCo behind it; ``bus`` reads with plain
+  Sync Read (20 status packets), ``bus_fast`` with Fast Sync Read (one status packet), as
+  the driver does. Target >= 200 Hz; the ratio fast/plain is what Fast Sync Read gains. The
+  baseline is a bare pty round trip of the same byte counts (an echo thread), the floor of
+  the transport.
 * ``lockstep``: the whole robot (simulator, camera, driver, pipeline) on a manual clock, as
   fast as the machine allows: simulated seconds per wall second is the real-time factor
   the machine can sustain. Target >= 1.0.
@@ -37,7 +40,7 @@ TARGET_BUS_HZ = 200.0
 TARGET_RTF = 1.0
 
 
-def bus_cycles(cycles: int) -> dict[str, float]:
+def bus_cycles(cycles: int, *, fast: bool) -> dict[str, float]:
     from dynamixel_sdk import (
         COMM_SUCCESS,
         GroupSyncRead,
@@ -61,15 +64,88 @@ def bus_cycles(cycles: int) -> dict[str, float]:
         for dxl_id in JOINTS:
             reader.addParam(dxl_id)
             writer.addParam(dxl_id, list((2048).to_bytes(4, "little")))
+        read = reader.fastSyncRead if fast else reader.txRxPacket
         failures = 0
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         for _ in range(cycles):
-            failures += reader.txRxPacket() != COMM_SUCCESS
+            failures += read() != COMM_SUCCESS
             failures += writer.txPacket() != COMM_SUCCESS
-        elapsed = time.perf_counter() - started
+        elapsed, cpu = time.perf_counter() - started, time.process_time() - cpu
         port.closePort()
-    return {"bus_hz": cycles / elapsed, "failures": failures,
-            "echo_hz": _pty_echo(cycles, request=14 + 20 * 1 + 3, reply=20 * (11 + 8))}
+    return {"bus_hz": cycles / elapsed, "bus_cpu_hz": cycles / cpu, "failures": failures,
+            "echo_hz": _pty_echo(cycles, request=SYNC_READ_BYTES, reply=_reply_bytes(fast))}
+
+
+def bus_work(cycles: int) -> dict[str, float]:
+    """Microseconds of Python work of one read of 20 servos, plain and fast, without the pty.
+
+    The emulator answering the request (MuJoCo state included) and dynamixel-sdk parsing
+    the answer, in one thread, each the fastest of several batches: the work itself, which
+    the machine's load and the thread hand-over of the pty hide in the wall-clock rate.
+    """
+    from dynamixel_sdk import BROADCAST_ID, PacketHandler
+
+    from humanoid_sim.driver import ADDR_VELOCITY, READ_LENGTH
+    from humanoid_sim.dynamixel.bus import Bus
+    from humanoid_sim.dynamixel.protocol import Instruction, Parser, encode
+    from humanoid_sim.mujoco_plant import JOINTS, MujocoPlant
+
+    class Replay:
+        """What dynamixel-sdk reads a reply through: the bytes the emulator answered."""
+
+        def __init__(self) -> None:
+            self.data, self.is_using = b"", False
+
+        def readPort(self, length: int) -> bytes:  # noqa: N802 (the SDK's name)
+            out, self.data = self.data[:length], self.data[length:]
+            return out
+
+        def isPacketTimeout(self) -> bool:  # noqa: N802
+            return True
+
+    ids = list(JOINTS)
+    bus, packets, port = Bus(ids, MujocoPlant()), PacketHandler(2.0), Replay()
+    spec = ADDR_VELOCITY.to_bytes(2, "little") + READ_LENGTH.to_bytes(2, "little") + bytes(ids)
+    kinds = {"sync": Instruction.SYNC_READ, "fast": Instruction.FAST_SYNC_READ}
+    requests = {k: Parser().feed(encode(BROADCAST_ID, inst, spec))[0] for k, inst in kinds.items()}
+    batches: dict[str, list[float]] = {f"{k}_{side}_us": [] for k in kinds
+                                       for side in ("emulator", "sdk")}
+    for _ in range(9):  # interleaved batches; the fastest of each is the work itself
+        for kind, request in requests.items():
+            started = time.perf_counter()
+            for _ in range(cycles):
+                reply = bus.handle(request)
+            batches[f"{kind}_emulator_us"].append((time.perf_counter() - started) / cycles)
+            started = time.perf_counter()
+            for _ in range(cycles):
+                port.data = reply
+                if kind == "fast":
+                    packets.fastSyncReadRx(port, BROADCAST_ID, (READ_LENGTH + 4) * len(ids))
+                else:
+                    for dxl_id in ids:
+                        packets.readRx(port, dxl_id, READ_LENGTH)
+            batches[f"{kind}_sdk_us"].append((time.perf_counter() - started) / cycles)
+    return {key: min(times) * 1e6 for key, times in batches.items()}
+
+
+#: A sync read's instruction for 20 servos: header, ID, length, instruction, address and
+#: length, 20 IDs, CRC. A sync write of 20 goals: the same with 4 data bytes per servo.
+SYNC_READ_BYTES = 10 + 4 + 20
+SYNC_WRITE_BYTES = 10 + 4 + 20 * 5
+BAUD = 1_000_000
+
+
+def _reply_bytes(fast: bool) -> int:
+    """Status bytes: 20 packets of 11 + 8, or one header of 8 and 20 blocks of 4 + 8."""
+    from humanoid_sim.driver import READ_LENGTH
+
+    return 8 + 20 * (4 + READ_LENGTH) if fast else 20 * (11 + READ_LENGTH)
+
+
+def wire_ms(fast: bool) -> float:
+    """A cycle's bytes on a 1 Mbps wire (10 bits a byte), return delay time 0: the floor a
+    real bus sets, which the pty does not (it has no baud rate)."""
+    return (SYNC_READ_BYTES + _reply_bytes(fast) + SYNC_WRITE_BYTES) * 10 / BAUD * 1000
 
 
 def _pty_echo(cycles: int, *, request: int, reply: int) -> float:
@@ -157,14 +233,16 @@ def render_only(frames: int) -> dict[str, float]:
 
 
 def child(kind: str, args: argparse.Namespace) -> dict[str, Any]:
-    if kind == "bus":
-        return bus_cycles(args.cycles)
+    if kind in ("bus", "bus_fast"):
+        return bus_cycles(args.cycles, fast=kind == "bus_fast")
+    if kind == "bus_work":
+        return bus_work(max(5, args.cycles // 20))
     if kind == "render":
         return render_only(args.frames)
     return robot_run(args.seconds, lockstep=kind == "lockstep")
 
 
-KINDS = ("bus", "render", "lockstep", "realtime")
+KINDS = ("bus", "bus_fast", "bus_work", "render", "lockstep", "realtime")
 
 
 def main() -> int:
@@ -203,6 +281,21 @@ def main() -> int:
         "bus_hz": med("bus", "bus_hz"),
         "bus_failures": sum(r["failures"] for r in runs["bus"]),
         "pty_echo_hz": med("bus", "echo_hz"),
+        "bus_cpu_hz": med("bus", "bus_cpu_hz"),
+        "bus_fast_hz": med("bus_fast", "bus_hz"),
+        "bus_fast_cpu_hz": med("bus_fast", "bus_cpu_hz"),
+        "bus_fast_failures": sum(r["failures"] for r in runs["bus_fast"]),
+        "pty_echo_fast_hz": med("bus_fast", "echo_hz"),
+        # The ratio of each run's pair (run together, under the same load), then the median.
+        "bus_fast_ratio": statistics.median(
+            f["bus_hz"] / p["bus_hz"] for f, p in zip(runs["bus_fast"], runs["bus"], strict=True)),
+        **{f"{k}_work_us": med("bus_work", f"{k}_emulator_us") + med("bus_work", f"{k}_sdk_us")
+           for k in ("sync", "fast")},
+        **{f"{k}_{side}_us": med("bus_work", f"{k}_{side}_us")
+           for k in ("sync", "fast") for side in ("emulator", "sdk")},
+        "bus_fast_cpu_ratio": statistics.median(
+            f["bus_cpu_hz"] / p["bus_cpu_hz"]
+            for f, p in zip(runs["bus_fast"], runs["bus"], strict=True)),
         "lockstep_rtf": med("lockstep", "rtf"),
         "lockstep_tracking_p95_deg": med("lockstep", "tracking_p95_deg"),
         "realtime_rtf": med("realtime", "rtf"),
@@ -216,10 +309,21 @@ def main() -> int:
     s = summary
     print(f"medians of {args.repeat} run(s), {args.seconds:g} s robot runs, "
           f"{args.cycles} bus cycles")
-    print(f"bus, 20 servos sync read+write: {s['bus_hz']:8.0f} Hz  = "
-          f"{s['bus_hz'] / TARGET_BUS_HZ:5.2f}x the 200 Hz target "
-          f"({s['bus_failures']} failed transfers; bare pty round trip {s['pty_echo_hz']:.0f} Hz,"
-          f" bus/pty {s['bus_hz'] / s['pty_echo_hz']:.2f})")
+    for label, key, echo, fast in (("sync read", "bus", "pty_echo", False),
+                                   ("fast sync read", "bus_fast", "pty_echo_fast", True)):
+        print(f"bus, 20 servos {label:>14} + sync write: {s[key + '_hz']:8.0f} Hz  = "
+              f"{s[key + '_hz'] / TARGET_BUS_HZ:5.2f}x the 200 Hz target "
+              f"({s[key + '_failures']} failed transfers; {s[key + '_cpu_hz']:.0f} cycles per "
+              f"CPU second; bare pty round trip {s[echo + '_hz']:.0f} Hz, bus/pty "
+              f"{s[key + '_hz'] / s[echo + '_hz']:.2f}; on a 1 Mbps wire a cycle would take "
+              f"at least {wire_ms(fast):.2f} ms)")
+    print(f"fast sync read / sync read: {s['bus_fast_ratio']:.2f}x the bus cycle rate, "
+          f"{s['bus_fast_cpu_ratio']:.2f}x per CPU second (each the median of the runs' pairs)")
+    print(f"one read of 20 servos, Python work without the pty: sync read "
+          f"{s['sync_work_us']:.0f} us (emulator {s['sync_emulator_us']:.0f}, dynamixel-sdk "
+          f"{s['sync_sdk_us']:.0f}), fast sync read {s['fast_work_us']:.0f} us (emulator "
+          f"{s['fast_emulator_us']:.0f}, dynamixel-sdk {s['fast_sdk_us']:.0f}): "
+          f"{s['sync_work_us'] / s['fast_work_us']:.2f}x less work")
     print(f"whole robot, lockstep as fast as possible: RTF {s['lockstep_rtf']:5.2f} "
           f"= {s['lockstep_rtf'] / TARGET_RTF:.2f}x the 1.0 target "
           f"(tracking p95 {s['lockstep_tracking_p95_deg']:.2f}°)")

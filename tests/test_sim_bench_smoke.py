@@ -26,6 +26,9 @@ def test_sim_bench_smoke(tmp_path: Path) -> None:
     summary = json.loads(out.read_text())["summary"]
     assert summary["bus_failures"] == 0
     assert summary["bus_hz"] > 0 and summary["pty_echo_hz"] > summary["bus_hz"]
+    assert summary["bus_fast_failures"] == 0 and summary["bus_fast_hz"] > 0  # Fast Sync Read
+    assert summary["bus_fast_ratio"] > 0 and summary["bus_fast_cpu_ratio"] > 0
+    assert summary["sync_work_us"] > 0 and summary["fast_work_us"] > 0
     assert summary["lockstep_rtf"] > 0
     assert summary["lockstep_tracking_p95_deg"] < 10
     assert 0.2 < summary["realtime_rtf"] < 1.5  # physics follows the wall clock

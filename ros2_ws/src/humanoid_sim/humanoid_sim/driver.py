@@ -1,4 +1,4 @@
-"""The servo driver: every cycle, one sync read of all servos and one sync write of all goals.
+"""The servo driver: every cycle, one (fast) sync read of all servos and one sync write of goals.
 
 A component (it takes an efficient_comm node handle) that talks to the bus with
 dynamixel-sdk exactly as on the robot; only ``port`` differs (the emulator's pty instead of
@@ -10,7 +10,18 @@ A missing or vanishing port, missing servos and garbled replies are reported and
 the driver keeps cycling; a servo that failed :data:`MISSING_AFTER` reads in a row is
 reported missing, pinged once a second and taken back (torque on) when it answers again.
 
-dynamixel-sdk stops reading a sync read's replies at the first servo that fails, so a
+Fast Sync Read (instruction 0x8A) is used for the servos that support it (XM430 and its
+kin from firmware 45, see :data:`FAST_SYNC_READ_FIRMWARE`; parameter ``fast_sync_read``):
+the servos answer with one status packet together instead of one each, which saves the
+bus most of a cycle's overhead. Its weakness is that it is all or nothing: dynamixel-sdk
+drops the whole packet if one byte is garbled or one servo is silent (the servos after a
+silent one cannot continue the packet), and the SDK keeps nothing of it. So the driver
+reads only the servos that answered last time with it; when it fails, the same cycle reads
+them again with plain Sync Read, which tells which servo failed; servos that failed are
+read with plain Sync Read until they answer. A bus on which Fast Sync Read keeps failing
+while Sync Read works gets plain Sync Read from then on.
+
+dynamixel-sdk stops reading a plain sync read's replies at the first servo that fails, so a
 silent servo would hide every servo after it. The driver therefore reads the servos that
 failed last time at the end of the sync read, and counts a miss only for the servo that
 actually failed: one unplugged servo costs the others at most one cycle.
@@ -25,6 +36,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dynamixel_sdk import (
+    COMM_RX_CORRUPT,
     COMM_SUCCESS,
     GroupSyncRead,
     GroupSyncWrite,
@@ -42,6 +54,7 @@ from .dynamixel import control_table as ct
 from .errors import SimConfigError
 
 ADDR_TORQUE = ct.BY_NAME["torque_enable"].address
+ADDR_FIRMWARE = ct.BY_NAME["firmware_version"].address
 ADDR_HARDWARE_ERROR = ct.BY_NAME["hardware_error_status"].address
 ADDR_GOAL = ct.BY_NAME["goal_position"].address
 ADDR_VELOCITY = ct.BY_NAME["present_velocity"].address  # velocity then position: 8 bytes
@@ -51,7 +64,18 @@ ALERT = 0x80  # the status error byte's hardware error bit (the rest is the erro
 #: Consecutive failed reads after which a servo counts as missing (a garbled reply or two
 #: on a noisy line must not take a joint away).
 MISSING_AFTER = 10
-TORQUE_ON_TRIES = 3
+ADOPT_TRIES = 3  # reads and writes while adopting a servo, before waiting a second
+#: Model number -> the first firmware with Fast Sync Read (e-Manual, Protocol 2.0: "X430/540
+#: Series (Fw v45 or above, 2XL/2XC Not Supported)", "X330 (Fw v46 or above)"; model numbers
+#: as in dynamixel-sdk's model list). Servos not listed get plain Sync Read.
+FAST_SYNC_READ_FIRMWARE = {
+    **dict.fromkeys((1000, 1001, 1010, 1011, 1020, 1030, 1040, 1050, 1060, 1070, 1080), 45),
+    **dict.fromkeys((1100, 1101, 1110, 1111, 1120, 1130, 1140, 1150, 1170, 1180), 45),
+    **dict.fromkeys((1190, 1200, 1210, 1220, 1230, 1240), 46),  # X330
+}
+#: Failed Fast Sync Reads in a row, each followed by a plain Sync Read that every servo
+#: answered, after which the bus is taken not to support it (a servo or adapter in the way).
+FAST_GIVE_UP = 10
 SDK_LATENCY_TIMER_MS = float(port_handler.LATENCY_TIMER)  # before any driver changed it
 #: What the port raises when the device goes away: pyserial's SerialException (an OSError),
 #: or termios.error from flushing a pty whose other side has closed.
@@ -80,6 +104,8 @@ class ServoDriver:
         if latency <= 0:
             raise SimConfigError(f"latency_timer_ms must be > 0, got {latency}")
         port_handler.LATENCY_TIMER = latency
+        #: Use Fast Sync Read for the servos that support it (False: plain Sync Read only).
+        self.fast_sync_read = node.declare_parameter("fast_sync_read", True)
         self.state_pub = node.create_publisher(JointState, "joint_states", qos=10)
         self.diag_pub = node.create_publisher(DiagnosticArray, "/diagnostics", qos=10)
         node.create_subscription(JointState, "joint_commands", self._on_command, qos=10)
@@ -88,6 +114,9 @@ class ServoDriver:
         self._misses: dict[int, int] = {}
         #: Hardware Error Status (address 70) by servo, read once a second; 0: none.
         self.hardware_errors: dict[int, int] = {}
+        #: Servos whose model and firmware answer Fast Sync Read (learnt when adopted).
+        self.fast_capable: set[int] = set()
+        self._fast_failures = 0
         self.cycles = 0
         self.comm_errors = 0
         self._port: PortHandler | None = None
@@ -118,10 +147,22 @@ class ServoDriver:
         for dxl_id in self.ids:
             if dxl_id in self.present:
                 continue
-            _, result, _ = self._packets.ping(self._port, dxl_id)
+            model, result, _ = self._packets.ping(self._port, dxl_id)
             if result != COMM_SUCCESS:
                 continue
-            for _ in range(TORQUE_ON_TRIES):  # line noise either way: writing 1 again is harmless
+            for _ in range(ADOPT_TRIES):  # line noise either way: asking again is harmless
+                firmware, result, _ = self._packets.read1ByteTxRx(self._port, dxl_id,
+                                                                  ADDR_FIRMWARE)
+                if result == COMM_SUCCESS:
+                    break
+            if result != COMM_SUCCESS:
+                self.comm_errors += 1  # asked again within a second
+                continue
+            if firmware >= FAST_SYNC_READ_FIRMWARE.get(model, 256):
+                self.fast_capable.add(dxl_id)
+            else:
+                self.fast_capable.discard(dxl_id)
+            for _ in range(ADOPT_TRIES):  # line noise either way: writing 1 again is harmless
                 result, error = self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
                 if result == COMM_SUCCESS and not error & ~ALERT:
                     break
@@ -196,9 +237,59 @@ class ServoDriver:
             got[dxl_id] = data
         return got, None
 
-    def _read(self, now: int) -> None:
+    def _fast_sync_read(self, address: int, length: int, ids: list[int]
+                        ) -> dict[int, bytes] | None:
+        """One Fast Sync Read: what each servo sent, or None if the packet was lost."""
+        assert self._port is not None
+        reader = GroupSyncRead(self._port, self._packets, address, length)
+        for dxl_id in ids:
+            reader.addParam(dxl_id)
+        try:
+            result = reader.fastSyncRead()
+        except IndexError:  # a packet shorter than its servos' blocks (garbled length)
+            result = COMM_RX_CORRUPT
+        got = {i: bytes(reader.data_dict.get(i) or b"") for i in ids}
+        if result != COMM_SUCCESS or any(len(data) != length for data in got.values()):
+            self.comm_errors += 1
+            return None
+        return got
+
+    def _read_all(self, address: int, length: int) -> tuple[dict[int, bytes], int | None]:
+        """Read every present servo; the servo that failed, if one did.
+
+        Fast Sync Read for the capable servos that answered last time, plain Sync Read for
+        the others (the ones that failed last) and, in the same cycle, for all of them if
+        the fast read was lost.
+        """
         order = sorted(self.present, key=lambda i: (self._misses.get(i, 0) > 0, i))
-        got, failed = self._sync_read(ADDR_VELOCITY, READ_LENGTH, order)
+        fast = [i for i in order if self._use_fast(i)]
+        got: dict[int, bytes] = {}
+        if fast:
+            answer = self._fast_sync_read(address, length, fast)
+            if answer is not None:
+                self._fast_failures = 0
+                got = answer
+                order = [i for i in order if i not in answer]
+        if not order:
+            return got, None
+        more, failed = self._sync_read(address, length, order)
+        if fast and not got and failed is None:
+            self._fast_lost_but_sync_worked()
+        return got | more, failed
+
+    def _use_fast(self, dxl_id: int) -> bool:
+        return (self.fast_sync_read and self._fast_failures < FAST_GIVE_UP
+                and dxl_id in self.fast_capable and not self._misses.get(dxl_id, 0))
+
+    def _fast_lost_but_sync_worked(self) -> None:
+        self._fast_failures += 1
+        if self._fast_failures == FAST_GIVE_UP:
+            self.node.logger.warning(
+                f"fast sync read failed {FAST_GIVE_UP} times in a row while sync read "
+                "worked: using sync read")
+
+    def _read(self, now: int) -> None:
+        got, failed = self._read_all(ADDR_VELOCITY, READ_LENGTH)
         if failed is not None:
             self._missed(failed)
         msg = JointState()
@@ -214,7 +305,7 @@ class ServoDriver:
 
     def _read_hardware_errors(self) -> None:
         """Hardware Error Status of every servo (once a second, with the diagnostics)."""
-        got, _ = self._sync_read(ADDR_HARDWARE_ERROR, 1, sorted(self.present))
+        got, _ = self._read_all(ADDR_HARDWARE_ERROR, 1)
         for dxl_id, data in got.items():
             self.hardware_errors[dxl_id] = data[0]
 
@@ -265,6 +356,11 @@ class ServoDriver:
 
     def status(self) -> dict[str, Any]:
         return {"present": sorted(self.present), "comm_errors": self.comm_errors}
+
+    @property
+    def fast_servos(self) -> list[int]:
+        """The servos the next cycle reads with Fast Sync Read."""
+        return sorted(i for i in self.present if self._use_fast(i))
 
 
 #: ``ros2 run humanoid_sim servo_driver --ros-args -p port:=/dev/ttyUSB0 -p ids:=[1,2]``.

@@ -14,6 +14,7 @@ from efficient_comm.testing import TestHandle, test_container
 from humanoid_sim.driver import SDK_LATENCY_TIMER_MS, ServoDriver
 from humanoid_sim.dynamixel.bus import Bus
 from humanoid_sim.dynamixel.plant import IdealPlant
+from humanoid_sim.dynamixel.protocol import Instruction
 from humanoid_sim.dynamixel.pty import PtyBus
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.compose import LOCKSTEP_LATENCY_TIMER_MS
@@ -68,7 +69,53 @@ def _diagnostics(node: TestHandle) -> dict[str, DiagnosticStatus]:
     return {s.name.split("(")[1].rstrip(")"): s for s in statuses}
 
 
-@pytest.mark.parametrize("unplugged", [1])  # first in the sync read: it used to hide all
+def test_reads_all_servos_with_one_fast_sync_read_per_cycle(
+        bus: tuple[PtyBus, IdealPlant]) -> None:
+    pty, _ = bus
+    node, driver = _driver(pty)
+    node.advance(1.0)
+    assert driver.fast_servos == IDS
+    sent = pty.bus.instructions
+    assert sent[Instruction.FAST_SYNC_READ] == driver.cycles + 1  # + the hardware errors
+    assert sent[Instruction.SYNC_READ] == 0
+    assert all(set(m.name) == set(NAMES) for m in node.published("joint_states"))
+    driver.close()
+
+
+@pytest.mark.parametrize(("firmware", "parameters"), [
+    (44, {}),  # servos that do not know it
+    (45, {"fast_sync_read": False}),  # turned off
+])
+def test_plain_sync_read_without_fast_sync_read(
+        firmware: int, parameters: dict[str, object]) -> None:
+    with PtyBus(Bus(IDS, IdealPlant(), firmware_version=firmware)) as pty:
+        node, driver = _driver(pty, **parameters)
+        node.advance(0.5)
+        assert driver.fast_servos == []
+        assert pty.bus.instructions[Instruction.FAST_SYNC_READ] == 0
+        assert pty.bus.instructions[Instruction.SYNC_READ] == driver.cycles + 1
+        assert all(set(m.name) == set(NAMES) for m in node.published("joint_states"))
+        driver.close()
+
+
+def test_fast_sync_read_that_keeps_failing_is_given_up(bus: tuple[PtyBus, IdealPlant]) -> None:
+    pty, _ = bus
+    node, driver = _driver(pty)
+    node.advance(0.01)
+    with pty.lock:  # says firmware 45 but does not take part (as a servo in the way might)
+        pty.bus.servos[2].firmware_version = 44
+    node.advance(0.5)
+    warnings = [text for level, text in node.records if level == "warning"]
+    assert warnings == ["fast sync read failed 10 times in a row while sync read worked: "
+                        "using sync read"]
+    # The first cycle's two (states, hardware errors), ten that failed, and no more.
+    assert pty.bus.instructions[Instruction.FAST_SYNC_READ] == 2 + 10
+    assert driver.fast_servos == [] and driver.status()["present"] == IDS
+    assert all(set(m.name) == set(NAMES) for m in node.published("joint_states"))
+    driver.close()
+
+
+@pytest.mark.parametrize("unplugged", [1, 2, 3])  # first in the sync read: it used to hide all
 def test_an_unplugged_servo_is_reported_and_taken_back(
         bus: tuple[PtyBus, IdealPlant], unplugged: int) -> None:
     pty, _ = bus
@@ -89,6 +136,13 @@ def test_an_unplugged_servo_is_reported_and_taken_back(
     assert {diag[name].level for name in others} == {DiagnosticStatus.OK}
     warnings = [text for level, text in node.records if level == "warning"]
     assert warnings == [f"servo {unplugged} did not answer 10 times in a row"]  # no other
+    # The others are still read with one Fast Sync Read per cycle; the silent one costs no
+    # more plain reads once given up (it is pinged once a second instead).
+    sent = dict(pty.bus.instructions)
+    node.advance(0.5)
+    assert pty.bus.instructions[Instruction.FAST_SYNC_READ] - sent[Instruction.FAST_SYNC_READ] == 50
+    assert pty.bus.instructions[Instruction.SYNC_READ] == sent[Instruction.SYNC_READ]
+    assert driver.fast_servos == sorted(set(IDS) - {unplugged})
     with pty.lock:
         pty.bus.servos[unplugged].connected = True
     node.advance(1.1)
@@ -130,6 +184,9 @@ def test_line_noise_is_counted_and_survived() -> None:
         assert pty.bus.crc_errors > 0  # noise both ways: garbled requests refused too
         assert len(node.published("joint_states")) > 50  # most cycles still got through
         assert pty.errors == []
+        # Noise is no reason to give Fast Sync Read up: still tried (nearly) every cycle.
+        assert not any("fast sync read" in text for _, text in node.records)
+        assert pty.bus.instructions[Instruction.FAST_SYNC_READ] >= 80
         driver.close()
 
 

@@ -9,6 +9,7 @@ from collections.abc import Iterator
 
 import pytest
 from dynamixel_sdk import (
+    COMM_RX_CORRUPT,
     COMM_SUCCESS,
     GroupBulkRead,
     GroupSyncRead,
@@ -193,7 +194,8 @@ def test_writes_are_checked_like_the_e_manual_says() -> None:
     assert error(_write(102, 1194, 2)) == Error.DATA_LIMIT  # goal current > current limit
     assert error(_write(104, -201, 4)) == Error.DATA_LIMIT  # |goal velocity| > velocity limit
     assert error(_write(66, 0, 1)) == Error.ACCESS  # reserved address
-    assert error(_write(200, 0, 1)) == Error.ACCESS  # beyond the emulated table
+    assert error(_write(150, 0, 1)) == Error.ACCESS  # reserved, between the areas
+    assert error(_write(662, 0, 1)) == Error.ACCESS  # beyond the control table
     assert error(_write(PRESENT, 0, 4)) == Error.ACCESS  # read only
     assert error(b"", Instruction.ACTION) == Error.INSTRUCTION  # nothing registered
     assert error(b"\x00\x00\x02", Instruction.READ) == Error.DATA_LENGTH  # READ needs 4
@@ -295,3 +297,162 @@ def test_factory_reset_and_clear() -> None:
     clear = b"\x01\x44\x58\x4c\x22"
     assert _ask(bus, 2, Instruction.CLEAR, clear)[0].params[0] == Error.NONE  # standing still
     assert _ask(bus, 2, Instruction.CLEAR, b"\x02")[0].params[0] == Error.DATA_RANGE
+
+
+# -- Fast Sync Read and Fast Bulk Read -------------------------------------------------------
+
+#: The e-Manual's Fast Sync Read example (Protocol 2.0): present position of IDs 3, 7 and 4.
+EMANUAL_FAST_REQUEST = bytes.fromhex("FFFFFD00FE0A008A84000400030704 20F2".replace(" ", ""))
+EMANUAL_FAST_STATUS = bytes.fromhex(
+    "FFFFFD00FE19005500 03A6000000 8408"  # header and ID 3's block with its CRC
+    "0007 1F080000 16CA"  # ID 7: error, ID, data, CRC of everything before
+    "0004 FF030000 D19E".replace(" ", "")  # ID 4: the last CRC is the packet's
+)
+
+
+def _emanual_bus() -> Bus:
+    """IDs 3, 7 and 4 at present positions 166, 2079 and 1023 (through the homing offset)."""
+    bus = Bus([3, 7, 4], IdealPlant())
+    for dxl_id, position in ((3, 166), (7, 2079), (4, 1023)):
+        bus.servos[dxl_id].write(20, (position - 2048).to_bytes(4, "little", signed=True))
+    return bus
+
+
+def _raw(bus: Bus, request: bytes) -> bytes:
+    return bus.handle(Parser().feed(request)[0])
+
+
+def test_fast_sync_read_answers_the_e_manual_example_byte_for_byte() -> None:
+    assert encode(0xFE, Instruction.FAST_SYNC_READ, bytes.fromhex("840004000307 04")
+                  .replace(b" ", b"")) == EMANUAL_FAST_REQUEST
+    bus = _emanual_bus()
+    assert _raw(bus, EMANUAL_FAST_REQUEST) == EMANUAL_FAST_STATUS
+    assert bus.instructions[Instruction.FAST_SYNC_READ] == 1
+
+
+def test_fast_sync_read_stops_at_a_silent_servo() -> None:
+    bus = _emanual_bus()
+    bus.servos[7].connected = False
+    # ID 3 announces the whole packet and sends its block; ID 4 waits for ID 7 in vain.
+    assert _raw(bus, EMANUAL_FAST_REQUEST) == EMANUAL_FAST_STATUS[:16]
+    bus.servos[7].connected = True
+    bus.servos[7].write(68, b"\x00")  # status return level 0: silent too
+    assert _raw(bus, EMANUAL_FAST_REQUEST) == EMANUAL_FAST_STATUS[:16]
+    bus.servos[3].connected = False  # the first is silent: nobody starts the packet
+    assert _raw(bus, EMANUAL_FAST_REQUEST) == b""
+
+
+def test_fast_sync_read_broadcast_and_error_rules() -> None:
+    bus = _emanual_bus()
+    # Only by broadcast: addressed to one servo it is an instruction error, like Sync Read.
+    (reply,) = _ask(bus, 3, Instruction.FAST_SYNC_READ, b"\x84\x00\x04\x00\x03")
+    assert (reply.dxl_id, reply.params[0]) == (3, Error.INSTRUCTION)
+    garbled = bytearray(EMANUAL_FAST_REQUEST)
+    garbled[-1] ^= 1
+    assert _raw(bus, bytes(garbled)) == b""  # bad CRC, broadcast: no answer
+    # A latched hardware error sets the alert bit in that servo's block only.
+    bus.servos[7].set_hardware_error(0x20)
+    reply_bytes = _raw(bus, EMANUAL_FAST_REQUEST)
+    assert [reply_bytes[8], reply_bytes[16], reply_bytes[24]] == [0, 0x80, 0]
+    # A read the servos refuse keeps the layout: each block has its error and zeros.
+    beyond = _raw(bus, encode(0xFE, Instruction.FAST_SYNC_READ, b"\x94\x02\x04\x00\x03\x04"))
+    assert beyond[5:7] == (1 + 2 * 8).to_bytes(2, "little")
+    assert beyond[8:14] == bytes([Error.ACCESS, 3, 0, 0, 0, 0])
+    assert beyond[16:18] == bytes([Error.ACCESS, 4])
+    assert crc16(beyond[:-2]) == int.from_bytes(beyond[-2:], "little")
+
+
+def test_servos_before_firmware_45_ignore_fast_reads() -> None:
+    bus = Bus(IDS, IdealPlant(), firmware_version=44)
+    assert _raw(bus, encode(0xFE, Instruction.FAST_SYNC_READ, b"\x84\x00\x04\x00\x01\x02")) == b""
+    (reply,) = _ask(bus, 1, Instruction.READ, b"\x06\x00\x01\x00")
+    assert reply.params == bytes([0, 44])  # the firmware version says so (also after reset)
+    bus.servos[2].firmware_version = 45
+    only_2 = _raw(bus, encode(0xFE, Instruction.FAST_SYNC_READ, b"\x84\x00\x04\x00\x02\x01"))
+    assert only_2[9] == 2 and len(only_2) == 7 + 1 + 8  # ID 2's block, then ID 1 is silent
+
+
+def test_fast_sync_and_bulk_read_through_the_sdk(rig) -> None:
+    pty, plant, port, ph = rig
+    goals = GroupSyncWrite(port, ph, GOAL, 4)
+    for i in IDS:
+        assert ph.write1ByteTxRx(port, i, TORQUE, 1)[0] == COMM_SUCCESS
+        goals.addParam(i, list((2048 + 100 * i).to_bytes(4, "little")))
+    assert goals.txPacket() == COMM_SUCCESS
+    assert pty.sync()
+    with pty.lock:
+        plant.step(1.0)
+    reader = GroupSyncRead(port, ph, PRESENT, 4)
+    for i in IDS:
+        reader.addParam(i)
+    assert reader.fastSyncRead() == COMM_SUCCESS
+    assert [reader.getData(i, PRESENT, 4) for i in IDS] == [2148, 2248, 2348]
+    bulk = GroupBulkRead(port, ph)
+    assert bulk.addParam(1, 0, 2) and bulk.addParam(3, 146, 1)
+    assert bulk.fastBulkRead() == COMM_SUCCESS
+    assert bulk.getData(1, 0, 2) == ct.MODEL_NUMBER and bulk.getData(3, 146, 1) == 30
+    assert pty.bus.instructions[Instruction.FAST_SYNC_READ] == 1
+    assert pty.bus.instructions[Instruction.FAST_BULK_READ] == 1
+
+
+def test_the_sdk_keeps_nothing_of_a_fast_sync_read_cut_short(rig) -> None:
+    pty, _, port, ph = rig
+    with pty.lock:
+        pty.bus.servos[3].connected = False
+    reader = GroupSyncRead(port, ph, PRESENT, 4)
+    for i in IDS:
+        reader.addParam(i)
+    # Servos 1 and 2 sent their blocks, but the packet never completes: the SDK waits for
+    # it, calls it corrupt and drops it whole. A driver must read the others another way.
+    assert reader.fastSyncRead() == COMM_RX_CORRUPT
+    assert not any(reader.isAvailable(i, PRESENT, 4) for i in IDS)
+    assert ph.ping(port, 1)[1] == COMM_SUCCESS  # and the bus serves the next request
+
+
+# -- the indirect address area -------------------------------------------------------------
+
+
+def test_indirect_addresses_gather_items_for_one_sync_read(rig) -> None:
+    pty, plant, port, ph = rig
+    for i in IDS:  # Indirect Data 1..8 (224..) = present position (132..), then velocity (128..)
+        for k, target in enumerate([*range(132, 136), *range(128, 132)]):
+            result, error = ph.write2ByteTxRx(port, i, 168 + 2 * k, target)
+            assert (result, error) == (COMM_SUCCESS, 0)
+        assert ph.write1ByteTxRx(port, i, TORQUE, 1)[0] == COMM_SUCCESS
+        # Indirect Data 29..32 (634..) = goal position (116..): written through them.
+        for k in range(4):
+            assert ph.write2ByteTxRx(port, i, 578 + 2 * k, 116 + k)[1] == 0
+        assert ph.write4ByteTxRx(port, i, 634, 2048 + 100 * i)[1] == 0
+    assert [pty.bus.servos[i].get("goal_position") for i in IDS] == [2148, 2248, 2348]
+    with pty.lock:
+        plant.step(1.0)
+    reader = GroupSyncRead(port, ph, 224, 8)
+    for i in IDS:
+        reader.addParam(i)
+    assert reader.fastSyncRead() == COMM_SUCCESS
+    assert [reader.getData(i, 224, 4) for i in IDS] == [2148, 2248, 2348]
+    assert ph.read4ByteTxRx(port, 2, 634)[0] == 2248  # reads give the named bytes too
+
+
+def test_indirect_data_inherits_the_named_items_rules() -> None:
+    bus = Bus(IDS, IdealPlant())
+    servo = bus.servos[1]
+    assert servo.get("indirect_address_1") == 224 and servo.get("indirect_address_29") == 634
+    assert servo.write(224, b"\x07") == Error.NONE  # by default: plain storage
+    assert servo.read(224, 1) == (Error.NONE, b"\x07")
+    assert servo.write(168, (63).to_bytes(2, "little")) == Error.DATA_RANGE  # EEPROM: no
+    assert servo.write(168, (662).to_bytes(2, "little")) == Error.DATA_RANGE
+    for k in range(4):  # Indirect Data 1..4 = present position: read only
+        assert servo.write(168 + 2 * k, (132 + k).to_bytes(2, "little")) == Error.NONE
+    assert servo.write(224, bytes(4)) == Error.ACCESS
+    for k in range(4):  # now goal position: a 4-byte item, its limits included
+        servo.write(168 + 2 * k, (116 + k).to_bytes(2, "little"))
+    assert servo.write(224, bytes(2)) == Error.DATA_LENGTH  # two bytes of four
+    servo.write(TORQUE, b"\x01")
+    assert servo.write(224, (5000).to_bytes(4, "little")) == Error.DATA_LIMIT
+    assert servo.get("goal_position") == 2048  # nothing refused was written
+    assert servo.write(224, (3000).to_bytes(4, "little")) == Error.NONE
+    assert servo.get("goal_position") == 3000
+    # Naming another Indirect Data byte does not chain: the byte is plain storage again.
+    servo.write(168, (225).to_bytes(2, "little"))
+    assert servo.read(224, 1)[1] == b"\x07" and servo.read(225, 1)[1] == b"\x0b"  # 3000 >> 8

@@ -3,9 +3,15 @@
 Broadcast rules (e-Manual, Protocol 2.0): a broadcast PING is answered by every servo, in
 ID order; other broadcasts (WRITE, REG_WRITE, ACTION, REBOOT, SYNC_WRITE, BULK_WRITE, and
 FACTORY_RESET unless it would reset the IDs too) are obeyed silently; a broadcast READ is
-ignored. SYNC_READ and BULK_READ are answered by each
-listed servo in the order listed. A packet with a bad CRC gets a CRC error from the servo it
-names (none for broadcasts); an unknown instruction, or ACTION with nothing registered, gets
+ignored. SYNC_READ and BULK_READ are answered by each listed servo in the order listed.
+FAST_SYNC_READ and FAST_BULK_READ are answered with one status packet that the listed
+servos build together (see :func:`.protocol.fast_status`): servos with firmware older than
+45 do not know them, and the packet stops at the first listed servo that does not answer
+(unplugged, status return level 0, too old), because the servos after it would continue a
+CRC over bytes they never received. A servo whose read fails (an undefined address) still
+fills its block, with the error and zeros, so the blocks after it stay where the driver
+expects them. A packet with a bad CRC gets a CRC error from the servo it names (none for
+broadcasts); an unknown instruction, or ACTION with nothing registered, gets
 an instruction error. Status return level 0 answers only PING, 1 also the reads, 2
 everything. Unplugged servos never answer. Servos are addressed by the ID in their control
 table, so a written ID takes effect at once.
@@ -13,14 +19,16 @@ table, so a written ID takes effect at once.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterable
 
 from . import control_table as ct
 from .plant import Plant
-from .protocol import BROADCAST_ID, Error, Instruction, Packet, status
+from .protocol import BROADCAST_ID, Error, Instruction, Packet, fast_status, status
 from .servo import Servo
 
-_READS = {Instruction.READ, Instruction.SYNC_READ, Instruction.BULK_READ}
+_READS = {Instruction.READ, Instruction.SYNC_READ, Instruction.BULK_READ,
+          Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ}
 #: CLEAR's only defined option: reset the multi-turn count (parameters fixed by the e-Manual).
 _CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
 _FACTORY_RESET_KEEP = {0xFF: (), 0x01: ("id",), 0x02: ("id", "baud_rate")}
@@ -28,11 +36,15 @@ _REGISTERED = ct.BY_NAME["registered_instruction"].address
 
 
 class Bus:
-    def __init__(self, ids: Iterable[int], plant: Plant) -> None:
+    def __init__(self, ids: Iterable[int], plant: Plant, *,
+                 firmware_version: int = ct.FIRMWARE_VERSION) -> None:
+        """``firmware_version``: of every servo; below 45 they know no Fast Sync Read."""
         #: The servos by the ID they left the factory with (their place on the robot).
-        self.servos = {i: Servo(i, plant) for i in ids}
+        self.servos = {i: Servo(i, plant, firmware_version=firmware_version) for i in ids}
         self.packets = 0
         self.crc_errors = 0
+        #: Packets received, by instruction (garbled ones included): what a driver sends.
+        self.instructions: Counter[int] = Counter()
 
     def _present(self, dxl_id: int) -> Servo | None:
         for servo in self.servos.values():
@@ -53,6 +65,7 @@ class Bus:
         """The bytes the bus answers ``packet`` with (possibly none)."""
         self.packets += 1
         inst, p = packet.instruction, packet.params
+        self.instructions[inst] += 1
         if not packet.crc_ok:
             self.crc_errors += 1
             servo = self._present(packet.dxl_id)
@@ -158,18 +171,31 @@ class Bus:
                 if servo is not None:
                     servo.write(address, p[i + 5 : i + 5 + size])
                 i += 5 + size
-        elif inst == Instruction.SYNC_READ and len(p) >= 4:
+        elif inst in (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ) and len(p) >= 4:
             address, size = int.from_bytes(p[:2], "little"), int.from_bytes(p[2:4], "little")
-            return b"".join(self._read_status(dxl_id, inst, address, size) for dxl_id in p[4:])
-        elif inst == Instruction.BULK_READ:
-            return b"".join(
-                self._read_status(p[i], inst, int.from_bytes(p[i + 1 : i + 3], "little"),
-                                  int.from_bytes(p[i + 3 : i + 5], "little"))
+            return self._reads(inst, [(dxl_id, address, size) for dxl_id in p[4:]])
+        elif inst in (Instruction.BULK_READ, Instruction.FAST_BULK_READ):
+            return self._reads(inst, [
+                (p[i], int.from_bytes(p[i + 1 : i + 3], "little"),
+                 int.from_bytes(p[i + 3 : i + 5], "little"))
                 for i in range(0, len(p) - 4, 5)
-            )
+            ])
         return b""
 
-    def _read_status(self, dxl_id: int, inst: int, address: int, size: int) -> bytes:
+    def _reads(self, inst: int, reads: list[tuple[int, int, int]]) -> bytes:
+        """The answer to a sync or bulk read of ``(id, address, size)``, plain or fast."""
+        if inst in (Instruction.SYNC_READ, Instruction.BULK_READ):
+            return b"".join(self._read_status(*read, inst) for read in reads)
+        blocks = []
+        for dxl_id, address, size in reads:
+            servo = self._present(dxl_id)
+            if servo is None or not servo.fast_read or not servo.get("status_return_level"):
+                break  # the servos after it wait for its block in vain
+            error, data = servo.read(address, size)
+            blocks.append((dxl_id, error | servo.alert(), data.ljust(size, b"\0")))
+        return fast_status(blocks, length=1 + sum(size + 4 for _, _, size in reads))
+
+    def _read_status(self, dxl_id: int, address: int, size: int, inst: int) -> bytes:
         servo = self._present(dxl_id)
         if servo is None:
             return b""

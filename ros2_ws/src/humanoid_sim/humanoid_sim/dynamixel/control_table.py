@@ -3,7 +3,13 @@
 Addresses, sizes, access, defaults and value ranges follow the e-Manual's XM430-W350 page.
 Addresses below 64 are EEPROM: writable only while torque is off. Units: position 4096
 ticks per turn (2048 = centre), velocity 0.229 rpm, current 2.69 mA, voltage 0.1 V,
-temperature 1 °C. The indirect address area (168 and up) is not emulated.
+temperature 1 °C.
+
+The indirect address area lets a driver gather scattered items into one contiguous block
+(one sync read instead of several): Indirect Address n (2 bytes, 64..661, RAM only) names
+a control table byte, and Indirect Data n reads and writes that byte with its item's size,
+range and access rules. Items 1-28 are at 168/224, items 29-56 at 578/634; by default each
+Indirect Address points at its own Indirect Data byte, which then is plain storage.
 """
 
 from __future__ import annotations
@@ -13,8 +19,11 @@ from dataclasses import dataclass
 
 MODEL_NUMBER = 1020  # XM430-W350
 FIRMWARE_VERSION = 45
+#: Fast Sync Read and Fast Bulk Read exist from this firmware on (e-Manual, Protocol 2.0:
+#: "X430/540 Series (Fw v45 or above)"); older servos ignore them like any unknown broadcast.
+FAST_READ_FIRMWARE = 45
 EEPROM_END = 64
-TABLE_SIZE = 147
+TABLE_SIZE = 662  # up to Indirect Data 56 (661)
 POSITION_MODE = 3  # the operating mode whose goals the position limits bound
 
 TICKS_PER_RAD = 4096 / (2 * math.pi)
@@ -91,13 +100,32 @@ FIELDS = [
     Field("present_input_voltage", 144, 2, False, 120),
     Field("present_temperature", 146, 1, False, 30),
 ]
+#: (first Indirect Address, first Indirect Data, count) of the two indirect areas.
+INDIRECT_AREAS = ((168, 224, 28), (578, 634, 28))
+#: What an Indirect Address may name: the RAM area (e-Manual, "Indirect Address Range").
+INDIRECT_TARGETS = (EEPROM_END, TABLE_SIZE - 1)
+_number = 0
+for _address_at, _data_at, _count in INDIRECT_AREAS:
+    for _k in range(_count):
+        _number += 1
+        FIELDS.append(Field(f"indirect_address_{_number}", _address_at + 2 * _k, 2, True,
+                            _data_at + _k, low=INDIRECT_TARGETS[0], high=INDIRECT_TARGETS[1]))
+        FIELDS.append(Field(f"indirect_data_{_number}", _data_at + _k, 1, True))
+#: Indirect Data byte address -> the address of the Indirect Address item that maps it.
+INDIRECT_DATA = {
+    data_at + k: address_at + 2 * k
+    for address_at, data_at, count in INDIRECT_AREAS for k in range(count)
+}
+INDIRECT_DATA_SPANS = tuple((data_at, data_at + count) for _, data_at, count in INDIRECT_AREAS)
 BY_NAME = {f.name: f for f in FIELDS}
 #: For every byte address, the field it belongs to (None: reserved, reads as 0).
 OWNER: list[Field | None] = [None] * TABLE_SIZE
 for _f in FIELDS:
     for _a in range(_f.address, _f.address + _f.size):
         OWNER[_a] = _f
+#: The items the plant's state refreshes before a read: [PRESENT_START, PRESENT_END).
 PRESENT_START = BY_NAME["realtime_tick"].address
+PRESENT_END = BY_NAME["present_temperature"].address + 1
 #: Goals whose magnitude another item bounds (a write beyond it is a Data Limit Error).
 GOAL_LIMITS = {
     "goal_pwm": "pwm_limit",

@@ -5,6 +5,10 @@ the bytes after it (instruction, stuffed parameters, CRC). Inside instruction an
 parameters, every ``FF FF FD`` is followed by a stuffing ``FD`` so that no header appears
 inside a packet. The CRC is CRC-16 (polynomial 0x8005, initial 0, not reflected) over
 everything before it, header included, after stuffing.
+
+The one exception is the status of Fast Sync Read and Fast Bulk Read (:func:`fast_status`):
+one packet that every servo read contributes a block to, neither stuffed nor checked as a
+whole by the servos, see there.
 """
 
 from __future__ import annotations
@@ -28,8 +32,10 @@ class Instruction(IntEnum):
     STATUS = 0x55
     SYNC_READ = 0x82
     SYNC_WRITE = 0x83
+    FAST_SYNC_READ = 0x8A
     BULK_READ = 0x92
     BULK_WRITE = 0x93
+    FAST_BULK_READ = 0x9A
 
 
 class Error(IntEnum):
@@ -61,8 +67,8 @@ def _crc_table() -> list[int]:
 _TABLE = _crc_table()
 
 
-def crc16(data: bytes) -> int:
-    crc = 0
+def crc16(data: bytes, crc: int = 0) -> int:
+    """CRC-16 of ``data``; ``crc``: the CRC of the bytes before it, to continue a running one."""
     for byte in data:
         crc = ((crc << 8) ^ _TABLE[((crc >> 8) ^ byte) & 0xFF]) & 0xFFFF
     return crc
@@ -97,6 +103,29 @@ def encode(dxl_id: int, instruction: int, params: bytes = b"") -> bytes:
 
 def status(dxl_id: int, error: int, params: bytes = b"") -> bytes:
     return encode(dxl_id, Instruction.STATUS, bytes([error]) + params)
+
+
+def fast_status(blocks: list[tuple[int, int, bytes]], *, length: int) -> bytes:
+    """The one status packet of a Fast Sync/Bulk Read, of ``(id, error, data)`` blocks.
+
+    e-Manual, Protocol 2.0, Fast Sync Read: ``FF FF FD 00 FE LEN 55`` then, per servo in
+    the order the instruction listed them, ``ERR ID DATA... CRC_L CRC_H``. The first servo
+    sends the header with the length of the whole packet (``length``, the LEN field);
+    each servo's CRC covers every byte on the wire before it (header and earlier blocks,
+    CRCs included), so the last one is the packet's CRC. Not byte-stuffed. Fewer
+    ``blocks`` than announced is the packet cut short where a servo did not answer.
+    """
+    if not blocks:
+        return b""
+    out = bytearray(HEADER) + bytes([BROADCAST_ID]) + length.to_bytes(2, "little")
+    out.append(Instruction.STATUS)
+    crc = crc16(bytes(out))
+    for dxl_id, error, data in blocks:
+        block = bytes([error, dxl_id]) + data
+        crc = crc16(block, crc)
+        out += block + crc.to_bytes(2, "little")
+        crc = crc16(bytes(out[-2:]), crc)
+    return bytes(out)
 
 
 @dataclass(frozen=True)

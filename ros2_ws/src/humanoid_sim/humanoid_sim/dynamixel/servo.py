@@ -5,6 +5,12 @@ address, or EEPROM while torque is on, is an access error; a write that covers o
 an item is a data length error; a value outside an item's range is a data range error; a
 goal beyond its limit item (position limits in position control mode, PWM, current and
 velocity limits) is a data limit error. A refused write changes nothing.
+
+Indirect Data bytes stand for the bytes their Indirect Address items name: a read returns
+the named byte, a write is checked and done as a write of the named bytes (so four Indirect
+Data bytes mapped to Goal Position take a 4-byte goal, and two of them a data length
+error). One level only: an Indirect Address naming an Indirect Data byte (the default)
+makes that byte plain storage.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from . import control_table as ct
 from .plant import Plant
 from .protocol import Error
 
+(_LOW_1, _HIGH_1), (_LOW_2, _HIGH_2) = ct.INDIRECT_DATA_SPANS
 #: Speed when profile_velocity is 0 ("infinite" on a real servo): the no-load speed.
 NO_LOAD_SPEED_RAD_S = 46 * 2 * math.pi / 60
 
@@ -23,12 +30,16 @@ NO_LOAD_SPEED_RAD_S = 46 * 2 * math.pi / 60
 class Servo:
     """A control table backed by a :class:`Plant` joint; present values come from it."""
 
-    def __init__(self, dxl_id: int, plant: Plant) -> None:
+    def __init__(self, dxl_id: int, plant: Plant, *,
+                 firmware_version: int = ct.FIRMWARE_VERSION) -> None:
         """``dxl_id`` is the servo's factory ID and the plant joint it is mounted on.
 
         The joint stays the same if a driver writes another ID: it is the wiring.
+        ``firmware_version`` decides what the servo understands (Fast Sync Read from
+        :data:`~.control_table.FAST_READ_FIRMWARE` on).
         """
         self.joint = dxl_id
+        self.firmware_version = firmware_version
         self.table = bytearray(ct.TABLE_SIZE)
         self.plant = plant
         self.registered: tuple[int, bytes] | None = None
@@ -70,19 +81,45 @@ class Servo:
         for field in ct.FIELDS:
             if field.name not in keep and not (ram_only and field.address < ct.EEPROM_END):
                 self._set(field, field.default)
+        self._set(ct.BY_NAME["firmware_version"], self.firmware_version)
         self.registered = None
         self._command()
 
     # -- reads ----------------------------------------------------------------------------
 
+    @property
+    def fast_read(self) -> bool:
+        """Whether this servo answers Fast Sync Read and Fast Bulk Read."""
+        return self.firmware_version >= ct.FAST_READ_FIRMWARE
+
+    def _physical(self, address: int) -> int:
+        """The table byte ``address`` stands for (itself, or what its Indirect Address names)."""
+        pointer = ct.INDIRECT_DATA.get(address)
+        if pointer is None:
+            return address
+        target = int.from_bytes(self.table[pointer : pointer + 2], "little")
+        return address if target in ct.INDIRECT_DATA else target
+
+    def _map(self, address: int, length: int) -> list[int] | None:
+        """The table bytes a read or write of ``address``.. covers; None: all are direct."""
+        end = address + length
+        if not (end > _LOW_1 and address < _HIGH_1) and not (end > _LOW_2 and address < _HIGH_2):
+            return None  # the common case, checked without a loop: every read passes here
+        return [self._physical(a) for a in range(address, end)]
+
     def read(self, address: int, length: int) -> tuple[int, bytes]:
         if length < 1:
             return Error.DATA_RANGE, b""
         if address + length > ct.TABLE_SIZE:
-            return Error.ACCESS, b""  # past the emulated table: an undefined address
-        if address + length > ct.PRESENT_START:
+            return Error.ACCESS, b""  # past the control table: an undefined address
+        mapped = self._map(address, length)
+        if mapped is None:
+            if address < ct.PRESENT_END and address + length > ct.PRESENT_START:
+                self._refresh()
+            return Error.NONE, bytes(self.table[address : address + length])
+        if any(ct.PRESENT_START <= a < ct.PRESENT_END for a in mapped):
             self._refresh()
-        return Error.NONE, bytes(self.table[address : address + length])
+        return Error.NONE, bytes(self.table[a] for a in mapped)
 
     def _refresh(self) -> None:
         s = self.plant.state(self.joint)
@@ -102,24 +139,36 @@ class Servo:
 
     def check_write(self, address: int, data: bytes) -> int:
         """The error a write would get, without doing it (REG_WRITE checks early too)."""
-        end = address + len(data)
+        return self._plan(address, data)[0]
+
+    def _plan(self, address: int, data: bytes) -> tuple[int, dict[int, int]]:
+        """(error, the bytes the write would put where) of a write of ``data``."""
         if not data:
-            return Error.DATA_LENGTH
-        if end > ct.TABLE_SIZE:
-            return Error.ACCESS
-        first, last = ct.OWNER[address], ct.OWNER[end - 1]
-        if (first is not None and first.address < address) or (
-            last is not None and last.address + last.size > end
-        ):
+            return Error.DATA_LENGTH, {}
+        if address + len(data) > ct.TABLE_SIZE:
+            return Error.ACCESS, {}
+        writes = self._bytes(address, data)
+        return self._check(writes), writes
+
+    def _bytes(self, address: int, data: bytes) -> dict[int, int]:
+        """What a write of ``data`` at ``address`` puts where, Indirect Data resolved."""
+        mapped = self._map(address, len(data))
+        if mapped is None:
+            return dict(zip(range(address, address + len(data)), data, strict=True))
+        return dict(zip(mapped, data, strict=True))
+
+    def _check(self, writes: dict[int, int]) -> int:
+        fields = {ct.OWNER[a] for a in writes}
+        written = [f for f in fields if f is not None]
+        if any(a not in writes for f in written for a in range(f.address, f.address + f.size)):
             return Error.DATA_LENGTH  # e.g. two bytes of a four-byte item
-        fields = {ct.OWNER[a] for a in range(address, end)}
-        if None in fields or any(not f.writable for f in fields if f is not None):
+        if None in fields or any(not f.writable for f in written):
             return Error.ACCESS
-        if address < ct.EEPROM_END and self.get("torque_enable"):
+        if min(writes) < ct.EEPROM_END and self.get("torque_enable"):
             return Error.ACCESS  # EEPROM is locked while torque is on
         trial = bytearray(self.table)
-        trial[address:end] = data
-        written = [f for f in fields if f is not None]
+        for a, byte in writes.items():
+            trial[a] = byte
         for f in written:
             value = self._value(trial, f)
             if (f.low is not None and value < f.low) or (f.high is not None and value > f.high):
@@ -138,10 +187,11 @@ class Servo:
         return Error.NONE
 
     def write(self, address: int, data: bytes) -> int:
-        error = self.check_write(address, data)
+        error, writes = self._plan(address, data)
         if error:
             return error
-        self.table[address : address + len(data)] = data
+        for a, byte in writes.items():
+            self.table[a] = byte
         self._command()
         return Error.NONE
 
