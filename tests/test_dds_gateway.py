@@ -6,6 +6,8 @@ another process is to DDS. ``test_processes.py`` repeats the key cases across pr
 
 from __future__ import annotations
 
+import threading
+import time
 from collections import Counter
 from typing import Any
 
@@ -134,3 +136,37 @@ def test_publish_from_another_thread_reaches_callbacks_in_the_executor_thread() 
             talker.say(str(i))
         worker.join()
         assert threads == [worker.ident] * 3
+
+
+def test_a_foreign_thread_publishing_1khz_at_depth_10_loses_nothing() -> None:
+    """Another thread's publish wakes a DDS container's executor at once.
+
+    The executor waits inside rclpy's wait set; if a publish from another thread did not end
+    that wait, the message would sit in its depth-10 queue until the poll timeout and at
+    1 kHz most of them would be dropped (81 of 400 arrived before the guard condition).
+    """
+    topic = unique_topic("foreign")
+    count = 1000
+    with Container("foreign", domain_id=isolated_domain_id(), serve=False) as container:
+        talker = container.add(lambda n: Talker(n, topic), name="talker")
+        heard: list[String] = []
+        container.add(
+            lambda n: n.create_subscription(String, topic, heard.append, qos=10), name="ear"
+        )
+
+        def publish() -> None:
+            period = 0.001
+            start = time.monotonic()
+            for i in range(count):
+                # 1 kHz paced on the clock, so a late wake-up of this thread cannot slow it
+                time.sleep(max(0.0, start + i * period - time.monotonic()))
+                talker.pub.publish(String(data=str(i)))
+
+        thread = threading.Thread(target=publish)
+        thread.start()
+        try:
+            assert container.spin_until(lambda: len(heard) == count, timeout_s=60)
+        finally:
+            thread.join()
+        assert [m.data for m in heard] == [str(i) for i in range(count)]
+        assert not [s for s in container.stats() if s.dropped], container.stats()

@@ -16,7 +16,8 @@ executor does the same for ROS 2 in Python, with a selectable order:
 Timers run on the executor's clock (real ROS time, or a :class:`ManualClock` advanced by
 :meth:`ConsecutiveExecutor.advance`). DDS entities (subscriptions from other processes,
 services, clients, graph events) are waited on through an rclpy executor inside, only when
-the container talks DDS. A callback that raises is logged and counted; the others go on.
+the container talks DDS; a guard condition in that wait set lets another thread's publish
+wake it at once. A callback that raises is logged and counted; the others go on.
 """
 
 from __future__ import annotations
@@ -165,6 +166,7 @@ class ConsecutiveExecutor:
         self._stop = False
         self._wake_event = threading.Event()
         self._dds: RclpyExecutor | None = None
+        self._dds_wake: Callable[[], None] | None = None
         self._last_dds_poll = 0
         self._dds_poll_interval = DDS_POLL_INTERVAL_NS
         self.registry = StatsRegistry()
@@ -177,9 +179,22 @@ class ConsecutiveExecutor:
 
     # -- wiring --------------------------------------------------------------------------
 
-    def attach_dds(self, rclpy_executor: RclpyExecutor) -> None:
-        """Wait on DDS entities through ``rclpy_executor`` (the container adds its nodes)."""
+    def attach_dds(self, rclpy_executor: RclpyExecutor, *, wake: Callable[[], None]) -> None:
+        """Wait on DDS entities through ``rclpy_executor`` (the container adds its nodes).
+
+        ``wake`` must make ``rclpy_executor.spin_once`` return: trigger a guard condition
+        with a callback on one of its nodes. The executor's own ``wake()`` is not enough:
+        it only makes rclpy rebuild its wait set and wait again for the rest of the timeout,
+        so a message published from another thread would wait for the poll timeout.
+        """
         self._dds = rclpy_executor
+        self._dds_wake = wake
+
+    def detach_dds(self) -> None:
+        """Stop waiting on DDS (the container is leaving it); later waits are plain."""
+        self._dds_wake = None
+        self._dds = None
+        self._wake_event.set()
 
     def create_timer(
         self, period_s: float, callback: Callable[[], None], *, stats: CallbackStats, logger: Logger
@@ -394,8 +409,8 @@ class ConsecutiveExecutor:
         return timers[0][0] if timers else None
 
     def _wake(self) -> None:
-        if self._dds is not None:
-            self._dds.wake()
+        if self._dds_wake is not None:
+            self._dds_wake()
         else:
             self._wake_event.set()
 
