@@ -30,6 +30,7 @@ from .errors import ExecutorError as ExecutorError
 from .errors import MessageMutatedError as MessageMutatedError
 from .errors import NameResolutionError as NameResolutionError
 from .errors import ParameterError as ParameterError
+from .errors import ServiceFailedError as ServiceFailedError
 from .errors import TopicTypeError as TopicTypeError
 from .executor import ConsecutiveExecutor as ConsecutiveExecutor
 from .handle import NodeHandle as NodeHandle

@@ -20,6 +20,7 @@ from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ._failures import failure_outcome, failure_response, local_failure, without_answer
 from ._future import Future
 from ._names import Resolver, check_node_name, fully_qualified
 from ._params import LocalParameters, ParameterMethods, RclpyParameters, parameter_type
@@ -71,7 +72,7 @@ class RecordingLogger:
 class LocalService:
     """A service callback reachable by in-process clients without DDS."""
 
-    __slots__ = ("callback", "handle", "service_name", "srv_type", "stats")
+    __slots__ = ("callback", "handle", "service_name", "srv_type", "stats", "what")
 
     def __init__(
         self, handle: ComposedHandle, srv_type: type, name: str, callback: Callable[..., Any]
@@ -83,16 +84,18 @@ class LocalService:
         self.stats = handle._container.executor.registry.add(
             handle.fully_qualified_name, "service", name
         )
+        self.what = f"service {name} ({failure_outcome(srv_type)})"
 
-    def serve(self, request: Any) -> Any:
-        """The callback's response; if it raised (logged and counted), an empty response,
-        which is also what a caller in another process gets."""
-        empty = getattr(self.srv_type, "Response")()  # noqa: B009
+    def serve(self, request: Any) -> tuple[Any | None, BaseException | None]:
+        """``(response, None)``, or if the callback raised (logged and counted):
+        ``(failure response or None, the exception)`` (see :mod:`efficient_comm._failures`)."""
         ok, response = self.handle._container.executor.call(
-            self.stats, self.handle.logger, f"service {self.service_name}",
-            self.callback, request, empty,
+            self.stats, self.handle.logger, self.what,
+            self.callback, request, getattr(self.srv_type, "Response")(),  # noqa: B009
         )
-        return response if ok else empty
+        if ok:
+            return response, None
+        return failure_response(self.srv_type, self.service_name, response), response
 
 
 class ComposedClient:
@@ -126,7 +129,14 @@ class ComposedClient:
         future = Future(self._invoke)
         local = self._handle._container._services.get(self._name)
         if local is not None:
-            self._handle._container.executor.post(lambda: future.set_result(local.serve(request)))
+            def answer() -> None:
+                response, error = local.serve(request)
+                if response is None and error is not None:
+                    future.set_exception(local_failure(local.service_name, error))
+                else:
+                    future.set_result(response)
+
+            self._handle._container.executor.post(answer)
         elif self._dds is not None:
             self._dds.call_async(request).add_done_callback(
                 lambda done: future.set_result(done.result())
@@ -275,7 +285,9 @@ class ComposedHandle(ParameterMethods):
         self._services.append(full)
         node = self.rclpy_node
         if node is not None:
-            node.create_service(srv_type, full, lambda request, _: service.serve(request))
+            without_answer(
+                node.create_service(srv_type, full, lambda request, _: service.serve(request)[0])
+            )
         return service
 
     def create_client(self, srv_type: type, name: str) -> ComposedClient:

@@ -26,12 +26,12 @@ import heapq
 import itertools
 import threading
 import time
-import traceback
 from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from ._clock import ManualClock, SystemClock
+from ._failures import report_failure
 from .errors import ExecutorError, MessageMutatedError
 from .guard import MutationReport, fingerprint
 from .stats import CallbackStats, StatsRegistry, StatsSnapshot
@@ -238,7 +238,7 @@ class ConsecutiveExecutor:
     ) -> tuple[bool, Any]:
         """Run a component callback: timed, and logged and counted if it raises.
 
-        Returns ``(True, result)``, or ``(False, None)`` if it raised.
+        Returns ``(True, result)``, or ``(False, the exception)`` if it raised.
         """
         outer = self._nested_ns
         self._nested_ns = 0
@@ -246,19 +246,19 @@ class ConsecutiveExecutor:
         ok, result = True, None
         try:
             result = fn(*args)
-        except Exception:
-            ok = False
-            if stats is not None:
-                stats.exceptions += 1
-            log = logger or self._logger
-            if log is not None:
-                log.error(f"{what} raised:\n{traceback.format_exc().rstrip()}")
+        except Exception as exc:
+            ok, result = False, exc
+            report_failure(stats, logger or self._logger, what, self._now_ns())
         end = time.perf_counter_ns()
         if stats is not None:
             stamp = self.clock.now_ns() if self._manual else start
             stats.record(stamp, end - start - self._nested_ns)
         self._nested_ns = outer + end - start
         return ok, result
+
+    def _now_ns(self) -> int:
+        """Monotonic time for rate limits: the manual clock, so tests can advance it."""
+        return self.clock.now_ns() if self._manual else time.monotonic_ns()
 
     # -- delivery (the hot path) -----------------------------------------------------------
 
@@ -317,10 +317,7 @@ class ConsecutiveExecutor:
         try:
             sub.callback(msg)
         except Exception:
-            stats.exceptions += 1
-            sub.logger.error(
-                f"callback on {sub.topic.name} raised:\n{traceback.format_exc().rstrip()}"
-            )
+            report_failure(stats, sub.logger, f"callback on {sub.topic.name}", self._now_ns())
         end = time.perf_counter_ns()
         stats.record(self.clock.now_ns() if self._manual else start, end - start - self._nested_ns)
         self._nested_ns = outer + end - start
@@ -358,8 +355,7 @@ class ConsecutiveExecutor:
         try:
             timer.callback()
         except Exception:
-            stats.exceptions += 1
-            timer.logger.error(f"timer callback raised:\n{traceback.format_exc().rstrip()}")
+            report_failure(stats, timer.logger, f"timer {stats.name}".rstrip(), self._now_ns())
         end = time.perf_counter_ns()
         stats.record(self.clock.now_ns() if self._manual else start, end - start - self._nested_ns)
         self._nested_ns = 0

@@ -21,7 +21,6 @@ import argparse
 import contextlib
 import sys
 import time
-import traceback
 from collections.abc import Callable, Sequence
 from typing import Any, cast
 
@@ -32,6 +31,7 @@ from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
 from ._closing import Closing
+from ._failures import failure_outcome, failure_response, report_failure, without_answer
 from ._future import Future
 from ._params import ParameterMethods, RclpyParameters
 from ._qos import to_profile
@@ -100,19 +100,24 @@ class StandaloneHandle(ParameterMethods):
         """Record time and frequency, and log (not propagate) exceptions, like composed."""
         return self._guarded(self.registry.add(self.fully_qualified_name, kind, name), callback)
 
-    def _guarded(self, stats: CallbackStats, callback: Callable[..., Any]) -> Callable[..., Any]:
+    def _guarded(
+        self,
+        stats: CallbackStats,
+        callback: Callable[..., Any],
+        *,
+        what: str = "",
+        on_failure: Callable[[BaseException], Any] | None = None,
+    ) -> Callable[..., Any]:
         logger = self.logger
-        kind, name = stats.kind, stats.name
+        what = what or f"{stats.kind} {stats.name}"
 
         def timed(*args: Any) -> Any:
             start = time.perf_counter_ns()
             try:
                 return callback(*args)
-            except Exception:
-                stats.exceptions += 1
-                logger.error(f"{kind} {name} raised:\n{traceback.format_exc().rstrip()}")
-                # A failed service answers with an empty response, as on every backend.
-                return type(args[-1])() if kind == "service" else None
+            except Exception as exc:
+                report_failure(stats, logger, what, time.monotonic_ns())
+                return on_failure(exc) if on_failure is not None else None
             finally:
                 stats.record(start, time.perf_counter_ns() - start)
 
@@ -139,9 +144,14 @@ class StandaloneHandle(ParameterMethods):
         self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
     ) -> Service:
         full = self.rclpy_node.resolve_service_name(name)
-        return self.rclpy_node.create_service(
-            srv_type, name, self._timed("service", full, callback)
+        stats = self.registry.add(self.fully_qualified_name, "service", full)
+        timed = self._guarded(
+            stats, callback, what=f"service {full} ({failure_outcome(srv_type)})",
+            on_failure=lambda exc: failure_response(srv_type, full, exc),
         )
+        service = self.rclpy_node.create_service(srv_type, name, timed)
+        without_answer(service)  # a failure without a failure response stays unanswered
+        return service
 
     def create_client(self, srv_type: type, name: str) -> Client:
         return StandaloneClient(self, srv_type, name)

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from ._failures import FailureLog
+
 CallbackKind = Literal["subscription", "timer", "service", "client"]
 
 
@@ -50,6 +52,7 @@ class CallbackStats:
         "calls",
         "dropped",
         "exceptions",
+        "failures",
         "first_call_ns",
         "kind",
         "last_call_ns",
@@ -65,6 +68,8 @@ class CallbackStats:
         self.name = name
         self.calls = 0
         self.exceptions = 0
+        #: What of its exceptions was logged (see efficient_comm._failures).
+        self.failures = FailureLog()
         self.dropped = 0
         self.total_ns = 0
         self.max_ns = 0

@@ -9,9 +9,9 @@ import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from efficient_comm import ParameterError
+from efficient_comm import ParameterError, ServiceFailedError
 from efficient_comm.handle import NodeHandle, ParameterValue
-from efficient_comm_interfaces.srv import UnloadComponent
+from efficient_comm_interfaces.srv import ListComponents, UnloadComponent
 
 from .conformance import BACKENDS, harness
 
@@ -134,18 +134,55 @@ def test_transient_local_reaches_late_joiners(backend: str) -> None:
         assert status[0].data == "ready /late"
 
 
-def test_services_answer_and_survive_errors(backend: str) -> None:
+def test_services_answer_and_a_failure_is_told_apart_from_an_answer(
+    backend: str, capfd: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
     with harness(backend, Adder) as h:
         client = h.client(UnloadComponent, "/double")
         assert h.wait_for(client.service_is_ready)
         bad = client.call_async(UnloadComponent.Request(unique_id=13))
         good = client.call_async(UnloadComponent.Request(unique_id=21))
         assert h.wait_for(good.done)
-        assert good.result().error_message == "42"
+        assert good.result().success and good.result().error_message == "42"
         assert h.wait_for(bad.done)
-        # Same on every backend: the failure is logged and counted by the server, and the
-        # caller gets an empty response (the only thing DDS could carry anyway).
+        # Same on every backend: the response says the call failed, and why; the server's
+        # log names the service and the exception.
         assert bad.exception() is None and not bad.result().success
+        assert "/double" in bad.result().error_message
+        assert "unlucky" in bad.result().error_message
+        logged = capfd.readouterr().err + caplog.text
+        assert "service /double" in logged and "RuntimeError: unlucky" in logged, logged
+
+
+class Lister:
+    """A service whose type has no success field: the first call fails, the second works."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.calls = 0
+        node.create_service(ListComponents, "list", self._list)
+
+    def _list(self, request: Any, response: Any) -> Any:
+        self.calls += 1
+        if self.calls == 1:
+            raise RuntimeError("first call fails")
+        response.full_node_names = ["/answered"]
+        return response
+
+
+def test_a_failure_of_a_service_without_success_field_is_no_answer(backend: str) -> None:
+    with harness(backend, Lister) as h:
+        client = h.client(ListComponents, "/list")
+        assert h.wait_for(client.service_is_ready)
+        bad = client.call_async(ListComponents.Request())
+        assert h.wait_for(lambda: h.component.calls == 1)
+        good = client.call_async(ListComponents.Request())
+        assert h.wait_for(good.done)
+        assert list(good.result().full_node_names) == ["/answered"]
+        if backend == "test":  # a caller in the same process gets the exception
+            assert isinstance(bad.exception(), ServiceFailedError)
+            assert "first call fails" in str(bad.exception())
+        else:  # an answer to the first call would have arrived before the second's
+            assert not bad.done()
 
 
 class Fussy:
