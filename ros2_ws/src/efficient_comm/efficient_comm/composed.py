@@ -229,7 +229,9 @@ class ComposedHandle(ParameterMethods):
     ) -> LocalPublisher:
         name = self.resolve(topic)
         profile = to_profile(qos)
-        pub = self._container.bus.add_publisher(name, msg_type, profile, owner=self._fqn)
+        pub = self._container.bus.add_publisher(
+            name, msg_type, profile, owner=self._fqn, logger=self._logger
+        )
         node = self.rclpy_node
         if node is not None:
 
