@@ -219,6 +219,25 @@ def test_parameter_edge_cases_agree(backend: str) -> None:
         assert node.get_parameter("first") == 1 and node.get_parameter("ints") == [1, 2]
 
 
+class Labeller:
+    """Declares a parameter the deployment gives no value (``-p label:=#``)."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.error: ParameterError | None = None
+        try:
+            node.declare_parameter("label", ">")
+        except ParameterError as exc:
+            self.error = exc
+
+
+def test_an_override_with_no_value_is_refused_naming_the_parameter(backend: str) -> None:
+    with harness(backend, Labeller, parameters={"label": None}) as h:
+        assert h.component.error is not None, "a None override was accepted"
+        assert "'label'" in str(h.component.error)
+        with pytest.raises(ParameterError):
+            h.handle.get_parameter("label")  # nothing was declared
+
+
 def test_subscription_count_tells_whether_anyone_listens(backend: str) -> None:
     with harness(backend, Fussy) as h:
         assert h.component.pub.get_subscription_count() == 0
