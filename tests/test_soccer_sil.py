@@ -186,6 +186,7 @@ def test_demo_runs_headless_and_leaves_a_report(tmp_path: Path) -> None:
     text = report.read_text()
     assert "tracking error" in text and "real-time factor" in text
     assert "| servos answering | 20 of 20" in text
+    assert " /robot/camera/image_raw " in text  # the callback table shows whole topic names
 
 
 def test_real_time_demo_with_dds_stops_cleanly_on_ctrl_c(tmp_path: Path) -> None:

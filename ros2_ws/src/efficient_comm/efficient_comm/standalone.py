@@ -256,8 +256,14 @@ class Standalone(Closing):
 
 
 
-def run(factory: Callable[[Any], Any], *, name: str, args: Sequence[str] | None = None) -> int:
-    """Run ``factory`` as a standalone node until interrupted; returns an exit code."""
+def run_standalone(
+    factory: Callable[[Any], Any], *, name: str, args: Sequence[str] | None = None
+) -> int:
+    """Run ``factory`` as a standalone node until interrupted; returns an exit code.
+
+    What a console script's ``main`` does (see :func:`standalone_main`), for commands that
+    parse options of their own first: a bad component prints one ``error:`` line (1).
+    """
     stop_on_sigterm()
     try:
         with Standalone(factory, name=name, args=sys.argv if args is None else args) as node:
@@ -274,7 +280,7 @@ def standalone_main(factory: Callable[[Any], Any], *, name: str) -> Callable[[],
     """A console-script ``main`` that runs ``factory`` as node ``name``."""
 
     def main() -> int:
-        return run(factory, name=name)
+        return run_standalone(factory, name=name)
 
     return main
 
@@ -295,4 +301,4 @@ def cli(argv: Sequence[str] | None = None) -> int:
     default = "".join(
         "_" + c.lower() if c.isupper() else c for c in getattr(factory, "__name__", "node")
     ).lstrip("_")
-    return run(factory, name=options.name or default, args=argv)
+    return run_standalone(factory, name=options.name or default, args=argv)

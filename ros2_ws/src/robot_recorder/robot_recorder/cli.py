@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from efficient_comm.standalone import run
+from efficient_comm import run_standalone as run
 
 from .recorder import Recorder
 

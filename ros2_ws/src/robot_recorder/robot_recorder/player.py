@@ -262,7 +262,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     [--stamps original|aligned|shifted]`` as a standalone node (``--ros-args`` after)."""
     import argparse
 
-    from efficient_comm.standalone import run
+    from efficient_comm import run_standalone as run
 
     args_in = list(sys.argv[1:] if argv is None else argv)
     ros_args: list[str] = []

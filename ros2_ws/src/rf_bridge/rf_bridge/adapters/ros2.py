@@ -162,6 +162,6 @@ class BridgeNode:
 
 
 def main() -> int:
-    from efficient_comm.standalone import run
+    from efficient_comm import run_standalone as run
 
     return run(BridgeNode, name="rf_bridge")
