@@ -227,8 +227,12 @@ class Bus:
         A subscriber created later uses it to match what is offered, e.g. to subscribe best
         effort when a publisher is best effort (a reliable subscription would get nothing).
         """
+        return [pub.qos for pub in self.publishers(name)]
+
+    def publishers(self, name: str) -> list[LocalPublisher]:
+        """This process's publishers on topic ``name``."""
         topic = self._topics.get(name)
-        return [pub.qos for pub in topic.publishers] if topic is not None else []
+        return list(topic.publishers) if topic is not None else []
 
     def add_publisher(
         self, name: str, msg_type: type, qos: QoSProfile, *, owner: str,

@@ -22,6 +22,7 @@ from rclpy.parameter import Parameter
 
 from ._failures import failure_outcome, failure_response, local_failure, without_answer
 from ._future import Future
+from ._graph import NodeGraph
 from ._names import Resolver, check_node_name, fully_qualified
 from ._params import LocalParameters, ParameterMethods, RclpyParameters, parameter_type
 from ._qos import is_transient_local, to_profile
@@ -30,12 +31,14 @@ from .errors import ComponentError
 from .executor import ExecutorTimer
 from .handle import (
     Clock,
+    ClockKind,
     Logger,
     MessageCallback,
     Publisher,
     QoSLike,
     Subscription,
     Timer,
+    TimerSchedule,
 )
 
 if TYPE_CHECKING:
@@ -218,7 +221,21 @@ class ComposedHandle(ParameterMethods):
     def clock(self) -> Clock:
         return self._container.executor.clock
 
-    def resolve(self, topic: str) -> str:
+    # -- capabilities --------------------------------------------------------------------
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        return self._container.executor.clock_kind
+
+    @property
+    def graph(self) -> NodeGraph:
+        return NodeGraph(bus=self._container.bus, node=self.rclpy_node)
+
+    @property
+    def timer_schedule(self) -> TimerSchedule:
+        return self._container.executor
+
+    def resolve_topic_name(self, topic: str) -> str:
         """The full name ``topic`` has for this node (namespace and remapping applied)."""
         return self._resolver.resolve(topic)
 
@@ -227,7 +244,7 @@ class ComposedHandle(ParameterMethods):
     def create_publisher(
         self, msg_type: type, topic: str, *, qos: QoSLike = 10
     ) -> LocalPublisher:
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         profile = to_profile(qos)
         pub = self._container.bus.add_publisher(
             name, msg_type, profile, owner=self._fqn, logger=self._logger
@@ -249,7 +266,7 @@ class ComposedHandle(ParameterMethods):
     def create_subscription(
         self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
     ) -> LocalSubscription:
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         profile = to_profile(qos)
         executor = self._container.executor
         stats = executor.registry.add(self._fqn, "subscription", name)
@@ -276,7 +293,7 @@ class ComposedHandle(ParameterMethods):
     def create_service(
         self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
     ) -> LocalService:
-        full = self.resolve(name)
+        full = self.resolve_topic_name(name)
         services = self._container._services
         if full in services:
             raise ComponentError(
@@ -293,7 +310,7 @@ class ComposedHandle(ParameterMethods):
         return service
 
     def create_client(self, srv_type: type, name: str) -> ComposedClient:
-        client = ComposedClient(self, srv_type, self.resolve(name))
+        client = ComposedClient(self, srv_type, self.resolve_topic_name(name))
         self._clients.append(client)
         return client
 

@@ -37,7 +37,7 @@ from .config import ComponentSpec, parse_file, resolve_factory
 from .dds import local_endpoints_ignored, prepare_process
 from .errors import ComponentError, ConfigError, DdsSetupError, EfficientCommError
 from .executor import ConsecutiveExecutor, GuardMode, Strategy
-from .handle import Clock, Logger
+from .handle import Clock, ClockKind, Logger
 from .stats import StatsSnapshot
 
 
@@ -260,6 +260,11 @@ class Container(Closing):
 
     def stats(self) -> list[StatsSnapshot]:
         return self.executor.stats()
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        """Whether the components' clock runs by itself or only in :meth:`advance`."""
+        return self.executor.clock_kind
 
     def shutdown(self) -> None:
         self.executor.shutdown()

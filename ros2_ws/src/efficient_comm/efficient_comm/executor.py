@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from rclpy.executors import Executor as RclpyExecutor
 
     from .bus import LocalSubscription
-    from .handle import Clock, Logger
+    from .handle import Clock, ClockKind, Logger
 
 Strategy = Literal["depth_first", "breadth_first"]
 #: False, True (log and record each mutation) or "raise" (also raise MessageMutatedError).
@@ -209,6 +209,11 @@ class ConsecutiveExecutor:
     def _schedule(self, timer: ExecutorTimer, due_ns: int) -> None:
         timer.next_ns = due_ns
         heapq.heappush(self._timers, (due_ns, next(self._seq), timer._generation, timer))
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        """"manual" on a :class:`ManualClock` (time moves in :meth:`advance`), else "system"."""
+        return "manual" if self._manual else "system"
 
     def next_timer_due_ns(self) -> int | None:
         """When the earliest scheduled timer is due (clock ns), or None without timers.

@@ -33,6 +33,7 @@ from rclpy.utilities import remove_ros_args
 from ._closing import Closing
 from ._failures import failure_outcome, failure_response, report_failure, without_answer
 from ._future import Future
+from ._graph import NodeGraph
 from ._params import ParameterMethods, RclpyParameters
 from ._qos import to_profile
 from ._signals import stop_on_sigterm
@@ -41,6 +42,7 @@ from .errors import ComponentError
 from .handle import (
     Client,
     Clock,
+    ClockKind,
     Logger,
     MessageCallback,
     Publisher,
@@ -93,6 +95,24 @@ class StandaloneHandle(ParameterMethods):
     @property
     def clock(self) -> Clock:
         return self._clock
+
+    # -- capabilities --------------------------------------------------------------------
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        return "system"
+
+    @property
+    def graph(self) -> NodeGraph:
+        return NodeGraph(bus=None, node=self.rclpy_node)
+
+    @property
+    def timer_schedule(self) -> None:
+        """rclpy's executor keeps its timers to itself."""
+        return None
+
+    def resolve_topic_name(self, topic: str) -> str:
+        return str(self.rclpy_node.resolve_topic_name(topic))
 
     def _timed(
         self, kind: CallbackKind, name: str, callback: Callable[..., Any]

@@ -138,7 +138,7 @@ class TestHandle(ComposedHandle):
         Only topics this handle created a publisher on are recorded; asking for another
         raises LookupError rather than answering an empty list that would pass a test.
         """
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         if name not in self._recorded:
             raise LookupError(
                 f"{self.fully_qualified_name} has no publisher on {name}; it publishes on "
@@ -152,7 +152,7 @@ class TestHandle(ComposedHandle):
 
     def inject(self, topic: str, *msgs: Any) -> None:
         """Publish ``msgs`` on ``topic`` as if from another node, then run what is ready."""
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         injector = self._injectors.get(name)
         if injector is None:
             msg_type = type(msgs[0])

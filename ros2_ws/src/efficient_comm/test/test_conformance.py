@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import String
+from std_msgs.msg import Int32, String
 
 from efficient_comm import ParameterError, ServiceFailedError
 from efficient_comm.handle import NodeHandle, ParameterValue
@@ -269,3 +269,53 @@ def test_failing_done_callbacks_are_contained(backend: str) -> None:
         caller.ask(2)
         assert h.wait_for(lambda: len(caller.answers) == 2)
         assert sorted(caller.answers) == ["2", "4"]
+
+
+BEST_EFFORT = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+class Prober:
+    """Publishes best effort on ``probe``; the capabilities are asked of its handle."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.pub = node.create_publisher(String, "probe", qos=BEST_EFFORT)
+
+
+class Elsewhere:
+    """Another node's latched publisher."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.pub = node.create_publisher(Int32, "/elsewhere", qos=LATCHED)
+
+
+def test_capabilities_names_graph_clock_kind_and_timer_schedule(backend: str) -> None:
+    with harness(backend, Prober, name="prober", namespace="/robot",
+                 remappings={"probe": "/robot/probed"}) as h:
+        node: NodeHandle = h.handle
+        assert node.resolve_topic_name("probe") == "/robot/probed"
+        assert node.resolve_topic_name("x") == "/robot/x"
+        assert node.resolve_topic_name("~/x") == "/robot/prober/x"
+        assert node.clock_kind == ("manual" if backend == "test" else "system")
+
+        h.serve(Elsewhere)
+        assert h.wait_for(lambda: "/elsewhere" in node.graph.topic_names_and_types())
+        types = node.graph.topic_names_and_types()
+        assert types["/robot/probed"] == ["std_msgs/msg/String"]
+        assert types["/elsewhere"] == ["std_msgs/msg/Int32"]
+        # The component's own publisher is counted once (in-process and DDS alike).
+        assert [q.reliability for q in node.graph.publishers_qos("/robot/probed")] == [
+            ReliabilityPolicy.BEST_EFFORT
+        ]
+        assert h.wait_for(lambda: len(node.graph.publishers_qos("/elsewhere")) == 1)
+        (offered,) = node.graph.publishers_qos("/elsewhere")
+        assert offered.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        assert node.graph.publishers_qos("/nobody") == []
+
+        schedule = node.timer_schedule
+        if backend == "standalone":
+            assert schedule is None  # rclpy's executor does not tell
+        else:
+            assert schedule is not None and schedule.next_timer_due_ns() is None
+            node.create_timer(2.0, lambda: None)
+            due = schedule.next_timer_due_ns()
+            assert due is not None and 0 < due - schedule.clock.now_ns() <= 2_000_000_000

@@ -23,9 +23,8 @@ from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from efficient_comm import ConsecutiveExecutor, Container, ManualClock, to_msg
-from efficient_comm.composed import ComposedHandle
-from efficient_comm.handle import NodeHandle, Subscription
+from efficient_comm import to_msg
+from efficient_comm.handle import NodeHandle, Subscription, TimerSchedule
 from throttle_publisher import ThrottledSubscription
 
 from .errors import RecorderConfigError, RecorderError, UnknownTypeError
@@ -187,13 +186,7 @@ class Recorder:
     # -- subscriptions -------------------------------------------------------------------
 
     def _resolve(self, topic: str) -> str:
-        resolve = getattr(self._node, "resolve", None)
-        if callable(resolve):
-            return str(resolve(topic))
-        rclpy_node = getattr(self._node, "rclpy_node", None)
-        if rclpy_node is not None:
-            return str(rclpy_node.resolve_topic_name(topic))
-        return topic
+        return self._node.resolve_topic_name(topic)
 
     def _subscribe_known(self) -> None:
         pending = {n: s for n, s in self._selections.items() if n not in self._active}
@@ -393,36 +386,15 @@ class _SwitchInterval:
 _SWITCH_INTERVAL = _SwitchInterval()
 
 
-def _container(node: NodeHandle) -> Container | None:
-    """The container of a composed component (None standalone: no in-process bus)."""
-    return node.container if isinstance(node, ComposedHandle) else None
-
-
 def _graph_types(node: NodeHandle) -> dict[str, str]:
     """Topic name -> ``pkg/msg/Type`` of every topic this process or the DDS graph knows."""
-    found: dict[str, str] = {}
-    container = _container(node)
-    if container is not None:
-        for name, msg_type in container.bus.topics().items():
-            try:
-                found[name] = type_name(msg_type)
-            except UnknownTypeError:
-                continue
-    rclpy_node = getattr(node, "rclpy_node", None)
-    if rclpy_node is not None:
-        for name, types in rclpy_node.get_topic_names_and_types():
-            if types and name not in found:
-                found[name] = types[0]
-    return found
+    return {name: types[0] for name, types in node.graph.topic_names_and_types().items()
+            if types}
 
 
 def _record_qos(node: NodeHandle, topic: str) -> QoSProfile:
     """Reliable unless a known publisher is best effort (a reliable reader would miss it)."""
-    container = _container(node)
-    offered = container.bus.publisher_qos(topic) if container is not None else []
-    rclpy_node = getattr(node, "rclpy_node", None)
-    if rclpy_node is not None:
-        offered += [i.qos_profile for i in rclpy_node.get_publishers_info_by_topic(topic)]
+    offered = node.graph.publishers_qos(topic)
     best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                       reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
@@ -440,15 +412,15 @@ def _timer_pacer(node: NodeHandle, before_s: float, after_s: float
     ``before_s`` ahead of the next deadline until ``after_s`` after it (the callbacks of that
     round run meanwhile). Only for composed components on a real clock; None otherwise.
     """
-    container = _container(node)
-    if container is None or isinstance(container.executor.clock, ManualClock):
+    schedule = node.timer_schedule
+    if schedule is None or node.clock_kind == "manual":
         return None
     if before_s <= 0 and after_s <= 0:
         return None
-    return _pacer(container.executor, int(before_s * 1e9), int(after_s * 1e9))
+    return _pacer(schedule, int(before_s * 1e9), int(after_s * 1e9))
 
 
-def _pacer(executor: ConsecutiveExecutor, before_ns: int, after_ns: int) -> Callable[[], float]:
+def _pacer(executor: TimerSchedule, before_ns: int, after_ns: int) -> Callable[[], float]:
     """The pacing function of :func:`_timer_pacer` (runs in the writer thread)."""
     clock, next_due = executor.clock, executor.next_timer_due_ns
     last_due = -(1 << 62)  # no round of callbacks seen yet
