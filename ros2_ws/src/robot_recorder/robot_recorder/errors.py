@@ -6,7 +6,9 @@
     ├── RecorderConfigError   bad topic selection, option or path (nothing was started)
     ├── UnknownTypeError      a message type whose module or .msg definition is not installed
     ├── StorageError          writing failed (disk full, free-space guard, I/O error)
-    └── PlaybackError         a bag that cannot be played (missing, unreadable, unknown type)
+    ├── PlaybackError         a bag that cannot be played (missing, unreadable, unknown type)
+    └── UnsupportedFieldError a field type the exact CDR length cannot be computed for
+                              (wstring, ...); cdr.py falls back to serializing
 """
 
 from __future__ import annotations
@@ -30,3 +32,7 @@ class StorageError(RecorderError, OSError):
 
 class PlaybackError(RecorderError):
     """A bag that cannot be played."""
+
+
+class UnsupportedFieldError(RecorderError, TypeError):
+    """A message field whose serialized length :mod:`robot_recorder.cdr` cannot compute."""
