@@ -139,10 +139,13 @@ def warmup_of(n: int) -> int:
 # -- plain rclpy rigs ----------------------------------------------------------------------
 
 
-def set_domain_from_pid() -> int:
-    """A ROS domain id (1..101) for this process unless the environment chose one."""
+def set_domain() -> int:
+    """A ROS domain id reserved for this process (efficient_comm.testing.isolated_domain_id:
+    no concurrent bench or test process gets it) unless the environment chose one."""
     if "ROS_DOMAIN_ID" not in os.environ:
-        os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 101)
+        from efficient_comm.testing import isolated_domain_id
+
+        os.environ["ROS_DOMAIN_ID"] = str(isolated_domain_id())
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return int(os.environ["ROS_DOMAIN_ID"])
 
@@ -160,7 +163,7 @@ class RclpyRig:
 
         if backend not in RCLPY_BACKENDS:
             raise ValueError(f"not an rclpy backend: {backend}")
-        set_domain_from_pid()
+        set_domain()
         self.context = Context()
         rclpy.init(context=self.context)
         self.backend = backend
@@ -236,7 +239,7 @@ class ComposedRig:
         if backend not in COMPOSED_BACKENDS:
             raise ValueError(f"not a composed backend: {backend}")
         dds = backend == "composed_dds"
-        domain = set_domain_from_pid() if dds else None
+        domain = set_domain() if dds else None
         strategy: Literal["depth_first", "breadth_first"] = (
             "breadth_first" if backend == "composed_bf" else "depth_first"
         )
@@ -733,7 +736,7 @@ def external(
     """
     from efficient_comm.testing import ros_env
 
-    domain = set_domain_from_pid()
+    domain = set_domain()
     out = []
     for payload in payloads:
         n = iterations[payload]

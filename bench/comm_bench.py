@@ -213,7 +213,7 @@ def run_job(job: Job, quick: bool, timeout_s: float) -> tuple[list[Record], str 
         cmd.append("--quick")
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.pop("ROS_DOMAIN_ID", None)  # each child derives its own from its pid
+    env.pop("ROS_DOMAIN_ID", None)  # each child reserves its own
     env.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
     env.update(job.env)
     try:

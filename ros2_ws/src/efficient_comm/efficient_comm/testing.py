@@ -27,9 +27,12 @@ message it received fails its test.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
+import random
 import uuid
+from collections import deque
 from collections.abc import Mapping
 from typing import Any
 
@@ -53,6 +56,8 @@ __all__ = [
     "unique_topic",
 ]
 
+#: How many ids domain_coordinator hands out (1..100).
+DOMAIN_IDS = 100
 _TAP_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_ALL,
     reliability=ReliabilityPolicy.BEST_EFFORT,
@@ -176,12 +181,33 @@ class TestHandle(ComposedHandle):
         return self.container.executor.clock.now_ns()
 
 
-_domain_counter = itertools.count()
+#: Reservations a process keeps: older ones are released (their tests are long over).
+KEEP_RESERVED = 16
+_reserved: deque[contextlib.ExitStack] = deque()
+# Each process walks the ids from a random start, so an id is not reused right after a
+# test's peers left it (a killed DDS participant stays in discovery for its lease time).
+_next_candidate = itertools.count(random.randrange(DOMAIN_IDS))
 
 
 def isolated_domain_id() -> int:
-    """A ROS domain id (1..200) unlikely to be shared with a concurrent test process."""
-    return (os.getpid() * 31 + next(_domain_counter)) % 200 + 1
+    """A ROS domain id (1..100) reserved for this process, so no concurrent test gets it.
+
+    Reserved through ``domain_coordinator`` (ament_cmake_ros's, what launch_testing uses):
+    it holds a local port per id, so every process that reserves this way (every test
+    process here, running in parallel or not) gets a different id. Deriving ids from the
+    pid, as this did before, let two processes collide. The reservation lasts until this
+    process has made :data:`KEEP_RESERVED` newer ones, or ends.
+    """
+    from domain_coordinator import domain_id  # type: ignore[import-untyped]
+
+    stack = contextlib.ExitStack()
+    domain = int(stack.enter_context(
+        domain_id(selector=lambda: next(_next_candidate) % DOMAIN_IDS + 1)
+    ))
+    _reserved.append(stack)
+    while len(_reserved) > KEEP_RESERVED:
+        _reserved.popleft().close()
+    return domain
 
 
 def unique_topic(prefix: str = "t") -> str:
