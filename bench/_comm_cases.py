@@ -139,10 +139,13 @@ def warmup_of(n: int) -> int:
 # -- plain rclpy rigs ----------------------------------------------------------------------
 
 
-def set_domain_from_pid() -> int:
-    """A ROS domain id (1..101) for this process unless the environment chose one."""
+def set_domain() -> int:
+    """A ROS domain id reserved for this process (efficient_comm.testing.isolated_domain_id:
+    no concurrent bench or test process gets it) unless the environment chose one."""
     if "ROS_DOMAIN_ID" not in os.environ:
-        os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 101)
+        from efficient_comm.testing import isolated_domain_id
+
+        os.environ["ROS_DOMAIN_ID"] = str(isolated_domain_id())
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return int(os.environ["ROS_DOMAIN_ID"])
 
@@ -160,7 +163,7 @@ class RclpyRig:
 
         if backend not in RCLPY_BACKENDS:
             raise ValueError(f"not an rclpy backend: {backend}")
-        set_domain_from_pid()
+        set_domain()
         self.context = Context()
         rclpy.init(context=self.context)
         self.backend = backend
@@ -236,7 +239,7 @@ class ComposedRig:
         if backend not in COMPOSED_BACKENDS:
             raise ValueError(f"not a composed backend: {backend}")
         dds = backend == "composed_dds"
-        domain = set_domain_from_pid() if dds else None
+        domain = set_domain() if dds else None
         strategy: Literal["depth_first", "breadth_first"] = (
             "breadth_first" if backend == "composed_bf" else "depth_first"
         )
@@ -733,7 +736,7 @@ def external(
     """
     from efficient_comm.testing import ros_env
 
-    domain = set_domain_from_pid()
+    domain = set_domain()
     out = []
     for payload in payloads:
         n = iterations[payload]
@@ -887,3 +890,124 @@ def external_subscriber(payload: str, topic: str, count: int) -> None:
     executor.shutdown()
     node.destroy_node()
     context.try_shutdown()
+
+
+# -- 6. publish from another thread (a driver's read loop, a socket thread) ------------------
+
+#: Backends of the foreign-thread scenario: rclpy's SingleThreadedExecutor (its wait set
+#: wakes on the DDS sample) is the baseline; composed ones wake through the executor.
+FOREIGN_BACKENDS = ("single", "composed", "composed_dds")
+#: The rate scenario: a thread publishes this many messages at 1 kHz, subscriber depth 10.
+FOREIGN_RATE_HZ = 1000
+FOREIGN_DEPTH = 10
+
+
+def foreign(backend: str, total: int, burst: int) -> list[Record]:
+    """Latency from another thread's publish to the callback (one message in flight, no
+    timers anywhere), and how many of ``burst`` messages published at 1 kHz are lost."""
+    if backend not in FOREIGN_BACKENDS:
+        raise ValueError(f"not a foreign-thread backend: {backend}")
+    latency_topic, rate_topic = unique_topic("foreign"), unique_topic("foreign_rate")
+    arrived = threading.Event()
+    st = _Lat(total)
+    received = [0]
+    clock = time.perf_counter_ns
+
+    def on_latency(_msg: Any) -> None:
+        st.samples.append(clock() - st.t0)
+        arrived.set()
+
+    def on_rate(_msg: Any) -> None:
+        received[0] += 1
+
+    def drive(publish_latency: Callable[[Any], None], publish_rate: Callable[[Any], None],
+              finished: threading.Event) -> None:
+        from std_msgs.msg import String
+
+        msg = String(data=STRING_DATA)
+        try:
+            for _ in range(total):
+                arrived.clear()
+                st.t0 = clock()
+                publish_latency(msg)
+                if not arrived.wait(5.0):
+                    break
+            due = time.monotonic()
+            for _ in range(burst):
+                # Never a catch-up burst after a hold-up: it would hold the GIL and overflow
+                # the queue whatever the executor does.
+                due = max(due + 1 / FOREIGN_RATE_HZ, time.monotonic())
+                time.sleep(max(0.0, due - time.monotonic()))
+                publish_rate(msg)
+        finally:
+            finished.set()
+
+    finished = threading.Event()
+    if backend == "single":
+        _foreign_rclpy(on_latency, on_rate, drive, finished, latency_topic, rate_topic)
+    else:
+        _foreign_composed(backend, on_latency, on_rate, drive, finished, latency_topic,
+                          rate_topic, lambda: received[0] >= burst)
+    rec = latency_record(st.samples, warmup_of(total), scenario="foreign", backend=backend,
+                         payload="string", payload_bytes=payload_bytes("string"))
+    rec["lost"] = burst - received[0]
+    rec["burst"] = burst
+    return [rec]
+
+
+_Drive = Callable[[Callable[[Any], None], Callable[[Any], None], threading.Event], None]
+
+
+def _foreign_rclpy(on_latency: Callable[[Any], None], on_rate: Callable[[Any], None],
+                   drive: _Drive, finished: threading.Event, latency_topic: str,
+                   rate_topic: str) -> None:
+    from std_msgs.msg import String
+
+    rig = RclpyRig("single")
+    try:
+        node = rig.node("foreign")
+        pub = node.create_publisher(String, latency_topic, reliable(10))
+        rate_pub = node.create_publisher(String, rate_topic, reliable(FOREIGN_DEPTH))
+        node.create_subscription(String, latency_topic, on_latency, reliable(10))
+        node.create_subscription(String, rate_topic, on_rate, reliable(FOREIGN_DEPTH))
+        rig.executor = rig._make_executor()
+        rig.executor.add_node(node)
+        thread = threading.Thread(target=drive, args=(pub.publish, rate_pub.publish, finished))
+        thread.start()
+        end = None
+        while end is None or time.monotonic() < end:
+            rig.executor.spin_once(timeout_sec=0.01)
+            if end is None and finished.is_set():
+                end = time.monotonic() + 0.5  # what is still in flight
+        thread.join()
+    finally:
+        rig.close()
+
+
+def _foreign_composed(backend: str, on_latency: Callable[[Any], None],
+                      on_rate: Callable[[Any], None], drive: _Drive, finished: threading.Event,
+                      latency_topic: str, rate_topic: str, all_in: Callable[[], bool]) -> None:
+    from std_msgs.msg import String
+
+    class Sink:
+        def __init__(self, node: Any) -> None:
+            node.create_subscription(String, latency_topic, on_latency, qos=10)
+            node.create_subscription(String, rate_topic, on_rate, qos=FOREIGN_DEPTH)
+
+    class Source:
+        def __init__(self, node: Any) -> None:
+            self.pub = node.create_publisher(String, latency_topic, qos=10)
+            self.rate_pub = node.create_publisher(String, rate_topic, qos=FOREIGN_DEPTH)
+
+    rig = ComposedRig(backend)
+    try:
+        rig.add(Sink, "sink")
+        src = rig.add(Source, "source")
+        thread = threading.Thread(target=drive, args=(src.pub.publish, src.rate_pub.publish,
+                                                      finished))
+        thread.start()
+        rig.container.spin_until(finished.is_set, timeout_s=120)
+        rig.container.spin_until(all_in, timeout_s=0.5)
+        thread.join()
+    finally:
+        rig.close()

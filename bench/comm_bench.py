@@ -7,7 +7,10 @@ One run measures, for every backend, and prints with ratios to the rclpy baselin
 3. per-callback dispatch cost without payload (1 µs timer; Empty-message bursts);
 4. end-to-end latency of a 5-component chain A -> B -> C -> D -> E;
 5. latency seen by a subscriber in another process (plain rclpy) of a composed publisher
-   (Container dds=True) vs a plain rclpy publisher.
+   (Container dds=True) vs a plain rclpy publisher;
+6. publish from another thread -> callback (no timers anywhere), and messages lost when a
+   thread publishes at 1 kHz to a depth-10 subscriber (rclpy SingleThreadedExecutor and
+   the composed backends).
 
 Each (scenario, backend) runs in a fresh process (``--scenario X --backend Y --json``), so
 plain rclpy baselines never share a process with efficient_comm's DDS set-up; the whole set
@@ -74,6 +77,8 @@ LARGE_PAYLOADS = ("image_1MiB", "image_8MiB")
 CHAIN_PAYLOADS = ("string", "image_1MiB")
 EXT_PAYLOADS = ("string", "image_1MiB")
 THR_PAYLOADS = ("string", "empty")
+#: The foreign-thread scenario's backends (as in _comm_cases.FOREIGN_BACKENDS).
+FOREIGN_BACKENDS = ("single", "composed", "composed_dds")
 
 #: Iterations per payload (after a warm-up of 10 %, at least 3).
 LAT_N = {
@@ -99,6 +104,9 @@ THR_MSGS = {
     "composed_dds": 200000,
 }
 THR_MSGS_QUICK = 1000
+#: Foreign-thread scenario: messages in flight one by one, then a burst at 1 kHz.
+FOREIGN_N, FOREIGN_BURST = 1000, 2000
+FOREIGN_N_QUICK, FOREIGN_BURST_QUICK = 60, 200
 DISPATCH_S, DISPATCH_S_QUICK = 1.0, 0.15
 #: Wall-clock budget of one rclpy latency/chain/throughput measurement (MultiThreadedExecutor
 #: stalls: it is cut short there and reports the samples it got).
@@ -145,6 +153,9 @@ def run_child(args: argparse.Namespace) -> list[Record]:
         return cases.external(
             backend, payloads or EXT_PAYLOADS, EXT_N_QUICK if quick else EXT_N, SCRIPT
         )
+    if args.scenario == "foreign":
+        return cases.foreign(backend, FOREIGN_N_QUICK if quick else FOREIGN_N,
+                             FOREIGN_BURST_QUICK if quick else FOREIGN_BURST)
     raise SystemExit(f"unknown scenario {args.scenario}")
 
 
@@ -189,6 +200,8 @@ def make_jobs(scenarios: Sequence[str], mmap: bool, quick: bool) -> list[Job]:
                 jobs.append(Job(scenario, backend))
     if "external" in scenarios:
         jobs += [Job("external", "plain"), Job("external", "composed")]
+    if "foreign" in scenarios:
+        jobs += [Job("foreign", b) for b in FOREIGN_BACKENDS]
     return jobs
 
 
@@ -200,7 +213,7 @@ def run_job(job: Job, quick: bool, timeout_s: float) -> tuple[list[Record], str 
         cmd.append("--quick")
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    env.pop("ROS_DOMAIN_ID", None)  # each child derives its own from its pid
+    env.pop("ROS_DOMAIN_ID", None)  # each child reserves its own
     env.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
     env.update(job.env)
     try:
@@ -225,7 +238,9 @@ def run_job(job: Job, quick: bool, timeout_s: float) -> tuple[list[Record], str 
 
 # -- parent side: aggregation ---------------------------------------------------------------
 
-METRICS = ("median_us", "p99_us", "min_us", "msgs_per_s", "us_per_msg", "us_per_callback")
+METRICS = (
+    "median_us", "p99_us", "min_us", "msgs_per_s", "us_per_msg", "us_per_callback", "lost"
+)
 
 
 def key_of(rec: Record) -> tuple[str, str, str, str]:
@@ -376,6 +391,20 @@ def targets(r: Results) -> list[Target]:
                     None if x is None else x <= 1.1,
                 )
             )
+    fd = r.get("foreign", "composed_dds", "string", "median_us")
+    out.append(
+        Target(
+            "publish from another thread -> callback, composed dds=True, median (µs)",
+            fd,
+            "≤ 1000",
+            None if fd is None else fd <= 1000.0,
+        )
+    )
+    lost = r.get("foreign", "composed_dds", "string", "lost")
+    out.append(
+        Target("1 kHz from another thread at depth 10, composed dds=True, lost", lost, "0",
+               None if lost is None else lost == 0)
+    )
     return out
 
 
@@ -550,6 +579,23 @@ def report(r: Results, tgts: Sequence[Target], repeat: int) -> str:
         table(["payload", "plain rclpy pub", "composed (dds=True)", "composed÷plain"], rows)
     )
 
+    parts.append(
+        "\n6. publish from another thread -> callback, no timers (median / p99 µs), and "
+        "messages lost of a 1 kHz burst at depth 10"
+    )
+    rows = []
+    base = r.get("foreign", "single", "string", "median_us")
+    for b in FOREIGN_BACKENDS:
+        med = r.get("foreign", b, "string", "median_us")
+        lost = r.get("foreign", b, "string", "lost")
+        rows.append([
+            LABELS[b],
+            f"{fmt(med)} / {fmt(r.get('foreign', b, 'string', 'p99_us'))}",
+            fmt_ratio(ratio(med, base)),
+            "-" if lost is None else f"{lost:.0f}",
+        ])
+    parts.append(table(["backend", "latency", "÷Single", "lost"], rows))
+
     parts.append("\nTargets")
     rows = [
         [t.name, fmt(t.value), t.limit, "n/a" if t.met is None else ("met" if t.met else "NOT met")]
@@ -698,7 +744,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     ap.add_argument(
         "--only",
-        default="latency,throughput,dispatch,chain,external",
+        default="latency,throughput,dispatch,chain,external,foreign",
         help="comma-separated scenarios to run",
     )
     ap.add_argument("--out", type=Path, default=None, help=f"JSON output (default {DEFAULT_OUT})")

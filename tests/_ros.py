@@ -92,3 +92,16 @@ def child(
                 except subprocess.TimeoutExpired:
                     os.killpg(proc.pid, signal.SIGKILL)
                     proc.wait()
+
+
+def wait_until(
+    predicate: Callable[[], bool], proc: subprocess.Popen[bytes], timeout_s: float = 30.0
+) -> bool:
+    """Poll ``predicate`` (a line in a child's log, say) until it holds, the child exits or
+    ``timeout_s`` passes."""
+    end = time.monotonic() + timeout_s
+    while not predicate():
+        if proc.poll() is not None or time.monotonic() > end:
+            return predicate()
+        time.sleep(0.02)
+    return True

@@ -6,9 +6,13 @@ another process is to DDS. ``test_processes.py`` repeats the key cases across pr
 
 from __future__ import annotations
 
+import sys
+import threading
+import time
 from collections import Counter
 from typing import Any
 
+import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
@@ -134,3 +138,50 @@ def test_publish_from_another_thread_reaches_callbacks_in_the_executor_thread() 
             talker.say(str(i))
         worker.join()
         assert threads == [worker.ident] * 3
+
+
+def _waiting_in_rclpy(thread_id: int) -> bool:
+    """Whether the thread sits in rclpy's wait for DDS work (its executor's wait set)."""
+    frame = sys._current_frames().get(thread_id)
+    while frame is not None:
+        if frame.f_code.co_name == "_wait_for_ready_callbacks":
+            return True
+        frame = frame.f_back
+    return False
+
+
+@pytest.mark.timeout(60)
+def test_a_publish_from_another_thread_ends_the_executors_wait_for_dds() -> None:
+    """A DDS container's executor waits in rclpy's wait set; another thread's publish must
+    end that wait. Before, it only made rclpy rebuild its wait set and wait again until the
+    poll timeout (median 48 ms; here, with no timeout, for good), so at 1 kHz and depth 10
+    most messages were dropped (bench/comm_bench.py --only foreign measures both)."""
+    topic = unique_topic("foreign")
+    domain = isolated_domain_id()
+    with peer(domain) as p, Container("foreign", domain_id=domain, serve=False) as container:
+        talker = container.add(lambda n: Talker(n, topic), name="talker")
+        heard: list[String] = []
+        container.add(
+            lambda n: n.create_subscription(String, topic, heard.append, qos=10), name="ear"
+        )
+        executor_thread = threading.get_ident()
+
+        def publish_while_the_executor_waits() -> None:
+            deadline = time.monotonic() + 30
+            while not _waiting_in_rclpy(executor_thread) and time.monotonic() < deadline:
+                time.sleep(0.001)
+            talker.pub.publish(String(data="wake up"))
+
+        # If the publish does not end the wait, a message from another participant will,
+        # so that the test fails instead of hanging (a signal cannot end rclpy's wait).
+        rescue = p.node.create_publisher(String, topic, 10)
+        watchdog = threading.Timer(20.0, lambda: rescue.publish(String(data="watchdog")))
+        thread = threading.Thread(target=publish_while_the_executor_waits)
+        watchdog.start()
+        thread.start()
+        try:
+            container.spin_once()  # no timeout: only the publish should end this wait
+        finally:
+            watchdog.cancel()
+            thread.join()
+        assert [m.data for m in heard] == ["wake up"]

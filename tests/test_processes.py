@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import signal
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,7 +13,7 @@ from sensor_msgs.msg import Image
 from efficient_comm.testing import isolated_domain_id, unique_topic
 from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
 
-from ._ros import Peer, child, executable, peer
+from ._ros import Peer, child, executable, peer, wait_until
 
 
 def _call(p: Peer, srv_type: type, name: str, request: object) -> object:
@@ -154,3 +155,46 @@ def test_messages_from_another_process_reach_composed_components(tmp_path: Path)
             tmp_path / "camera.log"
         ).read_text()
         assert all(0 <= s.point.x < 160 and 0 <= s.point.y < 120 for s in spots)
+
+
+USER_PROGRAM = """
+import sys
+from efficient_comm import Container
+
+class Part:
+    def __init__(self, node):
+        self.name = node.name
+        self.timer = node.create_timer(0.01, self.first_tick)
+
+    def first_tick(self):
+        print("spinning", self.name, flush=True)
+        self.timer.cancel()
+
+    def close(self):
+        print("closed", self.name, flush=True)
+
+with Container("user", dds=sys.argv[1] == "dds", serve=False) as container:
+    container.add(Part, name="a")
+    container.add(Part, name="b")
+    container.spin()
+print("done", flush=True)
+"""
+
+
+@pytest.mark.parametrize("dds", ["dds", "no-dds"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_container_spin_in_a_users_program_stops_cleanly_on_signals(
+    tmp_path: Path, sig: int, dds: str
+) -> None:
+    """``Container.spin()`` in the user's own program: SIGTERM unloads every component as
+    Ctrl-C does (before, SIGTERM killed the process and no ``close()`` ran)."""
+    program = tmp_path / "robot.py"
+    program.write_text(USER_PROGRAM)
+    log = tmp_path / "robot.log"
+    with child([sys.executable, program, dds], domain_id=isolated_domain_id(), log=log) as proc:
+        assert wait_until(lambda: "spinning b" in log.read_text(), proc), log.read_text()
+        proc.send_signal(sig)
+        assert proc.wait(timeout=15) == 0, log.read_text()
+    lines = log.read_text().splitlines()
+    assert "closed b" in lines and "closed a" in lines and lines[-1] == "done", lines
+    assert "Traceback" not in log.read_text()

@@ -239,6 +239,7 @@ def test_demo_runs_headless_and_leaves_a_report(tmp_path: Path) -> None:
     assert "tracking error" in text and "real-time factor" in text
     assert "| servos answering | 20 of 20" in text
     assert "| posture (fall detector) | stood throughout, now standing |" in text
+    assert " /robot/camera/image_raw " in text  # the callback table shows whole topic names
 
 
 def test_the_demo_says_when_the_robot_fell_in_its_report_and_exit_status(tmp_path: Path

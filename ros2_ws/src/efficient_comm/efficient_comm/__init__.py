@@ -8,7 +8,9 @@ Where things live (read ARCHITECTURE.md for the why):
   ``executor`` (consecutive, one thread) over the in-process ``bus``;
 * ``testing``    a handle with no DDS and a manual clock, for users' own tests;
 * ``config``     container files; ``dds`` keeping in-process and DDS delivery apart;
-* ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing.
+* ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing
+                 (``format_stats`` prints it);
+* ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
 
 Everything public is re-exported here once; modules starting with ``_`` are private.
 """
@@ -18,6 +20,7 @@ from ._clock import SystemClock as SystemClock
 from ._clock import from_msg as from_msg
 from ._clock import to_msg as to_msg
 from ._closing import Closing as Closing
+from ._signals import stop_on_sigterm as stop_on_sigterm
 from .config import ComponentSpec as ComponentSpec
 from .container import Container as Container
 from .container import LoadedComponent as LoadedComponent
@@ -30,9 +33,12 @@ from .errors import ExecutorError as ExecutorError
 from .errors import MessageMutatedError as MessageMutatedError
 from .errors import NameResolutionError as NameResolutionError
 from .errors import ParameterError as ParameterError
+from .errors import ServiceFailedError as ServiceFailedError
 from .errors import TopicTypeError as TopicTypeError
 from .executor import ConsecutiveExecutor as ConsecutiveExecutor
 from .handle import NodeHandle as NodeHandle
 from .standalone import Standalone as Standalone
+from .standalone import run_standalone as run_standalone
 from .standalone import standalone_main as standalone_main
 from .stats import StatsSnapshot as StatsSnapshot
+from .stats import format_stats as format_stats

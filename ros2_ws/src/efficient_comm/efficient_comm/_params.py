@@ -90,6 +90,21 @@ def parameter_type(name: str, value: Any) -> Parameter.Type:
         raise ParameterError(f"parameter {name!r}: {exc}") from None
 
 
+def refuse_unset(name: str, value: Any) -> None:
+    """An override with no value (YAML null) is refused, naming the parameter.
+
+    It is what ``-p prefix:=#`` gives (``#`` starts a YAML comment), or ``prefix:`` with
+    nothing after it in a params file. rclpy would declare the parameter with no type and
+    hand the component ``None`` where it declared a string; refuse it on every backend.
+    """
+    if value is None:
+        raise ParameterError(
+            f"parameter {name!r}: the override has no value (YAML null: on a command "
+            f"line, -p {name}:=# reads # as a comment; quote the value, e.g. "
+            f"-p \"{name}:='#'\")"
+        )
+
+
 def _run_callbacks(callbacks: list[ParameterCallback], changes: Mapping[str, Any]) -> None:
     for callback in callbacks:
         try:
@@ -118,6 +133,7 @@ class LocalParameters:
             raise ParameterError(f"parameter {name!r} is already declared")
         declared = parameter_type(name, default)
         value = self._overrides.get(name, default)
+        refuse_unset(name, value)
         if parameter_type(name, value) != declared:
             raise ParameterError(
                 f"parameter {name!r}: override {value!r} is not of the declared type "
@@ -166,6 +182,10 @@ class RclpyParameters:
 
     def declare(self, name: str, default: P, *, description: str, read_only: bool) -> P:
         descriptor = ParameterDescriptor(description=description, read_only=read_only)
+        # rclpy keeps the node's overrides (--ros-args -p, params files) in this dict only.
+        override = self._node._parameter_overrides.get(name)
+        if override is not None and override.type_ == Parameter.Type.NOT_SET:
+            refuse_unset(name, None)
         try:
             param = self._node.declare_parameter(name, default, descriptor)
         except (

@@ -33,9 +33,16 @@ def is_transient_local(profile: QoSProfile) -> bool:
 
 def compatible(pub: QoSProfile, sub: QoSProfile) -> bool:
     """DDS request/offer: a subscriber may not ask for more than the publisher offers."""
+    return incompatible_policy(pub, sub) is None
+
+
+def incompatible_policy(pub: QoSProfile, sub: QoSProfile) -> str | None:
+    """The policy (as DDS names it) for which ``sub`` asks more than ``pub`` offers."""
     if (
         sub.reliability == ReliabilityPolicy.RELIABLE
         and pub.reliability == ReliabilityPolicy.BEST_EFFORT
     ):
-        return False
-    return not (is_transient_local(sub) and not is_transient_local(pub))
+        return "RELIABILITY"
+    if is_transient_local(sub) and not is_transient_local(pub):
+        return "DURABILITY"
+    return None

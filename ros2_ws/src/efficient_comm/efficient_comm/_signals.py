@@ -1,18 +1,44 @@
-"""Process signals for the console scripts."""
+"""Process signals: SIGTERM stops a program as Ctrl-C does."""
 
 from __future__ import annotations
 
+import contextlib
 import signal
+import threading
+from collections.abc import Callable, Iterator
 
 
 def stop_on_sigterm() -> None:
     """Let SIGTERM (what ``ros2 launch`` and service managers send) unwind like Ctrl-C.
 
-    Components are then unloaded and their ``close()`` runs, instead of the process dying
-    mid-callback.
+    For programs with a loop of their own (``spin_for`` and printing, say): SIGTERM raises
+    ``KeyboardInterrupt`` from then on, so ``with`` blocks unload components and their
+    ``close()`` runs, instead of the process dying mid-callback. ``Container.spin()``
+    needs no call: it stops on SIGTERM by itself.
     """
 
     def interrupt(_signum: int, _frame: object) -> None:
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, interrupt)
+
+
+@contextlib.contextmanager
+def sigterm_calls(stop: Callable[[], None]) -> Iterator[None]:
+    """While inside, SIGTERM calls ``stop()`` (between two callbacks, from the main thread).
+
+    Only where Python can handle signals (the main thread) and only if SIGTERM still has
+    its default action, which kills the process without running any ``close()``; a handler
+    the program chose itself is left alone.
+    """
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL
+    ):
+        yield
+        return
+    signal.signal(signal.SIGTERM, lambda _signum, _frame: stop())
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)

@@ -7,7 +7,9 @@ on top by :mod:`efficient_comm.container`.
 
 Delivery follows what ROS users expect from DDS:
 
-* a subscriber only hears publishers with compatible QoS (reliability, durability);
+* a subscriber only hears publishers with compatible QoS (reliability, durability), and
+  both sides are warned once through their component's logger when they do not match, as
+  DDS warns of an incompatible remote endpoint;
 * a queued subscriber keeps at most ``depth`` messages (KEEP_LAST); older ones are dropped
   and counted;
 * a TRANSIENT_LOCAL publisher keeps its last ``depth`` messages and replays them to a
@@ -20,15 +22,22 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ._qos import compatible, is_transient_local, queue_limit
+from ._qos import compatible, incompatible_policy, is_transient_local, queue_limit
 from .errors import ComponentError, TopicTypeError
 
 if TYPE_CHECKING:
     from .executor import ConsecutiveExecutor
     from .handle import Logger
     from .stats import CallbackStats
+
+#: What an observer subscribes with: matches every publisher, keeps whatever it is handed.
+OBSERVER_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
 
 
 class LocalSubscription:
@@ -92,17 +101,24 @@ class LocalPublisher:
         "dds",
         "dds_always",
         "dds_matched",
+        "logger",
         "name",
         "qos",
         "topic",
     )
 
     def __init__(
-        self, topic: Topic, qos: QoSProfile, executor: ConsecutiveExecutor, name: str
+        self,
+        topic: Topic,
+        qos: QoSProfile,
+        executor: ConsecutiveExecutor,
+        name: str,
+        logger: Logger | None = None,
     ) -> None:
         self.topic = topic
         self.qos = qos
         self.name = name
+        self.logger = logger
         self._executor = executor
         self._msg_type = topic.msg_type
         self._subs: tuple[LocalSubscription, ...] = ()
@@ -143,20 +159,52 @@ class LocalPublisher:
 
 
 class Topic:
-    __slots__ = ("msg_type", "name", "publishers", "subscriptions")
+    __slots__ = ("_warned", "msg_type", "name", "publishers", "subscriptions")
 
     def __init__(self, name: str, msg_type: type) -> None:
         self.name = name
         self.msg_type = msg_type
         self.publishers: list[LocalPublisher] = []
         self.subscriptions: list[LocalSubscription] = []
+        # Incompatible (publisher, subscriber) pairs already warned of: once per pair.
+        self._warned: set[tuple[int, int]] = set()
 
     def rewire(self) -> None:
         """Recompute, per publisher, the subscribers it may reach (done on (un)subscribe)."""
         for pub in self.publishers:
-            pub._subs = tuple(
-                s for s in self.subscriptions if s.active and compatible(pub.qos, s.qos)
+            reached = []
+            for sub in self.subscriptions:
+                if not sub.active:
+                    continue
+                policy = incompatible_policy(pub.qos, sub.qos)
+                if policy is None:
+                    reached.append(sub)
+                elif (id(pub), id(sub)) not in self._warned:
+                    self._warned.add((id(pub), id(sub)))
+                    self._warn(pub, sub, policy)
+            pub._subs = tuple(reached)
+
+    def _warn(self, pub: LocalPublisher, sub: LocalSubscription, policy: str) -> None:
+        """What DDS says of an incompatible remote endpoint, for an in-process pair."""
+        sub.logger.warning(
+            f"publisher {pub.name} on topic '{self.name}' offers incompatible QoS: no "
+            f"messages will be received from it (incompatible policy: {policy}; offered "
+            f"{_describe(pub.qos)}, requested {_describe(sub.qos)})"
+        )
+        if pub.logger is not None:
+            pub.logger.warning(
+                f"a subscriber of {sub.stats.node} on topic '{self.name}' requests "
+                f"incompatible QoS: no messages will be sent to it (incompatible policy: "
+                f"{policy}; offered {_describe(pub.qos)}, requested {_describe(sub.qos)})"
             )
+
+    def forget(self, pub: LocalPublisher | None = None,
+               sub: LocalSubscription | None = None) -> None:
+        """Drop warned pairs of a removed endpoint (ids may be reused by new ones)."""
+        self._warned = {
+            (p, s) for p, s in self._warned
+            if (pub is None or p != id(pub)) and (sub is None or s != id(sub))
+        }
 
 
 class Bus:
@@ -186,14 +234,19 @@ class Bus:
         A subscriber created later uses it to match what is offered, e.g. to subscribe best
         effort when a publisher is best effort (a reliable subscription would get nothing).
         """
+        return [pub.qos for pub in self.publishers(name)]
+
+    def publishers(self, name: str) -> list[LocalPublisher]:
+        """This process's publishers on topic ``name``."""
         topic = self._topics.get(name)
-        return [pub.qos for pub in topic.publishers] if topic is not None else []
+        return list(topic.publishers) if topic is not None else []
 
     def add_publisher(
-        self, name: str, msg_type: type, qos: QoSProfile, *, owner: str
+        self, name: str, msg_type: type, qos: QoSProfile, *, owner: str,
+        logger: Logger | None = None,
     ) -> LocalPublisher:
         topic = self.topic(name, msg_type)
-        pub = LocalPublisher(topic, qos, self._executor, owner)
+        pub = LocalPublisher(topic, qos, self._executor, owner, logger)
         topic.publishers.append(pub)
         topic.rewire()
         return pub
@@ -219,6 +272,25 @@ class Bus:
                         self._executor.enqueue(sub, msg, None)
         return sub
 
+    def add_observer(
+        self,
+        name: str,
+        msg_type: type,
+        callback: Callable[[Any], None],
+        *,
+        stats: CallbackStats,
+        logger: Logger,
+    ) -> LocalSubscription:
+        """A subscription that hears every in-process publisher of ``name`` (best effort
+        and volatile match them all) without counting as a subscriber: a publisher asks
+        ``get_subscription_count()`` whether anybody wants its work, and an observer
+        (a test's record of what was published, the recorder learning whose clock sync is
+        local) must not make it compute what nobody else wants."""
+        sub = self.add_subscription(name, msg_type, callback, OBSERVER_QOS,
+                                    stats=stats, logger=logger)
+        sub.observer = True
+        return sub
+
     def remove_publisher(self, pub: LocalPublisher) -> None:
         pub.closed = True
         pub._subs = ()
@@ -226,6 +298,7 @@ class Bus:
         topic = pub.topic
         if pub in topic.publishers:
             topic.publishers.remove(pub)
+        topic.forget(pub=pub)
         self._drop_if_unused(topic)
 
     def remove_subscription(self, sub: LocalSubscription) -> None:
@@ -234,6 +307,7 @@ class Bus:
         if sub in topic.subscriptions:
             topic.subscriptions.remove(sub)
             topic.rewire()
+        topic.forget(sub=sub)
         self._drop_if_unused(topic)
 
     def _drop_if_unused(self, topic: Topic) -> None:
@@ -243,3 +317,7 @@ class Bus:
 
 def _type_name(msg_type: type) -> str:
     return f"{msg_type.__module__.split('.')[0]}/{msg_type.__name__}"
+
+
+def _describe(qos: QoSProfile) -> str:
+    return f"{qos.reliability.name.lower()}, {qos.durability.name.lower()}"

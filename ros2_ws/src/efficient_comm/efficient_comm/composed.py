@@ -20,7 +20,9 @@ from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ._failures import failure_outcome, failure_response, local_failure, without_answer
 from ._future import Future
+from ._graph import NodeGraph
 from ._names import Resolver, check_node_name, fully_qualified
 from ._params import LocalParameters, ParameterMethods, RclpyParameters, parameter_type
 from ._qos import is_transient_local, to_profile
@@ -29,12 +31,14 @@ from .errors import ComponentError
 from .executor import ExecutorTimer
 from .handle import (
     Clock,
+    ClockKind,
     Logger,
     MessageCallback,
     Publisher,
     QoSLike,
     Subscription,
     Timer,
+    TimerSchedule,
 )
 
 if TYPE_CHECKING:
@@ -71,7 +75,7 @@ class RecordingLogger:
 class LocalService:
     """A service callback reachable by in-process clients without DDS."""
 
-    __slots__ = ("callback", "handle", "service_name", "srv_type", "stats")
+    __slots__ = ("callback", "handle", "service_name", "srv_type", "stats", "what")
 
     def __init__(
         self, handle: ComposedHandle, srv_type: type, name: str, callback: Callable[..., Any]
@@ -83,16 +87,18 @@ class LocalService:
         self.stats = handle._container.executor.registry.add(
             handle.fully_qualified_name, "service", name
         )
+        self.what = f"service {name} ({failure_outcome(srv_type)})"
 
-    def serve(self, request: Any) -> Any:
-        """The callback's response; if it raised (logged and counted), an empty response,
-        which is also what a caller in another process gets."""
-        empty = getattr(self.srv_type, "Response")()  # noqa: B009
+    def serve(self, request: Any) -> tuple[Any | None, BaseException | None]:
+        """``(response, None)``, or if the callback raised (logged and counted):
+        ``(failure response or None, the exception)`` (see :mod:`efficient_comm._failures`)."""
         ok, response = self.handle._container.executor.call(
-            self.stats, self.handle.logger, f"service {self.service_name}",
-            self.callback, request, empty,
+            self.stats, self.handle.logger, self.what,
+            self.callback, request, getattr(self.srv_type, "Response")(),  # noqa: B009
         )
-        return response if ok else empty
+        if ok:
+            return response, None
+        return failure_response(self.srv_type, self.service_name, response), response
 
 
 class ComposedClient:
@@ -126,7 +132,14 @@ class ComposedClient:
         future = Future(self._invoke)
         local = self._handle._container._services.get(self._name)
         if local is not None:
-            self._handle._container.executor.post(lambda: future.set_result(local.serve(request)))
+            def answer() -> None:
+                response, error = local.serve(request)
+                if response is None and error is not None:
+                    future.set_exception(local_failure(local.service_name, error))
+                else:
+                    future.set_result(response)
+
+            self._handle._container.executor.post(answer)
         elif self._dds is not None:
             self._dds.call_async(request).add_done_callback(
                 lambda done: future.set_result(done.result())
@@ -208,7 +221,21 @@ class ComposedHandle(ParameterMethods):
     def clock(self) -> Clock:
         return self._container.executor.clock
 
-    def resolve(self, topic: str) -> str:
+    # -- capabilities --------------------------------------------------------------------
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        return self._container.executor.clock_kind
+
+    @property
+    def graph(self) -> NodeGraph:
+        return NodeGraph(bus=self._container.bus, node=self.rclpy_node)
+
+    @property
+    def timer_schedule(self) -> TimerSchedule:
+        return self._container.executor
+
+    def resolve_topic_name(self, topic: str) -> str:
         """The full name ``topic`` has for this node (namespace and remapping applied)."""
         return self._resolver.resolve(topic)
 
@@ -217,9 +244,11 @@ class ComposedHandle(ParameterMethods):
     def create_publisher(
         self, msg_type: type, topic: str, *, qos: QoSLike = 10
     ) -> LocalPublisher:
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         profile = to_profile(qos)
-        pub = self._container.bus.add_publisher(name, msg_type, profile, owner=self._fqn)
+        pub = self._container.bus.add_publisher(
+            name, msg_type, profile, owner=self._fqn, logger=self._logger
+        )
         node = self.rclpy_node
         if node is not None:
 
@@ -237,7 +266,7 @@ class ComposedHandle(ParameterMethods):
     def create_subscription(
         self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
     ) -> LocalSubscription:
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         profile = to_profile(qos)
         executor = self._container.executor
         stats = executor.registry.add(self._fqn, "subscription", name)
@@ -254,6 +283,19 @@ class ComposedHandle(ParameterMethods):
         self._subscriptions.append(sub)
         return sub
 
+    def observe_in_process(
+        self, msg_type: type, topic: str, callback: MessageCallback
+    ) -> LocalSubscription:
+        name = self.resolve_topic_name(topic)
+        stats = self._container.executor.registry.add(
+            self._fqn, "subscription", f"{name} (in-process observer)"
+        )
+        sub = self._container.bus.add_observer(
+            name, msg_type, callback, stats=stats, logger=self._logger
+        )
+        self._subscriptions.append(sub)
+        return sub
+
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> ExecutorTimer:
         executor = self._container.executor
         stats = executor.registry.add(self._fqn, "timer", getattr(callback, "__qualname__", ""))
@@ -264,7 +306,7 @@ class ComposedHandle(ParameterMethods):
     def create_service(
         self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
     ) -> LocalService:
-        full = self.resolve(name)
+        full = self.resolve_topic_name(name)
         services = self._container._services
         if full in services:
             raise ComponentError(
@@ -275,11 +317,13 @@ class ComposedHandle(ParameterMethods):
         self._services.append(full)
         node = self.rclpy_node
         if node is not None:
-            node.create_service(srv_type, full, lambda request, _: service.serve(request))
+            without_answer(
+                node.create_service(srv_type, full, lambda request, _: service.serve(request)[0])
+            )
         return service
 
     def create_client(self, srv_type: type, name: str) -> ComposedClient:
-        client = ComposedClient(self, srv_type, self.resolve(name))
+        client = ComposedClient(self, srv_type, self.resolve_topic_name(name))
         self._clients.append(client)
         return client
 

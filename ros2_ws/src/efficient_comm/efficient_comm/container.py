@@ -30,13 +30,14 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from ._closing import Closing
 from ._names import apply_node_remaps, check_node_name, fully_qualified, parse_remaps
+from ._signals import sigterm_calls
 from .bus import Bus
 from .composed import ComposedHandle, LocalService, RecordingLogger
 from .config import ComponentSpec, parse_file, resolve_factory
 from .dds import local_endpoints_ignored, prepare_process
 from .errors import ComponentError, ConfigError, DdsSetupError, EfficientCommError
 from .executor import ConsecutiveExecutor, GuardMode, Strategy
-from .handle import Clock, Logger
+from .handle import Clock, ClockKind, Logger
 from .stats import StatsSnapshot
 
 
@@ -121,7 +122,10 @@ class Container(Closing):
         if self.context is not None:
             self._rclpy_executor = SingleThreadedExecutor(context=self.context)
             self._rclpy_executor.add_node(self._node)
-            self.executor.attach_dds(self._rclpy_executor)
+            # A guard condition with a callback ends the rclpy wait it is triggered in (see
+            # ConsecutiveExecutor.attach_dds); its callback has nothing to do.
+            wake = self._node.create_guard_condition(lambda: None)
+            self.executor.attach_dds(self._rclpy_executor, wake=wake.trigger)
             if serve:
                 from ._services import serve_container
 
@@ -230,8 +234,16 @@ class Container(Closing):
     # -- running --------------------------------------------------------------------------
 
     def spin(self) -> None:
-        """Run until :meth:`shutdown`, Ctrl-C or SIGTERM."""
-        with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
+        """Run until :meth:`shutdown`, Ctrl-C or SIGTERM.
+
+        SIGTERM (what ``ros2 launch``, ``docker stop`` and service managers send) would
+        otherwise kill the process with no component's ``close()`` run; here it stops the
+        loop as :meth:`shutdown` does, so the ``with`` block unloads every component. (In
+        the main thread, unless the program installed a SIGTERM handler of its own.)
+        """
+        with sigterm_calls(self.shutdown), contextlib.suppress(
+            KeyboardInterrupt, ExternalShutdownException
+        ):
             self.executor.spin()
 
     def spin_once(self, timeout_s: float | None = None) -> None:
@@ -249,6 +261,11 @@ class Container(Closing):
     def stats(self) -> list[StatsSnapshot]:
         return self.executor.stats()
 
+    @property
+    def clock_kind(self) -> ClockKind:
+        """Whether the components' clock runs by itself or only in :meth:`advance`."""
+        return self.executor.clock_kind
+
     def shutdown(self) -> None:
         self.executor.shutdown()
 
@@ -260,6 +277,7 @@ class Container(Closing):
             except Exception as exc:
                 self.logger.error(f"unloading component {unique_id} raised {exc!r}")
         if self._rclpy_executor is not None:
+            self.executor.detach_dds()
             self._rclpy_executor.shutdown()
             self._rclpy_executor = None
         if self._node is not None:

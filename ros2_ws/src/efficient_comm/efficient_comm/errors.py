@@ -11,6 +11,7 @@ Catch :class:`EfficientCommError` to handle anything this package raises::
     ├── ExecutorError            the executor was misused (spun from two threads, advance()
     │                            without a manual clock, a timer of an unloaded component)
     ├── DdsSetupError            the process cannot keep in-process and DDS delivery apart
+    ├── ServiceFailedError       an in-process service call failed (its callback raised)
     └── MessageMutatedError      a subscriber changed a message it received by reference
 """
 
@@ -60,3 +61,11 @@ class DdsSetupError(EfficientCommError, RuntimeError):
 
 class MessageMutatedError(EfficientCommError):
     """A callback modified a message that other subscribers share by reference."""
+
+
+class ServiceFailedError(EfficientCommError):
+    """A service callback raised; an in-process caller's future holds this error.
+
+    Set only for service types with no ``success`` field, which get no answer over DDS
+    (see :mod:`efficient_comm._failures`); the cause is the callback's exception.
+    """

@@ -16,7 +16,8 @@ executor does the same for ROS 2 in Python, with a selectable order:
 Timers run on the executor's clock (real ROS time, or a :class:`ManualClock` advanced by
 :meth:`ConsecutiveExecutor.advance`). DDS entities (subscriptions from other processes,
 services, clients, graph events) are waited on through an rclpy executor inside, only when
-the container talks DDS. A callback that raises is logged and counted; the others go on.
+the container talks DDS; a guard condition in that wait set lets another thread's publish
+wake it at once. A callback that raises is logged and counted; the others go on.
 """
 
 from __future__ import annotations
@@ -25,12 +26,12 @@ import heapq
 import itertools
 import threading
 import time
-import traceback
 from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from ._clock import ManualClock, SystemClock
+from ._failures import report_failure
 from .errors import ExecutorError, MessageMutatedError
 from .guard import MutationReport, fingerprint
 from .stats import CallbackStats, StatsRegistry, StatsSnapshot
@@ -39,7 +40,7 @@ if TYPE_CHECKING:
     from rclpy.executors import Executor as RclpyExecutor
 
     from .bus import LocalSubscription
-    from .handle import Clock, Logger
+    from .handle import Clock, ClockKind, Logger
 
 Strategy = Literal["depth_first", "breadth_first"]
 #: False, True (log and record each mutation) or "raise" (also raise MessageMutatedError).
@@ -165,6 +166,7 @@ class ConsecutiveExecutor:
         self._stop = False
         self._wake_event = threading.Event()
         self._dds: RclpyExecutor | None = None
+        self._dds_wake: Callable[[], None] | None = None
         self._last_dds_poll = 0
         self._dds_poll_interval = DDS_POLL_INTERVAL_NS
         self.registry = StatsRegistry()
@@ -177,9 +179,22 @@ class ConsecutiveExecutor:
 
     # -- wiring --------------------------------------------------------------------------
 
-    def attach_dds(self, rclpy_executor: RclpyExecutor) -> None:
-        """Wait on DDS entities through ``rclpy_executor`` (the container adds its nodes)."""
+    def attach_dds(self, rclpy_executor: RclpyExecutor, *, wake: Callable[[], None]) -> None:
+        """Wait on DDS entities through ``rclpy_executor`` (the container adds its nodes).
+
+        ``wake`` must make ``rclpy_executor.spin_once`` return: trigger a guard condition
+        with a callback on one of its nodes. The executor's own ``wake()`` is not enough:
+        it only makes rclpy rebuild its wait set and wait again for the rest of the timeout,
+        so a message published from another thread would wait for the poll timeout.
+        """
         self._dds = rclpy_executor
+        self._dds_wake = wake
+
+    def detach_dds(self) -> None:
+        """Stop waiting on DDS (the container is leaving it); later waits are plain."""
+        self._dds_wake = None
+        self._dds = None
+        self._wake_event.set()
 
     def create_timer(
         self, period_s: float, callback: Callable[[], None], *, stats: CallbackStats, logger: Logger
@@ -194,6 +209,11 @@ class ConsecutiveExecutor:
     def _schedule(self, timer: ExecutorTimer, due_ns: int) -> None:
         timer.next_ns = due_ns
         heapq.heappush(self._timers, (due_ns, next(self._seq), timer._generation, timer))
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        """"manual" on a :class:`ManualClock` (time moves in :meth:`advance`), else "system"."""
+        return "manual" if self._manual else "system"
 
     def next_timer_due_ns(self) -> int | None:
         """When the earliest scheduled timer is due (clock ns), or None without timers.
@@ -223,7 +243,7 @@ class ConsecutiveExecutor:
     ) -> tuple[bool, Any]:
         """Run a component callback: timed, and logged and counted if it raises.
 
-        Returns ``(True, result)``, or ``(False, None)`` if it raised.
+        Returns ``(True, result)``, or ``(False, the exception)`` if it raised.
         """
         outer = self._nested_ns
         self._nested_ns = 0
@@ -231,19 +251,19 @@ class ConsecutiveExecutor:
         ok, result = True, None
         try:
             result = fn(*args)
-        except Exception:
-            ok = False
-            if stats is not None:
-                stats.exceptions += 1
-            log = logger or self._logger
-            if log is not None:
-                log.error(f"{what} raised:\n{traceback.format_exc().rstrip()}")
+        except Exception as exc:
+            ok, result = False, exc
+            report_failure(stats, logger or self._logger, what, self._now_ns())
         end = time.perf_counter_ns()
         if stats is not None:
             stamp = self.clock.now_ns() if self._manual else start
             stats.record(stamp, end - start - self._nested_ns)
         self._nested_ns = outer + end - start
         return ok, result
+
+    def _now_ns(self) -> int:
+        """Monotonic time for rate limits: the manual clock, so tests can advance it."""
+        return self.clock.now_ns() if self._manual else time.monotonic_ns()
 
     # -- delivery (the hot path) -----------------------------------------------------------
 
@@ -302,10 +322,7 @@ class ConsecutiveExecutor:
         try:
             sub.callback(msg)
         except Exception:
-            stats.exceptions += 1
-            sub.logger.error(
-                f"callback on {sub.topic.name} raised:\n{traceback.format_exc().rstrip()}"
-            )
+            report_failure(stats, sub.logger, f"callback on {sub.topic.name}", self._now_ns())
         end = time.perf_counter_ns()
         stats.record(self.clock.now_ns() if self._manual else start, end - start - self._nested_ns)
         self._nested_ns = outer + end - start
@@ -343,8 +360,7 @@ class ConsecutiveExecutor:
         try:
             timer.callback()
         except Exception:
-            stats.exceptions += 1
-            timer.logger.error(f"timer callback raised:\n{traceback.format_exc().rstrip()}")
+            report_failure(stats, timer.logger, f"timer {stats.name}".rstrip(), self._now_ns())
         end = time.perf_counter_ns()
         stats.record(self.clock.now_ns() if self._manual else start, end - start - self._nested_ns)
         self._nested_ns = 0
@@ -394,8 +410,8 @@ class ConsecutiveExecutor:
         return timers[0][0] if timers else None
 
     def _wake(self) -> None:
-        if self._dds is not None:
-            self._dds.wake()
+        if self._dds_wake is not None:
+            self._dds_wake()
         else:
             self._wake_event.set()
 

@@ -9,12 +9,17 @@ subclasses or imports ``rclpy.node.Node``, so the same class runs on every backe
 * :mod:`efficient_comm.testing` needs no DDS at all and runs on a manual clock.
 
 Only the protocols below are the contract; each backend returns its own implementations.
+Besides communication, the handle offers a few capabilities that components adapting to
+their deployment need (the recorder, the simulator): name resolution, the ROS graph
+(:class:`Graph`), the clock's kind and, where the executor can tell, its timer schedule.
+Every backend implements them and the conformance suite covers them, so no component
+needs to know which backend it runs on.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol, TypeAlias, TypeVar, runtime_checkable
+from typing import Any, Literal, Protocol, TypeAlias, TypeVar, runtime_checkable
 
 from rclpy.qos import QoSProfile
 
@@ -23,8 +28,10 @@ from ._future import Future
 __all__ = [
     "Client",
     "Clock",
+    "ClockKind",
     "Component",
     "Future",
+    "Graph",
     "Logger",
     "MessageCallback",
     "NodeHandle",
@@ -35,6 +42,7 @@ __all__ = [
     "Service",
     "Subscription",
     "Timer",
+    "TimerSchedule",
 ]
 
 #: A depth (KEEP_LAST, reliable, volatile, as in rclpy) or a full profile.
@@ -124,6 +132,45 @@ class Clock(Protocol):
     def now_ns(self) -> int: ...
 
 
+#: How a node's time advances: by itself ("system": ROS time from the system clock) or
+#: only when the executor is advanced ("manual": tests and lockstep simulation).
+ClockKind: TypeAlias = Literal["system", "manual"]
+
+
+class Graph(Protocol):
+    """The ROS graph as one node sees it: the topics of its own process and, where the
+    backend talks DDS, what DDS discovered (other processes). Without DDS (tests), only
+    the process's own topics."""
+
+    def topic_names_and_types(self) -> dict[str, list[str]]:
+        """Every known topic's resolved name and its types (``pkg/msg/Type``)."""
+        ...
+
+    def publishers_qos(self, topic: str) -> list[QoSProfile]:
+        """The QoS every known publisher on ``topic`` (a resolved name) offers.
+
+        A subscriber matches what is offered with it: best effort when a publisher is best
+        effort (a reliable reader would get nothing), transient local when all are.
+        """
+        ...
+
+
+class TimerSchedule(Protocol):
+    """When the executor running a component next has a timer due.
+
+    A hint a component's own background thread may read (without the executor's
+    cooperation, so possibly stale) to keep off the GIL around the deadlines of the
+    executor's timers; the recorder's writer does.
+    """
+
+    @property
+    def clock(self) -> Clock: ...
+
+    def next_timer_due_ns(self) -> int | None:
+        """The earliest timer deadline on :attr:`clock` (ns), or None with no timers."""
+        ...
+
+
 @runtime_checkable
 class NodeHandle(Protocol):
     """What a component may ask of the middleware. Injected into the constructor."""
@@ -142,6 +189,42 @@ class NodeHandle(Protocol):
 
     @property
     def clock(self) -> Clock: ...
+
+    # -- capabilities (every backend has them) ---------------------------------------------
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        """Whether :attr:`clock` runs by itself or only when the executor is advanced."""
+        ...
+
+    @property
+    def graph(self) -> Graph: ...
+
+    @property
+    def timer_schedule(self) -> TimerSchedule | None:
+        """The executor's timer deadlines, where the backend can tell (composed: the
+        container's executor); None where it cannot (standalone: rclpy's executor)."""
+        ...
+
+    def resolve_topic_name(self, topic: str) -> str:
+        """The full name ``topic`` has for this node (namespace and remapping applied)."""
+        ...
+
+    def observe_in_process(
+        self, msg_type: type, topic: str, callback: MessageCallback
+    ) -> Subscription | None:
+        """Hear what the components of this process publish on ``topic``, and only that.
+
+        On a DDS domain shared by a team every robot's messages reach every process; a
+        component that must tell its own robot's from the others' (the recorder learning
+        whose clock sync shares its container) observes the in-process bus instead. An
+        observer has no DDS reader and does not count as a subscriber, so no publisher
+        computes anything for it. None where the backend hosts no other components
+        (standalone: one component a process). Remove it with :meth:`destroy_subscription`.
+        """
+        ...
+
+    # -- communication -----------------------------------------------------------------------
 
     def create_publisher(self, msg_type: type, topic: str, *, qos: QoSLike = 10) -> Publisher: ...
 

@@ -21,7 +21,6 @@ import argparse
 import contextlib
 import sys
 import time
-import traceback
 from collections.abc import Callable, Sequence
 from typing import Any, cast
 
@@ -32,7 +31,9 @@ from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
 from ._closing import Closing
+from ._failures import failure_outcome, failure_response, report_failure, without_answer
 from ._future import Future
+from ._graph import NodeGraph
 from ._params import ParameterMethods, RclpyParameters
 from ._qos import to_profile
 from ._signals import stop_on_sigterm
@@ -41,6 +42,7 @@ from .errors import ComponentError
 from .handle import (
     Client,
     Clock,
+    ClockKind,
     Logger,
     MessageCallback,
     Publisher,
@@ -94,25 +96,54 @@ class StandaloneHandle(ParameterMethods):
     def clock(self) -> Clock:
         return self._clock
 
+    # -- capabilities --------------------------------------------------------------------
+
+    @property
+    def clock_kind(self) -> ClockKind:
+        return "system"
+
+    @property
+    def graph(self) -> NodeGraph:
+        return NodeGraph(bus=None, node=self.rclpy_node)
+
+    @property
+    def timer_schedule(self) -> None:
+        """rclpy's executor keeps its timers to itself."""
+        return None
+
+    def resolve_topic_name(self, topic: str) -> str:
+        return str(self.rclpy_node.resolve_topic_name(topic))
+
+    def observe_in_process(
+        self, msg_type: type, topic: str, callback: MessageCallback
+    ) -> None:
+        """One component a process: there is nobody else in it to observe."""
+        return None
+
     def _timed(
         self, kind: CallbackKind, name: str, callback: Callable[..., Any]
     ) -> Callable[..., Any]:
         """Record time and frequency, and log (not propagate) exceptions, like composed."""
         return self._guarded(self.registry.add(self.fully_qualified_name, kind, name), callback)
 
-    def _guarded(self, stats: CallbackStats, callback: Callable[..., Any]) -> Callable[..., Any]:
+    def _guarded(
+        self,
+        stats: CallbackStats,
+        callback: Callable[..., Any],
+        *,
+        what: str = "",
+        on_failure: Callable[[BaseException], Any] | None = None,
+    ) -> Callable[..., Any]:
         logger = self.logger
-        kind, name = stats.kind, stats.name
+        what = what or f"{stats.kind} {stats.name}"
 
         def timed(*args: Any) -> Any:
             start = time.perf_counter_ns()
             try:
                 return callback(*args)
-            except Exception:
-                stats.exceptions += 1
-                logger.error(f"{kind} {name} raised:\n{traceback.format_exc().rstrip()}")
-                # A failed service answers with an empty response, as on every backend.
-                return type(args[-1])() if kind == "service" else None
+            except Exception as exc:
+                report_failure(stats, logger, what, time.monotonic_ns())
+                return on_failure(exc) if on_failure is not None else None
             finally:
                 stats.record(start, time.perf_counter_ns() - start)
 
@@ -139,9 +170,14 @@ class StandaloneHandle(ParameterMethods):
         self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
     ) -> Service:
         full = self.rclpy_node.resolve_service_name(name)
-        return self.rclpy_node.create_service(
-            srv_type, name, self._timed("service", full, callback)
+        stats = self.registry.add(self.fully_qualified_name, "service", full)
+        timed = self._guarded(
+            stats, callback, what=f"service {full} ({failure_outcome(srv_type)})",
+            on_failure=lambda exc: failure_response(srv_type, full, exc),
         )
+        service = self.rclpy_node.create_service(srv_type, name, timed)
+        without_answer(service)  # a failure without a failure response stays unanswered
+        return service
 
     def create_client(self, srv_type: type, name: str) -> Client:
         return StandaloneClient(self, srv_type, name)
@@ -246,8 +282,14 @@ class Standalone(Closing):
 
 
 
-def run(factory: Callable[[Any], Any], *, name: str, args: Sequence[str] | None = None) -> int:
-    """Run ``factory`` as a standalone node until interrupted; returns an exit code."""
+def run_standalone(
+    factory: Callable[[Any], Any], *, name: str, args: Sequence[str] | None = None
+) -> int:
+    """Run ``factory`` as a standalone node until interrupted; returns an exit code.
+
+    What a console script's ``main`` does (see :func:`standalone_main`), for commands that
+    parse options of their own first: a bad component prints one ``error:`` line (1).
+    """
     stop_on_sigterm()
     try:
         with Standalone(factory, name=name, args=sys.argv if args is None else args) as node:
@@ -264,7 +306,7 @@ def standalone_main(factory: Callable[[Any], Any], *, name: str) -> Callable[[],
     """A console-script ``main`` that runs ``factory`` as node ``name``."""
 
     def main() -> int:
-        return run(factory, name=name)
+        return run_standalone(factory, name=name)
 
     return main
 
@@ -285,4 +327,4 @@ def cli(argv: Sequence[str] | None = None) -> int:
     default = "".join(
         "_" + c.lower() if c.isupper() else c for c in getattr(factory, "__name__", "node")
     ).lstrip("_")
-    return run(factory, name=options.name or default, args=argv)
+    return run_standalone(factory, name=options.name or default, args=argv)

@@ -7,8 +7,11 @@ other threads.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
+
+from ._failures import FailureLog
 
 CallbackKind = Literal["subscription", "timer", "service", "client"]
 
@@ -50,6 +53,7 @@ class CallbackStats:
         "calls",
         "dropped",
         "exceptions",
+        "failures",
         "first_call_ns",
         "kind",
         "last_call_ns",
@@ -65,6 +69,8 @@ class CallbackStats:
         self.name = name
         self.calls = 0
         self.exceptions = 0
+        #: What of its exceptions was logged (see efficient_comm._failures).
+        self.failures = FailureLog()
         self.dropped = 0
         self.total_ns = 0
         self.max_ns = 0
@@ -113,3 +119,25 @@ class StatsRegistry:
 
     def snapshot(self) -> list[StatsSnapshot]:
         return [e.snapshot() for e in self._entries]
+
+
+def format_stats(rows: Sequence[StatsSnapshot]) -> str:
+    """A plain-text table of ``rows`` (``container.stats()``), one callback per line.
+
+    Node and topic names are shown whole: columns are as wide as their longest entry, since
+    a cut name (``.../image_raw`` of which robot?) is what a reader cannot tell apart.
+    """
+    header = ("node", "kind", "name", "calls", "Hz", "mean µs", "max µs", "exc", "drop")
+    table = [header] + [
+        (s.node, s.kind, s.name or "-", str(s.calls), f"{s.rate_hz:.1f}",
+         f"{s.mean_ns / 1e3:.1f}", f"{s.max_ns / 1e3:.1f}", str(s.exceptions), str(s.dropped))
+        for s in rows
+    ]
+    widths = [max(len(row[i]) for row in table) for i in range(len(header))]
+    return "\n".join(
+        " ".join(
+            cell.ljust(width) if i < 3 else cell.rjust(width)
+            for i, (cell, width) in enumerate(zip(row, widths, strict=True))
+        ).rstrip()
+        for row in table
+    )

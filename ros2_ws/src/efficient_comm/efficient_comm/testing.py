@@ -27,13 +27,16 @@ message it received fails its test.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
+import random
 import uuid
+from collections import deque
 from collections.abc import Mapping
 from typing import Any
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from ._clock import ManualClock
 from .bus import LocalPublisher
@@ -53,11 +56,8 @@ __all__ = [
     "unique_topic",
 ]
 
-_TAP_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_ALL,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
+#: How many ids domain_coordinator hands out (1..100).
+DOMAIN_IDS = 100
 _INJECT_QOS = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
@@ -122,15 +122,13 @@ class TestHandle(ComposedHandle):
             return
         store: list[Any] = []
         self._recorded[name] = store
-        tap = self.container.bus.add_subscription(
+        self.container.bus.add_observer(
             name,
             msg_type,
             store.append,
-            _TAP_QOS,
             stats=CallbackStats("<test>", "subscription", name),
             logger=self.logger,
         )
-        tap.observer = True
 
     def published(self, topic: str) -> list[Any]:
         """Every message published on ``topic`` (resolved like the node's own names).
@@ -138,7 +136,7 @@ class TestHandle(ComposedHandle):
         Only topics this handle created a publisher on are recorded; asking for another
         raises LookupError rather than answering an empty list that would pass a test.
         """
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         if name not in self._recorded:
             raise LookupError(
                 f"{self.fully_qualified_name} has no publisher on {name}; it publishes on "
@@ -152,7 +150,7 @@ class TestHandle(ComposedHandle):
 
     def inject(self, topic: str, *msgs: Any) -> None:
         """Publish ``msgs`` on ``topic`` as if from another node, then run what is ready."""
-        name = self.resolve(topic)
+        name = self.resolve_topic_name(topic)
         injector = self._injectors.get(name)
         if injector is None:
             msg_type = type(msgs[0])
@@ -176,12 +174,33 @@ class TestHandle(ComposedHandle):
         return self.container.executor.clock.now_ns()
 
 
-_domain_counter = itertools.count()
+#: Reservations a process keeps: older ones are released (their tests are long over).
+KEEP_RESERVED = 16
+_reserved: deque[contextlib.ExitStack] = deque()
+# Each process walks the ids from a random start, so an id is not reused right after a
+# test's peers left it (a killed DDS participant stays in discovery for its lease time).
+_next_candidate = itertools.count(random.randrange(DOMAIN_IDS))
 
 
 def isolated_domain_id() -> int:
-    """A ROS domain id (1..200) unlikely to be shared with a concurrent test process."""
-    return (os.getpid() * 31 + next(_domain_counter)) % 200 + 1
+    """A ROS domain id (1..100) reserved for this process, so no concurrent test gets it.
+
+    Reserved through ``domain_coordinator`` (ament_cmake_ros's, what launch_testing uses):
+    it holds a local port per id, so every process that reserves this way (every test
+    process here, running in parallel or not) gets a different id. Deriving ids from the
+    pid, as this did before, let two processes collide. The reservation lasts until this
+    process has made :data:`KEEP_RESERVED` newer ones, or ends.
+    """
+    from domain_coordinator import domain_id  # type: ignore[import-untyped]
+
+    stack = contextlib.ExitStack()
+    domain = int(stack.enter_context(
+        domain_id(selector=lambda: next(_next_candidate) % DOMAIN_IDS + 1)
+    ))
+    _reserved.append(stack)
+    while len(_reserved) > KEEP_RESERVED:
+        _reserved.popleft().close()
+    return domain
 
 
 def unique_topic(prefix: str = "t") -> str:

@@ -207,6 +207,8 @@ def harness(
 
 
 def _param_literal(value: Any) -> str:
+    if value is None:
+        return "#"  # what a user types unquoted: YAML reads a comment, i.e. null
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):

@@ -7,7 +7,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32, String
 
 from efficient_comm import NameResolutionError, TopicTypeError
-from efficient_comm.testing import TestHandle
+from efficient_comm.testing import TestHandle, test_container
 
 BEST_EFFORT = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
 LATCHED = QoSProfile(depth=2, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -120,3 +120,33 @@ def test_publisher_qos_lists_the_offered_profiles_of_a_topic() -> None:
     assert [q.reliability for q in offered] == [ReliabilityPolicy.BEST_EFFORT,
                                                 ReliabilityPolicy.RELIABLE]
     assert offered[1].durability == DurabilityPolicy.TRANSIENT_LOCAL
+
+
+def test_incompatible_qos_in_process_is_warned_once_on_both_sides() -> None:
+    """DDS warns of an incompatible endpoint; in-process endpoints must not fail silently."""
+    container = test_container()
+    camera = TestHandle("camera", container=container)
+    viewer = TestHandle("viewer", container=container)
+    pub = camera.create_publisher(
+        String, "/image", qos=QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+    )
+    heard: list[String] = []
+    viewer.create_subscription(String, "/image", heard.append, qos=10)  # reliable
+    for _ in range(3):
+        pub.publish(String(data="frame"))
+    camera.create_publisher(String, "/other", qos=10)  # rewiring elsewhere warns nothing new
+    assert heard == []
+
+    def warnings(node: TestHandle) -> list[str]:
+        return [m for level, m in node.records if level == "warning"]
+
+    (heard_of,) = warnings(viewer)
+    assert "/camera" in heard_of and "'/image'" in heard_of and "RELIABILITY" in heard_of
+    (told,) = warnings(camera)
+    assert "/viewer" in told and "RELIABILITY" in told
+    viewer.create_subscription(
+        String, "/image", heard.append,
+        qos=QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                       reliability=ReliabilityPolicy.BEST_EFFORT),
+    )
+    assert "DURABILITY" in warnings(viewer)[-1] and len(warnings(viewer)) == 2

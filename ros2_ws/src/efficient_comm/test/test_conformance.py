@@ -7,11 +7,11 @@ from typing import Any
 
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import String
+from std_msgs.msg import Int32, String
 
-from efficient_comm import ParameterError
+from efficient_comm import ParameterError, ServiceFailedError
 from efficient_comm.handle import NodeHandle, ParameterValue
-from efficient_comm_interfaces.srv import UnloadComponent
+from efficient_comm_interfaces.srv import ListComponents, UnloadComponent
 
 from .conformance import BACKENDS, harness
 
@@ -134,18 +134,55 @@ def test_transient_local_reaches_late_joiners(backend: str) -> None:
         assert status[0].data == "ready /late"
 
 
-def test_services_answer_and_survive_errors(backend: str) -> None:
+def test_services_answer_and_a_failure_is_told_apart_from_an_answer(
+    backend: str, capfd: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
     with harness(backend, Adder) as h:
         client = h.client(UnloadComponent, "/double")
         assert h.wait_for(client.service_is_ready)
         bad = client.call_async(UnloadComponent.Request(unique_id=13))
         good = client.call_async(UnloadComponent.Request(unique_id=21))
         assert h.wait_for(good.done)
-        assert good.result().error_message == "42"
+        assert good.result().success and good.result().error_message == "42"
         assert h.wait_for(bad.done)
-        # Same on every backend: the failure is logged and counted by the server, and the
-        # caller gets an empty response (the only thing DDS could carry anyway).
+        # Same on every backend: the response says the call failed, and why; the server's
+        # log names the service and the exception.
         assert bad.exception() is None and not bad.result().success
+        assert "/double" in bad.result().error_message
+        assert "unlucky" in bad.result().error_message
+        logged = capfd.readouterr().err + caplog.text
+        assert "service /double" in logged and "RuntimeError: unlucky" in logged, logged
+
+
+class Lister:
+    """A service whose type has no success field: the first call fails, the second works."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.calls = 0
+        node.create_service(ListComponents, "list", self._list)
+
+    def _list(self, request: Any, response: Any) -> Any:
+        self.calls += 1
+        if self.calls == 1:
+            raise RuntimeError("first call fails")
+        response.full_node_names = ["/answered"]
+        return response
+
+
+def test_a_failure_of_a_service_without_success_field_is_no_answer(backend: str) -> None:
+    with harness(backend, Lister) as h:
+        client = h.client(ListComponents, "/list")
+        assert h.wait_for(client.service_is_ready)
+        bad = client.call_async(ListComponents.Request())
+        assert h.wait_for(lambda: h.component.calls == 1)
+        good = client.call_async(ListComponents.Request())
+        assert h.wait_for(good.done)
+        assert list(good.result().full_node_names) == ["/answered"]
+        if backend == "test":  # a caller in the same process gets the exception
+            assert isinstance(bad.exception(), ServiceFailedError)
+            assert "first call fails" in str(bad.exception())
+        else:  # an answer to the first call would have arrived before the second's
+            assert not bad.done()
 
 
 class Fussy:
@@ -182,6 +219,25 @@ def test_parameter_edge_cases_agree(backend: str) -> None:
         assert node.get_parameter("first") == 1 and node.get_parameter("ints") == [1, 2]
 
 
+class Labeller:
+    """Declares a parameter the deployment gives no value (``-p label:=#``)."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.error: ParameterError | None = None
+        try:
+            node.declare_parameter("label", ">")
+        except ParameterError as exc:
+            self.error = exc
+
+
+def test_an_override_with_no_value_is_refused_naming_the_parameter(backend: str) -> None:
+    with harness(backend, Labeller, parameters={"label": None}) as h:
+        assert h.component.error is not None, "a None override was accepted"
+        assert "'label'" in str(h.component.error)
+        with pytest.raises(ParameterError):
+            h.handle.get_parameter("label")  # nothing was declared
+
+
 def test_subscription_count_tells_whether_anyone_listens(backend: str) -> None:
     with harness(backend, Fussy) as h:
         assert h.component.pub.get_subscription_count() == 0
@@ -213,3 +269,67 @@ def test_failing_done_callbacks_are_contained(backend: str) -> None:
         caller.ask(2)
         assert h.wait_for(lambda: len(caller.answers) == 2)
         assert sorted(caller.answers) == ["2", "4"]
+
+
+BEST_EFFORT = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+class Prober:
+    """Publishes best effort on ``probe``; the capabilities are asked of its handle."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.pub = node.create_publisher(String, "probe", qos=BEST_EFFORT)
+
+
+class Elsewhere:
+    """Another node's latched publisher."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.pub = node.create_publisher(Int32, "/elsewhere", qos=LATCHED)
+
+
+def test_capabilities_names_graph_clock_kind_and_timer_schedule(backend: str) -> None:
+    with harness(backend, Prober, name="prober", namespace="/robot",
+                 remappings={"probe": "/robot/probed"}) as h:
+        node: NodeHandle = h.handle
+        assert node.resolve_topic_name("probe") == "/robot/probed"
+        assert node.resolve_topic_name("x") == "/robot/x"
+        assert node.resolve_topic_name("~/x") == "/robot/prober/x"
+        assert node.clock_kind == ("manual" if backend == "test" else "system")
+
+        h.serve(Elsewhere)
+        assert h.wait_for(lambda: "/elsewhere" in node.graph.topic_names_and_types())
+        types = node.graph.topic_names_and_types()
+        assert types["/robot/probed"] == ["std_msgs/msg/String"]
+        assert types["/elsewhere"] == ["std_msgs/msg/Int32"]
+        # The component's own publisher is counted once (in-process and DDS alike).
+        assert [q.reliability for q in node.graph.publishers_qos("/robot/probed")] == [
+            ReliabilityPolicy.BEST_EFFORT
+        ]
+        assert h.wait_for(lambda: len(node.graph.publishers_qos("/elsewhere")) == 1)
+        (offered,) = node.graph.publishers_qos("/elsewhere")
+        assert offered.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        assert node.graph.publishers_qos("/nobody") == []
+
+        observed: list[Any] = []
+        tap = node.observe_in_process(String, "probe", observed.append)
+        if backend == "standalone":
+            assert tap is None  # one component a process: nobody else to observe
+        else:
+            assert tap is not None
+            prober: Prober = h.component
+            assert prober.pub.get_subscription_count() == 0  # an observer wants nothing
+            prober.pub.publish(String(data="seen"))
+            assert h.wait_for(lambda: [m.data for m in observed] == ["seen"])
+            node.destroy_subscription(tap)
+            prober.pub.publish(String(data="not seen"))
+            assert [m.data for m in observed] == ["seen"]
+
+        schedule = node.timer_schedule
+        if backend == "standalone":
+            assert schedule is None  # rclpy's executor does not tell
+        else:
+            assert schedule is not None and schedule.next_timer_due_ns() is None
+            node.create_timer(2.0, lambda: None)
+            due = schedule.next_timer_due_ns()
+            assert due is not None and 0 < due - schedule.clock.now_ns() <= 2_000_000_000

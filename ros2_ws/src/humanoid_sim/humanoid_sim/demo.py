@@ -27,9 +27,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-from efficient_comm import Container, ManualClock
-from efficient_comm._signals import stop_on_sigterm
-from efficient_comm.examples.demo import format_stats
+from efficient_comm import Container, ManualClock, format_stats, stop_on_sigterm
 
 from .soccer.compose import SoccerRobot, compose
 from .soccer.monitor import Figures

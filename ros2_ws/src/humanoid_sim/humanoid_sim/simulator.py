@@ -140,7 +140,7 @@ class Simulator:
             self._next_kick_s = self.kick_period_s
             self._wall_start: float | None = None  # wall time that sim time 0 stands for
             self._wall_first: float | None = None  # wall time of the first tick
-            self._lockstep = bool(getattr(node.clock, "is_manual", False))
+            self._lockstep = node.clock_kind == "manual"
             node.create_timer(self.period_s, self.tick)
             self._opened = opened.pop_all()
         node.logger.info(

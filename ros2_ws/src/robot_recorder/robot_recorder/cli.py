@@ -8,7 +8,7 @@ import sys
 from rclpy.utilities import remove_ros_args
 
 from efficient_comm import NodeHandle
-from efficient_comm.standalone import run
+from efficient_comm import run_standalone as run
 
 from .recorder import Recorder
 

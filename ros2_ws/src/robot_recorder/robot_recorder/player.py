@@ -326,7 +326,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     at the latest after S seconds), and exits at the end of the bag unless --loop."""
     import argparse
 
-    from efficient_comm.standalone import run
+    from efficient_comm import run_standalone as run
 
     args_in = list(sys.argv[1:] if argv is None else argv)
     ros_args: list[str] = []

@@ -29,9 +29,8 @@ from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from efficient_comm import ConsecutiveExecutor, Container, ManualClock, to_msg
-from efficient_comm.composed import ComposedHandle
-from efficient_comm.handle import NodeHandle, Subscription
+from efficient_comm import to_msg
+from efficient_comm.handle import NodeHandle, Subscription, TimerSchedule
 from rosbag2_layout import (
     FileSystem,
     full_definition,
@@ -212,9 +211,8 @@ class Recorder:
         try:
             self.writer.close()
         finally:
-            container = _container(self._node)
-            if self._clock_tap is not None and container is not None:
-                container.bus.remove_subscription(self._clock_tap)
+            if self._clock_tap is not None:
+                self._node.destroy_subscription(self._clock_tap)
                 self._clock_tap = None
             if self._switch_interval is not None:
                 _SWITCH_INTERVAL.release(self._switch_interval)
@@ -223,13 +221,7 @@ class Recorder:
     # -- subscriptions -------------------------------------------------------------------
 
     def _resolve(self, topic: str) -> str:
-        resolve = getattr(self._node, "resolve", None)
-        if callable(resolve):
-            return str(resolve(topic))
-        rclpy_node = getattr(self._node, "rclpy_node", None)
-        if rclpy_node is not None:
-            return str(rclpy_node.resolve_topic_name(topic))
-        return topic
+        return self._node.resolve_topic_name(topic)
 
     def _subscribe_known(self) -> None:
         pending = {n: s for n, s in self._selections.items() if n not in self._active}
@@ -284,8 +276,7 @@ class Recorder:
         process: a tap on the in-process bus (no DDS reader) sees only those. It is made
         before the recording subscription, so it hears each estimate first.
         """
-        container = _container(self._node)
-        if not self.clock_robot and container is not None and self._clock_tap is None:
+        if not self.clock_robot and self._clock_tap is None:
             def learn(msg: Any) -> None:
                 robot = str(getattr(msg, "robot", ""))
                 if not self.clock_robot and robot:
@@ -299,13 +290,8 @@ class Recorder:
                         "(the clock_robot parameter chooses)")
                 self._local_robots.add(robot)
 
-            self._clock_tap = container.bus.add_subscription(
-                self._clock_name, msg_type, learn, _TAP_QOS,
-                stats=container.executor.registry.add(
-                    self._node.fully_qualified_name, "subscription",
-                    f"{self._clock_name} (whose clock sync is here)"),
-                logger=self._node.logger)
-            self._clock_tap.observer = True  # it asks nobody to publish
+            # None standalone: no clock sync shares the process, clock_robot must say.
+            self._clock_tap = self._node.observe_in_process(msg_type, self._clock_name, learn)
 
         def on_estimate(msg: Any) -> None:
             robot = str(getattr(msg, "robot", ""))
@@ -476,13 +462,6 @@ class _SwitchInterval:
 _SWITCH_INTERVAL = _SwitchInterval()
 
 
-#: The in-process tap that learns whose clock sync shares the container: it takes whatever
-#: a publisher offers (best effort and volatile match every publisher).
-_TAP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                      reliability=ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.VOLATILE)
-
-
 def _checked_type(type_str: str) -> tuple[type, str]:
     """The message class and canonical name of ``type_str``; :class:`UnknownTypeError` if
     it is not installed or its definition could not be written into the bag."""
@@ -495,27 +474,10 @@ def _checked_type(type_str: str) -> tuple[type, str]:
     return msg_type, canonical
 
 
-def _container(node: NodeHandle) -> Container | None:
-    """The container of a composed component (None standalone: no in-process bus)."""
-    return node.container if isinstance(node, ComposedHandle) else None
-
-
 def _graph_types(node: NodeHandle) -> dict[str, str]:
     """Topic name -> ``pkg/msg/Type`` of every topic this process or the DDS graph knows."""
-    found: dict[str, str] = {}
-    container = _container(node)
-    if container is not None:
-        for name, msg_type in container.bus.topics().items():
-            try:
-                found[name] = type_name(msg_type)
-            except UnknownTypeError:
-                continue
-    rclpy_node = getattr(node, "rclpy_node", None)
-    if rclpy_node is not None:
-        for name, types in rclpy_node.get_topic_names_and_types():
-            if types and name not in found:
-                found[name] = types[0]
-    return found
+    return {name: types[0] for name, types in node.graph.topic_names_and_types().items()
+            if types}
 
 
 def _record_qos(node: NodeHandle, topic: str) -> tuple[QoSProfile, list[QoSProfile]]:
@@ -526,11 +488,7 @@ def _record_qos(node: NodeHandle, topic: str) -> tuple[QoSProfile, list[QoSProfi
     publisher sent before the recorder started is recorded too (a transient-local reader
     would not match a volatile publisher, so one volatile publisher makes it volatile).
     """
-    container = _container(node)
-    offered = container.bus.publisher_qos(topic) if container is not None else []
-    rclpy_node = getattr(node, "rclpy_node", None)
-    if rclpy_node is not None:
-        offered += [i.qos_profile for i in rclpy_node.get_publishers_info_by_topic(topic)]
+    offered = node.graph.publishers_qos(topic)
     best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
     latched = bool(offered) and all(
         q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
@@ -551,15 +509,15 @@ def _timer_pacer(node: NodeHandle, before_s: float, after_s: float
     ``before_s`` ahead of the next deadline until ``after_s`` after it (the callbacks of that
     round run meanwhile). Only for composed components on a real clock; None otherwise.
     """
-    container = _container(node)
-    if container is None or isinstance(container.executor.clock, ManualClock):
+    schedule = node.timer_schedule
+    if schedule is None or node.clock_kind == "manual":
         return None
     if before_s <= 0 and after_s <= 0:
         return None
-    return _pacer(container.executor, int(before_s * 1e9), int(after_s * 1e9))
+    return _pacer(schedule, int(before_s * 1e9), int(after_s * 1e9))
 
 
-def _pacer(executor: ConsecutiveExecutor, before_ns: int, after_ns: int) -> Callable[[], float]:
+def _pacer(executor: TimerSchedule, before_ns: int, after_ns: int) -> Callable[[], float]:
     """The pacing function of :func:`_timer_pacer` (runs in the writer thread)."""
     clock, next_due = executor.clock, executor.next_timer_due_ns
     last_due = -(1 << 62)  # no round of callbacks seen yet

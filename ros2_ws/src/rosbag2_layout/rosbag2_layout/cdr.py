@@ -18,6 +18,8 @@ from typing import Any
 
 from rosidl_parser import definition as d  # type: ignore[import-untyped]
 
+from .errors import UnsupportedFieldError
+
 __all__ = ["cdr_length", "trim"]
 
 _SIZES = {
@@ -32,10 +34,6 @@ _PLANS: dict[type, Callable[[Any, int], int]] = {}
 _Step = Callable[[Any, int], int]
 
 
-class _UnsupportedError(Exception):
-    pass
-
-
 def _align(offset: int, size: int) -> int:
     return offset + (-offset % size)
 
@@ -45,10 +43,10 @@ def _value_step(slot: Any) -> _Step:
     if isinstance(slot, d.BasicType):
         size = _SIZES.get(slot.typename)
         if size is None:
-            raise _UnsupportedError(slot.typename)
+            raise UnsupportedFieldError(slot.typename)
         return lambda _v, o: _align(o, size) + size
     if isinstance(slot, d.AbstractWString):
-        raise _UnsupportedError("wstring")
+        raise UnsupportedFieldError("wstring")
     if isinstance(slot, d.AbstractString):
         return lambda v, o: _align(o, 4) + 4 + len(v.encode("utf-8")) + 1
     if isinstance(slot, d.NamespacedType):
@@ -57,13 +55,13 @@ def _value_step(slot: Any) -> _Step:
         return _elements_step(slot.value_type, prefixed=False)
     if isinstance(slot, d.AbstractSequence):
         return _elements_step(slot.value_type, prefixed=True)
-    raise _UnsupportedError(type(slot).__name__)
+    raise UnsupportedFieldError(type(slot).__name__)
 
 
 def _elements_step(value_type: Any, *, prefixed: bool) -> _Step:
     basic = _SIZES.get(value_type.typename) if isinstance(value_type, d.BasicType) else None
     if isinstance(value_type, d.BasicType) and basic is None:
-        raise _UnsupportedError(value_type.typename)
+        raise UnsupportedFieldError(value_type.typename)
     if basic is not None:
         size = basic
 
@@ -128,7 +126,7 @@ def cdr_length(msg: Any) -> int | None:
     """Bytes of ``msg`` serialized as CDR with its 4-byte header; None if not computable."""
     try:
         return _ENCAPSULATION + _plan(type(msg))(msg, 0)
-    except _UnsupportedError:
+    except UnsupportedFieldError:
         return None
 
 

@@ -11,8 +11,10 @@ Catch :class:`Rosbag2Error` to handle anything this package raises::
     │                     writing anything (ValueError)
     ├── BagWriteError     writing failed (disk full, free-space guard, I/O error); what was
     │                     written before stays readable (OSError)
-    └── UnknownTypeError  a message type whose module or .msg definition is not installed
-                          (LookupError)
+    ├── UnknownTypeError  a message type whose module or .msg definition is not installed
+    │                     (LookupError)
+    └── UnsupportedFieldError  a field type whose exact CDR length cdr.py cannot compute
+                          (wstring, ...; it falls back to serializing) (TypeError)
 
 Each also derives from the builtin named, so callers that only know Python's exceptions
 still catch them.
@@ -21,7 +23,7 @@ still catch them.
 from __future__ import annotations
 
 __all__ = ["BagConfigError", "BagFormatError", "BagNotFoundError", "BagWriteError",
-           "Rosbag2Error", "UnknownTypeError"]
+           "Rosbag2Error", "UnknownTypeError", "UnsupportedFieldError"]
 
 
 class Rosbag2Error(Exception):
@@ -46,3 +48,7 @@ class BagWriteError(Rosbag2Error, OSError):
 
 class UnknownTypeError(Rosbag2Error, LookupError):
     """A message type that is not installed (no Python module or no .msg file)."""
+
+
+class UnsupportedFieldError(Rosbag2Error, TypeError):
+    """A field type whose exact CDR length :mod:`rosbag2_layout.cdr` cannot compute."""

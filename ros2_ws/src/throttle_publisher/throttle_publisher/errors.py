@@ -1,4 +1,4 @@
-"""Every error throttle_publisher raises, under one root (itself an efficient_comm error).
+"""Every error throttle_publisher raises, under one root (see ARCHITECTURE.md, "Errors").
 
     ThrottleError
     └── InvalidOptionsError      options a subscriber may not ask for (bad rate, n = 0, ...)
@@ -6,10 +6,8 @@
 
 from __future__ import annotations
 
-from efficient_comm import EfficientCommError
 
-
-class ThrottleError(EfficientCommError):
+class ThrottleError(Exception):
     """Root of all throttle_publisher errors."""
 
 

@@ -17,20 +17,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from efficient_comm import Container, StatsSnapshot
-from efficient_comm._signals import stop_on_sigterm
+from efficient_comm import Container, format_stats, stop_on_sigterm
 from efficient_comm.examples.pipeline import Monitor
-
-
-def format_stats(rows: Sequence[StatsSnapshot]) -> str:
-    lines = [f"{'node':<18} {'kind':<12} {'name':<22} {'calls':>7} {'Hz':>7} {'mean µs':>8} "
-             f"{'max µs':>8} {'exc':>4} {'drop':>5}"]
-    for s in rows:
-        lines.append(
-            f"{s.node:<18} {s.kind:<12} {s.name[-22:]:<22} {s.calls:>7} {s.rate_hz:>7.1f} "
-            f"{s.mean_ns / 1e3:>8.1f} {s.max_ns / 1e3:>8.1f} {s.exceptions:>4} {s.dropped:>5}"
-        )
-    return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -57,7 +57,7 @@ def compose(container: Container, *, namespace: str = "/robot",
                                    parameters=dict(simulator or {}))
     driver_parameters: dict[str, Any] = {"port": sim.port, "ids": list(JOINTS),
                                          "joint_names": list(JOINTS.values())}
-    if getattr(container.executor.clock, "is_manual", False):
+    if container.clock_kind == "manual":
         driver_parameters["latency_timer_ms"] = LOCKSTEP_LATENCY_TIMER_MS
     driver_parameters.update(driver or {})
     robot = SoccerRobot(

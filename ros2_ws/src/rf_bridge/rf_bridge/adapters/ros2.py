@@ -186,6 +186,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         "(format: docs/RF_BRIDGE.md, rf_bridge/config.py).",
     )
     parser.parse_args(remove_ros_args(args)[1:])
-    from efficient_comm.standalone import run
+    from efficient_comm import run_standalone as run
 
     return run(BridgeNode, name="rf_bridge", args=args)
