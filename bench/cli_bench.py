@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
-import signal
 import statistics
 import subprocess
 import sys
@@ -31,7 +29,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from efficient_comm.testing import isolated_domain_id  # noqa: E402
+from efficient_comm.testing import isolated_domain_id, stop_process_group  # noqa: E402
 from tests._cli import cli_env, ros2_path  # noqa: E402
 
 LISTEN_S = 6.0
@@ -106,15 +104,6 @@ def _python(code: str, *args: str, env: dict[str, str], **kw: Any) -> subprocess
                             start_new_session=True, **kw)
 
 
-def _stop(proc: subprocess.Popen[str]) -> None:
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-
 
 def graph_answers(env: dict[str, str]) -> dict[str, float]:
     peers = []
@@ -142,7 +131,7 @@ def graph_answers(env: dict[str, str]) -> dict[str, float]:
         return out
     finally:
         for p in peers:
-            _stop(p)
+            stop_process_group(p)
 
 
 def keeping_up(env: dict[str, str], kind: str, rate: float, tmp: Path,
@@ -162,9 +151,9 @@ def keeping_up(env: dict[str, str], kind: str, rate: float, tmp: Path,
             try:
                 text, _ = pub.communicate(timeout=listen_s + 60)
             finally:
-                _stop(pub)
+                stop_process_group(pub)
                 time.sleep(0.5)
-                _stop(cli)
+                stop_process_group(cli)
         match = re.search(r"sent (\d+) ([\d.]+)", text)
         assert match, text
         sent, elapsed = int(match.group(1)), float(match.group(2))

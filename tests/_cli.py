@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from efficient_comm.testing import ros_env
+from efficient_comm.testing import ros_env, stop_process_group
 
 ROOT = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
@@ -67,15 +67,9 @@ class Running:
             time.sleep(0.05)
 
     def stop(self, sig: int = signal.SIGINT, timeout: float = 15) -> int:
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, sig)
-            try:
-                self.proc.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-                self.proc.wait()
+        returncode = stop_process_group(self.proc, sig=sig, timeout_s=timeout)
         self._out.close()
-        return self.proc.returncode
+        return returncode
 
 
 @contextmanager

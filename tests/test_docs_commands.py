@@ -19,16 +19,14 @@ the line before a block changes that (the docs then say in words what else it ne
 from __future__ import annotations
 
 import contextlib
-import os
 import re
-import signal
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
-from efficient_comm.testing import isolated_domain_id
+from efficient_comm.testing import isolated_domain_id, stop_process_group
 
 from ._cli import ROOT, cli_env
 
@@ -107,15 +105,6 @@ def _start(command: str, cwd: Path, env: dict[str, str], log: Path) -> subproces
                                 stderr=subprocess.STDOUT, start_new_session=True)
 
 
-def _stop(proc: subprocess.Popen[bytes]) -> None:
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-
 
 def _bad(text: str) -> bool:
     return "Traceback" in text or re.search(r"^error:", text, re.MULTILINE) is not None
@@ -141,7 +130,7 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
                 with contextlib.suppress(subprocess.TimeoutExpired):
                     proc.wait(timeout=STOPPED_AFTER_S)
                 still_running = proc.poll() is None
-                _stop(proc)
+                stop_process_group(proc)
                 text = log.read_text(errors="replace")
                 assert still_running or proc.returncode == 0, f"{command}\n{text}"
                 assert not _bad(text), f"{command}\n{text}"
@@ -149,7 +138,7 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
             try:
                 proc.wait(timeout=RUN_S)
             except subprocess.TimeoutExpired:
-                _stop(proc)
+                stop_process_group(proc)
                 pytest.fail(f"{block.id}: {command} still running after {RUN_S} s:\n"
                             f"{log.read_text(errors='replace')}")
             text = log.read_text(errors="replace")
@@ -160,4 +149,4 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
             assert background.poll() is None, f"background {commands[0]} ended:\n{text}"
     finally:
         if background is not None:
-            _stop(background)
+            stop_process_group(background)

@@ -31,6 +31,8 @@ import contextlib
 import itertools
 import os
 import random
+import signal
+import subprocess
 import uuid
 from collections import deque
 from collections.abc import Mapping
@@ -52,6 +54,7 @@ __all__ = [
     "TestHandle",
     "isolated_domain_id",
     "ros_env",
+    "stop_process_group",
     "test_container",
     "unique_topic",
 ]
@@ -206,6 +209,23 @@ def isolated_domain_id() -> int:
 def unique_topic(prefix: str = "t") -> str:
     """A fresh absolute topic name, so tests never hear each other."""
     return f"/{prefix}_{uuid.uuid4().hex[:12]}"
+
+
+def stop_process_group(
+    proc: subprocess.Popen[Any], *, sig: int = signal.SIGINT, timeout_s: float = 10.0
+) -> int:
+    """End a process started with ``start_new_session=True`` and everything it started:
+    ``sig`` to its group (SIGINT, so ROS programs shut down as on Ctrl-C), then SIGKILL
+    after ``timeout_s`` (rclpy traps SIGTERM; a stuck child must not outlive the test).
+    Returns its exit status."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, sig)
+        try:
+            proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    return proc.returncode
 
 
 def ros_env(domain_id: int, base: Mapping[str, str] | None = None) -> dict[str, str]:
