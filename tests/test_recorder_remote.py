@@ -144,6 +144,8 @@ def test_standalone_recorder_process_records_another_process_and_closes_on_sigin
         assert proc.wait(20) == 0
     assert (bag / "metadata.yaml").exists()  # closed properly on Ctrl-C
     assert [m.data for _, m in read_rosbags(bag)] == [f"m{i}" for i in range(20)]
+    # The user is told where: the directory to play back.
+    assert f"recording to {bag}" in (tmp_path / "recorder.log").read_text()
 
 
 def _recorder_command(tmp_path: Path, *params: str) -> list[str | Path]:

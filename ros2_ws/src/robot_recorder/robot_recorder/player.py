@@ -333,14 +333,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     if "--ros-args" in args_in:
         i = args_in.index("--ros-args")
         args_in, ros_args = args_in[:i], args_in[i:]
-    parser = argparse.ArgumentParser(prog="player", description=main.__doc__)
-    parser.add_argument("bag")
-    parser.add_argument("--topics", nargs="*", default=None)
-    parser.add_argument("--remap", nargs="*", default=[])
-    parser.add_argument("--rate", type=float, default=1.0)
-    parser.add_argument("--loop", action="store_true")
-    parser.add_argument("--paused", action="store_true")
-    parser.add_argument("--stamps", choices=STAMP_MODES, default="original")
+    parser = argparse.ArgumentParser(
+        prog="player",
+        description="Play a bag (MCAP in the rosbag2 layout) into the running system. It "
+        "starts once every topic has a subscriber (--no-wait: at once; --wait-timeout: after "
+        "S seconds at the latest) and exits at the end of the bag unless --loop. ROS "
+        "arguments go after --ros-args.")
+    parser.add_argument("bag", help="the bag's directory (or one of its .mcap files)")
+    parser.add_argument("--topics", nargs="*", default=None, metavar="TOPIC",
+                        help="play only these topics (default: all)")
+    parser.add_argument("--remap", nargs="*", default=[], metavar="FROM:=TO",
+                        help="publish topic FROM as TO")
+    parser.add_argument("--rate", type=float, default=1.0,
+                        help="playback speed, 1.0 = as recorded")
+    parser.add_argument("--loop", action="store_true", help="start again at the end")
+    parser.add_argument("--paused", action="store_true",
+                        help="start paused (resume with the ~/control service)")
+    parser.add_argument("--stamps", choices=STAMP_MODES, default="original",
+                        help="header stamps: as recorded, aligned to the team clock, or "
+                             "shifted to now (default: original)")
     wait = parser.add_mutually_exclusive_group()
     wait.add_argument("--no-wait", action="store_true",
                       help="play at once, without waiting for subscribers")

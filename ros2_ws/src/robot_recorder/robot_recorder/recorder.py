@@ -154,9 +154,16 @@ class Recorder:
     def start(self, bag: str | Path | None = None) -> Future[Path]:
         """Start recording into ``bag`` (default: a new directory under ``output_dir``).
 
-        Returns a future of the bag path (completed by the writer thread).
+        Returns a future of the bag path (completed by the writer thread). The path is
+        also logged, so a user of the command knows which directory to play back.
         """
-        return self.writer.start(Path(bag) if bag else self._new_bag_path(""))
+        future = self.writer.start(Path(bag) if bag else self._new_bag_path(""))
+        future.add_done_callback(self._say_started)
+        return future
+
+    def _say_started(self, future: Future[Path]) -> None:
+        if future.exception() is None:
+            self._node.logger.info(f"recording to {future.result()}")
 
     def stop(self) -> Future[Path | None]:
         """Close the bag once every message received so far is written; a future of its

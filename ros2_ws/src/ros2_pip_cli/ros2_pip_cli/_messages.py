@@ -54,13 +54,16 @@ def is_message(value: Any) -> bool:
 
 
 def to_plain(value: Any, *, truncate_length: int | None = None, no_arr: bool = False,
-             no_str: bool = False) -> Any:
-    """A message (or field value) as dicts, lists and scalars, ready for YAML."""
+             no_str: bool = False, field_type: str = "") -> Any:
+    """A message (or field value) as dicts, lists and scalars, ready for YAML.
+
+    ``field_type`` is the field's type as the message class spells it
+    (``sequence<uint8>``), for ``--no-arr``'s summary."""
     if is_message(value):
         return {
             field: to_plain(getattr(value, field), truncate_length=truncate_length,
-                            no_arr=no_arr, no_str=no_str)
-            for field in value.get_fields_and_field_types()
+                            no_arr=no_arr, no_str=no_str, field_type=field_type)
+            for field, field_type in value.get_fields_and_field_types().items()
         }
     if isinstance(value, bytes):
         text = "".join(chr(c) for c in value)
@@ -71,7 +74,7 @@ def to_plain(value: Any, *, truncate_length: int | None = None, no_arr: bool = F
         return _cut_str(value, truncate_length)
     if isinstance(value, (list, tuple, array.array)) or type(value).__name__ == "ndarray":
         if no_arr:
-            return f"<sequence type: {type(value).__name__}, length: {len(value)}>"
+            return f"<sequence type: {element_type(field_type)}, length: {len(value)}>"
         cut = truncate_length is not None and len(value) > truncate_length
         items = value[:truncate_length] if cut else value
         out = [to_plain(v, truncate_length=truncate_length, no_arr=no_arr, no_str=no_str)
@@ -82,6 +85,20 @@ def to_plain(value: Any, *, truncate_length: int | None = None, no_arr: bool = F
     if hasattr(value, "item"):  # numpy scalars
         return value.item()
     return value
+
+
+def element_type(field_type: str) -> str:
+    """The element type of an array or sequence field as ros2cli names it:
+    ``sequence<uint8, 5>`` and ``uint8[3]`` -> ``uint8``; ``sequence<geometry_msgs/Point>``
+    -> ``geometry_msgs/msg/Point``; ``string<=10`` -> ``string``."""
+    inner = field_type
+    if inner.startswith("sequence<"):
+        inner = inner[len("sequence<"):].rsplit(">", 1)[0].split(",")[0].strip()
+    inner = inner.split("[", 1)[0].split("<=", 1)[0]
+    if "/" in inner:
+        package, name = inner.split("/", 1)
+        return f"{package}/msg/{name}"
+    return inner or "unknown"
 
 
 def _cut_str(text: str, truncate_length: int | None) -> str:

@@ -139,6 +139,11 @@ class ClockSync:
         node.create_subscription(TimeSyncPing, PING_TOPIC, self._on_ping, qos=EXCHANGE_QOS)
         node.create_subscription(TimeSyncPong, PONG_TOPIC, self._on_pong, qos=EXCHANGE_QOS)
         node.create_timer(period, self._tick)
+        node.logger.info(
+            f"robot {self.robot}: the team's reference clock"
+            if self.is_reference else
+            f"robot {self.robot}: measuring its clock against robot {self.reference}'s "
+            f"(estimates on {OFFSET_TOPIC} once an exchange succeeds)")
 
     # -- what the robot knows -------------------------------------------------------------
 

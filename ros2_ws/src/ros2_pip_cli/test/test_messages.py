@@ -1,0 +1,27 @@
+"""Message text as ros2cli prints it (no DDS needed)."""
+
+from __future__ import annotations
+
+import pytest
+from geometry_msgs.msg import Pose, PoseArray
+from sensor_msgs.msg import Image
+
+from ros2_pip_cli._messages import element_type, message_to_yaml
+
+
+@pytest.mark.parametrize(("field_type", "expected"), [
+    ("sequence<uint8>", "uint8"),
+    ("sequence<uint8, 5>", "uint8"),
+    ("double[9]", "double"),
+    ("sequence<geometry_msgs/Pose>", "geometry_msgs/msg/Pose"),
+    ("sequence<string<=10>", "string"),
+])
+def test_element_type_names_the_elements_as_ros2cli_does(field_type, expected):
+    assert element_type(field_type) == expected
+
+
+def test_no_arr_summarises_sequences_by_their_element_type():
+    image = message_to_yaml(Image(data=bytes(19200)), no_arr=True)
+    assert "data: '<sequence type: uint8, length: 19200>'" in image
+    poses = message_to_yaml(PoseArray(poses=[Pose(), Pose()]), no_arr=True)
+    assert "poses: '<sequence type: geometry_msgs/msg/Pose, length: 2>'" in poses
