@@ -40,7 +40,10 @@ def test_standalone_component_with_remaps_and_params_file(tmp_path: Path) -> Non
         p.node.create_subscription(Image, topic, frames.append, 10)
         assert p.wait_for(lambda: len(frames) >= 3), (tmp_path / "cam.log").read_text()
         assert (frames[0].width, frames[0].height) == (32, 24)
-        assert ("front_cam", "/") in p.node.get_node_names_and_namespaces()
+        # Node names travel on their own discovery topic and may follow the data: wait.
+        assert p.wait_for(
+            lambda: ("front_cam", "/") in p.node.get_node_names_and_namespaces()
+        ), p.node.get_node_names_and_namespaces()
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
