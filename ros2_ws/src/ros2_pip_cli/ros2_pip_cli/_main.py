@@ -70,6 +70,30 @@ def add_spin_time(parser: argparse.ArgumentParser) -> None:
                              "of Fast DDS)")
 
 
+def add_list_verb(verbs: Any, noun: str, handler: Callable[[argparse.Namespace], int]) -> None:
+    """``ros2 topic list`` and ``ros2 service list`` take the same options (ros2cli's
+    ``-t``, ``-c``, ``--include-hidden-<noun>s``); ``handler`` reads them as
+    ``show_types``, ``count`` and ``include_hidden``."""
+    p = verb(verbs, "list", f"Output a list of available {noun}s", handler)
+    add_spin_time(p)
+    p.add_argument("-t", "--show-types", action="store_true",
+                   help=f"Additionally show the {noun} type")
+    p.add_argument("-c", f"--count-{noun}s", dest="count", action="store_true",
+                   help=f"Only display the number of {noun}s discovered")
+    p.add_argument(f"--include-hidden-{noun}s", dest="include_hidden", action="store_true",
+                   help=f"Consider hidden {noun}s as well")
+
+
+def print_names(names: list[tuple[str, list[str]]], args: argparse.Namespace) -> int:
+    """What a list verb prints: the count, or a line a name (with its types for ``-t``)."""
+    if args.count:
+        print(len(names))
+        return 0
+    for name, types in names:
+        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+    return 0
+
+
 def build_parser() -> Parser:
     from . import _bag, _component, _interface, _node, _param, _pkg, _service, _topic
 

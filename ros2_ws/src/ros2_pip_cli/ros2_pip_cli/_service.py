@@ -6,21 +6,14 @@ import argparse
 import time
 
 from ._graph import CliNode, cli_node
-from ._main import Commands, add_spin_time, add_verbs, verb
+from ._main import Commands, add_list_verb, add_verbs, print_names, verb
 from ._messages import import_interface, parse_values, set_message_fields
 from .errors import CliError
 
 
 def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "service", "Various service related sub-commands")
-    p = verb(verbs, "list", "Output a list of available services", _list)
-    add_spin_time(p)
-    p.add_argument("-t", "--show-types", action="store_true",
-                   help="Additionally show the service type")
-    p.add_argument("-c", "--count-services", action="store_true",
-                   help="Only display the number of services discovered")
-    p.add_argument("--include-hidden-services", action="store_true",
-                   help="Consider hidden services as well")
+    add_list_verb(verbs, "service", _list)
     p = verb(verbs, "type", "Output a service's type", _type)
     p.add_argument("service_name")
     p = verb(verbs, "call", "Call a service", _call)
@@ -42,13 +35,8 @@ def _list(args: argparse.Namespace) -> int:
     with cli_node() as node:
         node.settle(min_s=args.spin_time)
         services = sorted((n, list(t)) for n, t in node.node.get_service_names_and_types()
-                          if args.include_hidden_services or not _hidden(n))
-    if args.count_services:
-        print(len(services))
-        return 0
-    for name, types in services:
-        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
-    return 0
+                          if args.include_hidden or not _hidden(n))
+    return print_names(services, args)
 
 
 def _types(node: CliNode, service: str) -> list[str]:

@@ -23,7 +23,7 @@ from rclpy.qos import (
 from rclpy.serialization import deserialize_message
 
 from ._graph import CliNode, StopSignal, cli_node
-from ._main import Commands, add_spin_time, add_verbs, verb
+from ._main import Commands, add_list_verb, add_verbs, print_names, verb
 from ._messages import import_interface, message_to_yaml, parse_values, set_message_fields
 from .errors import CliError
 
@@ -36,14 +36,7 @@ FOLLOW_DEPTH = 100
 
 def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "topic", "Various topic related sub-commands")
-    p = verb(verbs, "list", "Output a list of available topics", _list)
-    add_spin_time(p)
-    p.add_argument("-t", "--show-types", action="store_true",
-                   help="Additionally show the topic type")
-    p.add_argument("-c", "--count-topics", action="store_true",
-                   help="Only display the number of topics discovered")
-    p.add_argument("--include-hidden-topics", action="store_true",
-                   help="Consider hidden topics as well")
+    add_list_verb(verbs, "topic", _list)
     p = verb(verbs, "info", "Print information about a topic", _info)
     p.add_argument("topic_name")
     p.add_argument("-v", "--verbose", action="store_true",
@@ -147,13 +140,8 @@ def _topics(node: CliNode, *, include_hidden: bool = True) -> list[tuple[str, li
 def _list(args: argparse.Namespace) -> int:
     with cli_node() as node:
         node.settle(min_s=args.spin_time)
-        topics = _topics(node, include_hidden=args.include_hidden_topics)
-    if args.count_topics:
-        print(len(topics))
-        return 0
-    for name, types in topics:
-        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
-    return 0
+        topics = _topics(node, include_hidden=args.include_hidden)
+    return print_names(topics, args)
 
 
 def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) -> list[str]:
