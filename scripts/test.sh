@@ -5,6 +5,7 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh
 bash scripts/setup_ros1.sh  # rf_bridge tests run against Debian's ROS 1
+bash scripts/setup_browser.sh  # debug_gui tests drive a headless chromium
 source scripts/env.sh
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST PYTHONDONTWRITEBYTECODE=1
 
