@@ -218,7 +218,7 @@ def test_unloaded_components_are_dead() -> None:
 
 
 def test_next_timer_due_is_the_earliest_deadline_and_readable_from_another_thread() -> None:
-    container = test_container()
+    container = test_container(stats_period_s=0)  # no stats timer: only the test's own
     executor = container.executor
     assert executor.next_timer_due_ns() is None
     node = TestHandle(container=container)
