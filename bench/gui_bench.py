@@ -54,30 +54,36 @@ RAW = "camera/image_raw"
 
 
 class Counter:
-    """Bytes and messages per topic, counted from the executor threads."""
+    """Bytes and messages per topic since the start (``add`` from executor threads);
+    ``start``/``stop`` take the difference over the window. ``totals`` may be replaced by
+    another source of the same figures (the Hub counts what crosses the link itself)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._counting = False
-        self.bytes: dict[str, int] = {}
-        self.messages: dict[str, int] = {}
+        self._totals: dict[str, tuple[int, int]] = {}
+        self._base: dict[str, tuple[int, int]] = {}
         self.seen: set[str] = set()
+        self.totals: Callable[[], dict[str, tuple[int, int]]] = self._own_totals
 
     def add(self, key: str, size: int) -> None:
         with self._lock:
             self.seen.add(key)
-            if self._counting:
-                self.bytes[key] = self.bytes.get(key, 0) + size
-                self.messages[key] = self.messages.get(key, 0) + 1
+            messages, size_sum = self._totals.get(key, (0, 0))
+            self._totals[key] = (messages + 1, size_sum + size)
+
+    def _own_totals(self) -> dict[str, tuple[int, int]]:
+        with self._lock:
+            return dict(self._totals)
 
     def start(self) -> None:
-        with self._lock:
-            self.bytes, self.messages, self._counting = {}, {}, True
+        self._base = self.totals()
 
     def stop(self) -> dict[str, Any]:
-        with self._lock:
-            self._counting = False
-            return {"bytes": dict(self.bytes), "messages": dict(self.messages)}
+        now, base = self.totals(), self._base
+        diff = {k: (m - base.get(k, (0, 0))[0], b - base.get(k, (0, 0))[1])
+                for k, (m, b) in now.items()}
+        return {"bytes": {k: b for k, (_, b) in diff.items()},
+                "messages": {k: m for k, (m, _) in diff.items()}}
 
 
 def _wait(predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
@@ -90,11 +96,12 @@ def _wait(predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
 
 def watch_gui(robots: list[tuple[int, str]], counter: Counter) -> Iterator[dict[str, Any]]:
     """Subscribe the typical layout through the Hub; yields what it subscribed."""
-    from rclpy.serialization import serialize_message
-
     from debug_gui import Hub, RobotId
 
     with Hub(domains=sorted({d for d, _ in robots}), node_name="gui_bench") as hub:
+        # What crossed the link, as the Hub counts it (serialized sizes, before decoding).
+        counter.totals = lambda: {f"{r.domain}:{t}": (c.messages, c.bytes)
+                                  for (r, t), c in hub.counters().items()}
         wanted = [RobotId(domain=d, namespace=ns) for d, ns in robots]
         _wait(lambda: all(r in hub.robots() for r in wanted), 60, "the robots in the Hub")
         feeds: list[Any] = []
@@ -111,7 +118,7 @@ def watch_gui(robots: list[tuple[int, str]], counter: Counter) -> Iterator[dict[
                 key = f"{robot.domain}:{name}"
 
                 def count(msg: Any, key: str = key) -> None:
-                    counter.add(key, len(serialize_message(msg)))
+                    counter.add(key, 0)  # only "seen": the Hub counts the bytes
 
                 feeds.append(hub.subscribe(robot, topic, msg_type, count, rate_hz=rate))
                 subscribed[key] = rate
@@ -157,18 +164,22 @@ def watch_generic(robots: list[tuple[int, str]], counter: Counter) -> Iterator[d
     try:
         for node, ns, domain in nodes:
             def names(node: Node = node, ns: str = ns) -> dict[str, list[str]]:
+                # Hidden topics (a token starting with "_": throttle requests and replies)
+                # are left out, as ros2 topic list and the bridges' topic lists do.
                 return {n: t for n, t in node.get_topic_names_and_types()
-                        if n.startswith(ns + "/")}
+                        if n.startswith(ns + "/")
+                        and not any(tok.startswith("_") for tok in n.split("/"))}
 
             _wait(lambda names=names, ns=ns: f"{ns}/{RAW}" in names(), 60,  # type: ignore[misc]
                   f"{ns}/{RAW}")
             time.sleep(2.0)  # let discovery finish: a bridge subscribes to what it sees
             for name, types in sorted(names().items()):
                 key = f"{domain}:{name}"
-                node.create_subscription(
-                    _import_type(types[0]), name,
-                    lambda data, key=key: counter.add(key, len(data)), qos, raw=True,
-                )
+
+                def count(data: bytes, key: str = key) -> None:
+                    counter.add(key, len(data))
+
+                node.create_subscription(_import_type(types[0]), name, count, qos, raw=True)
                 subscribed[key] = 0.0
         for t in threads:
             t.start()
@@ -346,7 +357,7 @@ def measure(mode: str, robots: Robots, window_s: float) -> dict[str, Any]:
 
 def summarize(records: list[dict[str, Any]], runs: int) -> dict[str, Any]:
     def med(mode: str, key: str) -> float:
-        return statistics.median(r[key] for r in records if r["mode"] == mode)
+        return float(statistics.median(r[key] for r in records if r["mode"] == mode))
 
     per_run = []
     for run in range(runs):
@@ -392,7 +403,8 @@ def report(summary: dict[str, Any], args: argparse.Namespace) -> str:
         f"{args.robots_n} robot(s), {args.repeat} run(s) of {args.window:g} s per mode, medians; "
         f"GUI image: {s['gui_image']}",
         "",
-        f"{'mode':<10} {'robot->watcher kB/s':>20} {'robot CPU (cores)':>18} {'cost of watching':>17}",
+        f"{'mode':<10} {'robot->watcher kB/s':>20} {'robot CPU (cores)':>18} "
+        f"{'cost of watching':>17}",
         f"{'none':<10} {'0':>20} {s['robot_cpu_cores_none']:>18.3f} {'-':>17}",
         f"{'gui':<10} {s['gui_bytes_per_s'] / 1e3:>20.1f} {s['robot_cpu_cores_gui']:>18.3f} "
         f"{_fmt(s['gui_cpu_cost_cores'], '+.3f'):>17}",
@@ -425,11 +437,11 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     if args.role:
-        robots = []
+        watched = []
         for item in args.robots.split(","):
             domain, _, ns = item.partition("/")
-            robots.append((int(domain), "/" + ns))
-        return watcher(args.role, robots)
+            watched.append((int(domain), "/" + ns))
+        return watcher(args.role, watched)
     import tempfile
 
     with tempfile.TemporaryDirectory(prefix="gui_bench_") as tmp:
