@@ -131,8 +131,8 @@ def fake_robot(
     the last callback's time exceeds its period, to be flagged.
     """
     log = tmp_path / f"fake_{domain_id}{namespace.replace('/', '_')}.log"
-    cmd: list[str | Path] = [sys.executable, FAKE_ROBOT, "--namespace", namespace, "--period", str(period_s),
-           "--callbacks", str(callbacks)]
+    cmd: list[str | Path] = [sys.executable, FAKE_ROBOT, "--namespace", namespace,
+                             "--period", str(period_s), "--callbacks", str(callbacks)]
     with _started(cmd, env=ros_env(domain_id), log=log) as proc:
         yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
 

@@ -3,7 +3,10 @@
 ``python tests/_gui_fake_robot.py --namespace /robot2`` publishes on
 ``/robot2/efficient_comm/stats`` what an efficient_comm container would: callbacks of
 components named after the namespace, the last one slower than its period (to be flagged).
-It also offers a plain topic ``<ns>/chatter`` (std_msgs/String, 20 Hz), not throttle-aware.
+It also offers a plain topic ``<ns>/chatter`` (std_msgs/String, 20 Hz, not throttle-aware),
+a throttle-aware one ``<ns>/counter`` (std_msgs/String, 50 Hz, through a ThrottledPublisher;
+it prints ``computed N`` once a second: samples it computed because someone wanted them) and
+a service ``<ns>/fake_robot/slow`` that never answers (rcl_interfaces' ListParameters).
 Runs until Ctrl-C or SIGTERM; prints ``ready`` once its publishers exist.
 """
 
@@ -23,9 +26,12 @@ from rclpy.node import Node
 
 
 def main() -> int:
+    from rcl_interfaces.srv import ListParameters
     from std_msgs.msg import String
 
+    from efficient_comm.standalone import StandaloneHandle
     from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
+    from throttle_publisher import ThrottledPublisher
 
     parser = argparse.ArgumentParser()
     parser.add_argument("--namespace", default="/robot")
@@ -59,6 +65,21 @@ def main() -> int:
         msg.stamp = node.get_clock().now().to_msg()
         stats.publish(msg)
 
+    handle = StandaloneHandle(node)
+    counter = ThrottledPublisher(handle, String, "counter")
+    computed = 0
+
+    def publish_counter() -> None:
+        nonlocal computed
+        if counter.wants():
+            computed += 1
+            counter.publish(String(data=f"{ns} {computed}"))
+        else:
+            counter.skip()
+
+    node.create_timer(0.02, publish_counter)
+    node.create_timer(1.0, lambda: print(f"computed {computed}", flush=True))
+    node.create_service(ListParameters, "~/slow", _never_answer)
     node.create_timer(args.period, publish_stats)
     node.create_timer(0.05, lambda: chatter.publish(String(data=f"{ns} {time.time_ns()}")))
     executor = SingleThreadedExecutor(context=context)
@@ -74,6 +95,12 @@ def main() -> int:
         node.destroy_node()
         context.try_shutdown()
     return 0
+
+
+def _never_answer(request: object, response: object) -> object:
+    """Blocks this process's executor for a while: the caller times out first."""
+    time.sleep(30.0)
+    return response
 
 
 if __name__ == "__main__":
