@@ -7,7 +7,7 @@ from pathlib import Path
 from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.common.by import By
 
-from debug_gui.ui.components import ALL
+from debug_gui.ui.components import ALL, COMPACT
 from efficient_comm.testing import isolated_domain_id
 
 from ._gui import by_testid, click, fake_robot, gui, screenshot, text_of, wait_for, wait_for_text
@@ -39,7 +39,29 @@ def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
         first = _calls(browser, table_a, "alpha_component0")
         wait_for(lambda: _calls(browser, table_a, "alpha_component0") > first >= 0,
                  what="the calls to grow", alive=alive)
+        # Sortable: a click on "component" orders beta's rows by name (they come by p95).
+        header = by_testid(browser, table_b).find_element(
+            By.XPATH, ".//th[contains(., 'component')]")
+        header.click()
+        wait_for(lambda: _column(browser, table_b, "node") == [
+            "beta_component0", "beta_component1", "beta_component2"], what="sorted rows",
+            alive=alive)
+        header.click()
+        wait_for(lambda: _column(browser, table_b, "node") == [
+            "beta_component2", "beta_component1", "beta_component0"], what="reversed rows",
+            alive=alive)
         screenshot(browser, "components_two_robots")
+
+
+def _column(browser, testid: str, name: str) -> list[str]:
+    """The cells of the compact table's column ``name``, top to bottom."""
+    index = COMPACT.index(name)
+    try:
+        return [tr.find_elements(By.TAG_NAME, "td")[index].get_attribute("textContent").strip()
+                for tr in by_testid(browser, testid).find_elements(By.CSS_SELECTOR,
+                                                                   "tbody tr")]
+    except (StaleElementReferenceException, IndexError):
+        return []
 
 
 def _calls(browser, testid: str, node: str) -> int:
