@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import socket
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -99,3 +100,18 @@ def test_beyond_loopback_pages_need_the_token(tmp_path: Path, browser) -> None:
         wait_for_text(browser, "needs its token", alive=[server])
         browser.get(f"{local}?token={token}")
         wait_for_text(browser, "write access", alive=[server])
+
+
+@pytest.mark.parametrize(("args", "error"), [
+    (["--robots", "9"], "--robots is 1..6, not 9"),
+    (["--domains", "3"], "--domains is two different domain ids A,B"),
+    (["--domains", "4,4"], "--domains is two different domain ids A,B"),
+    (["--duration", "-1", "--port", "0"], "--duration is >= 0"),
+])
+def test_the_demo_refuses_bad_options_in_one_line(args: list[str], error: str) -> None:
+    result = subprocess.run([sys.executable, "-m", "debug_gui.demo", *args],
+                            env=ros_env(isolated_domain_id()), capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and error in lines[0] and "Traceback" not in result.stderr, lines
