@@ -9,7 +9,8 @@ domain and namespace each). A watcher process looks at all of them, in one of th
   if the robot offers it, else the raw image) at 15 Hz, world (``ground_truth/robot``,
   ``ground_truth/ball``, ``ball/estimate``) at 10 Hz;
 * ``generic``: what a generic bridge (foxglove_bridge, rosbridge) does for the same views:
-  a plain subscription to every topic of the robot, at full rate, raw image included.
+  a plain subscription to every topic of the robot, at full rate, the image raw (not its
+  JPEG topic).
 
 Per mode and run it measures, over the same ``--window``: bytes per second on the robot ->
 watcher link (serialized sizes of what the watcher received) and the CPU time the robot
@@ -166,8 +167,10 @@ def watch_generic(robots: list[tuple[int, str]], counter: Counter) -> Iterator[d
             def names(node: Node = node, ns: str = ns) -> dict[str, list[str]]:
                 # Hidden topics (a token starting with "_": throttle requests and replies)
                 # are left out, as ros2 topic list and the bridges' topic lists do.
+                # Its image view shows the raw image, so the JPEG topic is not one of its
+                # subscriptions (subscribing it too would make the robot encode at 30 fps).
                 return {n: t for n, t in node.get_topic_names_and_types()
-                        if n.startswith(ns + "/")
+                        if n.startswith(ns + "/") and n != f"{ns}/{COMPRESSED}"
                         and not any(tok.startswith("_") for tok in n.split("/"))}
 
             _wait(lambda names=names, ns=ns: f"{ns}/{RAW}" in names(), 60,  # type: ignore[misc]
