@@ -236,3 +236,31 @@ def text_of(driver: Any, testid: str) -> str:
         return str(by_testid(driver, testid).text)
     except Exception:
         return ""
+
+
+def click(driver: Any, testid: str) -> None:
+    by_testid(driver, testid).click()
+
+
+def choose(driver: Any, testid: str, option: str, *, timeout_s: float = 10.0) -> None:
+    """Pick ``option`` (its text) in the NiceGUI select ``testid``."""
+    from selenium.webdriver.common.by import By
+
+    by_testid(driver, testid).click()
+
+    def item() -> Any:
+        for element in driver.find_elements(By.CSS_SELECTOR, ".q-menu .q-item"):
+            try:
+                if element.text.strip() == option:
+                    return element
+            except Exception:  # re-rendered meanwhile
+                continue
+        return None
+
+    wait_for(item, timeout_s=timeout_s, what=f"option {option!r} of {testid}").click()
+
+
+def present(driver: Any, testid: str) -> bool:
+    from selenium.webdriver.common.by import By
+
+    return bool(driver.find_elements(By.CSS_SELECTOR, f'[data-testid="{testid}"]'))
