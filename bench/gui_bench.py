@@ -6,8 +6,8 @@ domain and namespace each). A watcher process looks at all of them, in one of th
 * ``none``: nobody watches (the baseline of the robots' CPU time);
 * ``gui``: a typical debug_gui layout through its :class:`debug_gui.Hub`, at the rates the
   views display: components (the stats topic) at 1 Hz, image (``camera/image_raw/compressed``
-  if the robot offers it, else the raw image) at 15 Hz, world (``ground_truth/robot``,
-  ``ground_truth/ball``, ``ball/estimate``) at 10 Hz;
+  if the robot offers it, else the raw image, and the ``ball/debug_markers`` overlays) at
+  15 Hz, world (``ground_truth/robot``, ``ground_truth/ball``, ``ball/estimate``) at 10 Hz;
 * ``generic``: what a generic bridge (foxglove_bridge, rosbridge) does for the same views:
   a plain subscription to every topic of the robot, at full rate, the image raw (not its
   JPEG topic).
@@ -49,6 +49,8 @@ WORLD = {"ground_truth/robot": 10.0, "ground_truth/ball": 10.0, "ball/estimate":
 IMAGE_RATE_HZ = 15.0
 COMPRESSED = "camera/image_raw/compressed"
 RAW = "camera/image_raw"
+#: The image view's overlay layers (the ball detector's debug drawings), where offered.
+OVERLAYS = "ball/debug_markers"
 
 
 # -- the watcher (a child process) ----------------------------------------------------------
@@ -113,6 +115,8 @@ def watch_gui(robots: list[tuple[int, str]], counter: Counter) -> Iterator[dict[
             topics = hub.topics(robot)
             image = COMPRESSED if robot.resolve(COMPRESSED) in topics else RAW
             layout = {**COMPONENTS, image: IMAGE_RATE_HZ, **WORLD}
+            if robot.resolve(OVERLAYS) in topics:
+                layout[OVERLAYS] = IMAGE_RATE_HZ
             for topic, rate in layout.items():
                 name = robot.resolve(topic)
                 msg_type = _import_type(topics[name][0])
