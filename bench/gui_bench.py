@@ -114,6 +114,12 @@ def watch_gui(robots: list[tuple[int, str]], counter: Counter) -> Iterator[dict[
         for robot in wanted:
             _wait(lambda robot=robot: robot.resolve(RAW) in hub.topics(robot), 60,  # type: ignore[misc]
                   f"{robot.resolve(RAW)}")
+            # The JPEG topic is discovered on its own: give it a moment before settling for
+            # the raw image (a robot without a compressor never offers it).
+            end = time.monotonic() + 10
+            while (robot.resolve(COMPRESSED) not in hub.topics(robot)
+                   and time.monotonic() < end):
+                time.sleep(0.1)
             topics = hub.topics(robot)
             image = COMPRESSED if robot.resolve(COMPRESSED) in topics else RAW
             layout = {**COMPONENTS, image: IMAGE_RATE_HZ, **WORLD}
@@ -539,7 +545,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--robots", help=argparse.SUPPRESS)  # the watcher's DOMAIN/NS,...
     args = ap.parse_args(argv)
     if args.quick:
-        args.robots_n, args.repeat, args.window, args.warmup = 1, 1, 3.0, 2.0
+        args.robots_n, args.repeat, args.window, args.warmup = 1, 1, 4.0, 2.0
     return args
 
 

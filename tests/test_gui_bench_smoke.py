@@ -33,6 +33,8 @@ def test_quick_gui_bench_measures_every_mode(tmp_path: Path) -> None:
     assert set(records) == {"none", "gui", "generic"}
     for rec in records.values():
         assert rec["robot_cpu_cores"] > 0 and rec["window_s"] > 0
+        # the probe saw the robot's camera frames with its CPU time
+        assert rec["frames"] > 0 and rec["robot_cpu_ms_per_frame"] > 0
     gui, generic = records["gui"], records["generic"]
     assert gui["bytes_per_s"] > 0 and generic["bytes_per_s"] > 0
     topics = {t.split(":", 1)[1] for t in gui["topics"]}
