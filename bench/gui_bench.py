@@ -353,7 +353,9 @@ class Probe:
         cpu, frames = 0.0, 0
         for samples in self.samples.values():
             inside = [s for s in samples if t0 <= s[0] <= t1]
-            if len(inside) >= 2:
+            # A count that went down (the detector's subscription was re-created, a robot
+            # restarted) says nothing about this window: that robot is left out of it.
+            if len(inside) >= 2 and inside[-1][1] > inside[0][1]:
                 frames += inside[-1][1] - inside[0][1]
                 cpu += inside[-1][2] - inside[0][2]
         return cpu, frames
