@@ -6,14 +6,17 @@ domain and namespace each). A watcher process looks at all of them, in one of th
 * ``none``: nobody watches (the baseline of the robots' CPU time);
 * ``gui``: a typical debug_gui layout through its :class:`debug_gui.Hub`, at the rates the
   views display: components (the stats topic) at 1 Hz, image (``camera/image_raw/compressed``
-  if the robot offers it, else the raw image) at 15 Hz, world (``ground_truth/robot``,
-  ``ground_truth/ball``, ``ball/estimate``) at 10 Hz;
+  if the robot offers it, else the raw image, and the ``ball/debug_markers`` overlays) at
+  15 Hz, world (``ground_truth/robot``, ``ground_truth/ball``, ``ball/estimate``) at 10 Hz;
 * ``generic``: what a generic bridge (foxglove_bridge, rosbridge) does for the same views:
-  a plain subscription to every topic of the robot, at full rate, raw image included.
+  a plain subscription to every topic of the robot, at full rate, the image raw (not its
+  JPEG topic).
 
 Per mode and run it measures, over the same ``--window``: bytes per second on the robot ->
 watcher link (serialized sizes of what the watcher received) and the CPU time the robot
-processes spent (utime + stime from ``/proc/PID/stat``). Modes are interleaved (the order
+processes spent (utime + stime from ``/proc/PID/stat``), per wall second and per camera
+frame (on a loaded machine a starved robot renders fewer frames, so CPU per wall second
+measures the scheduler as much as the robot: see :class:`Probe`). Modes are interleaved (the order
 rotates per run), every figure is the median of ``--repeat`` runs, and the ratios are taken
 against the baseline measured in the same run: ``generic / gui`` for bytes, and for the CPU
 cost of being watched (a mode's robot CPU minus the ``none`` CPU), ``gui / generic``.
@@ -48,6 +51,8 @@ WORLD = {"ground_truth/robot": 10.0, "ground_truth/ball": 10.0, "ball/estimate":
 IMAGE_RATE_HZ = 15.0
 COMPRESSED = "camera/image_raw/compressed"
 RAW = "camera/image_raw"
+#: The image view's overlay layers (the ball detector's debug drawings), where offered.
+OVERLAYS = "ball/debug_markers"
 
 
 # -- the watcher (a child process) ----------------------------------------------------------
@@ -109,9 +114,17 @@ def watch_gui(robots: list[tuple[int, str]], counter: Counter) -> Iterator[dict[
         for robot in wanted:
             _wait(lambda robot=robot: robot.resolve(RAW) in hub.topics(robot), 60,  # type: ignore[misc]
                   f"{robot.resolve(RAW)}")
+            # The JPEG topic is discovered on its own: give it a moment before settling for
+            # the raw image (a robot without a compressor never offers it).
+            end = time.monotonic() + 10
+            while (robot.resolve(COMPRESSED) not in hub.topics(robot)
+                   and time.monotonic() < end):
+                time.sleep(0.1)
             topics = hub.topics(robot)
             image = COMPRESSED if robot.resolve(COMPRESSED) in topics else RAW
             layout = {**COMPONENTS, image: IMAGE_RATE_HZ, **WORLD}
+            if robot.resolve(OVERLAYS) in topics:
+                layout[OVERLAYS] = IMAGE_RATE_HZ
             for topic, rate in layout.items():
                 name = robot.resolve(topic)
                 msg_type = _import_type(topics[name][0])
@@ -166,8 +179,10 @@ def watch_generic(robots: list[tuple[int, str]], counter: Counter) -> Iterator[d
             def names(node: Node = node, ns: str = ns) -> dict[str, list[str]]:
                 # Hidden topics (a token starting with "_": throttle requests and replies)
                 # are left out, as ros2 topic list and the bridges' topic lists do.
+                # Its image view shows the raw image, so the JPEG topic is not one of its
+                # subscriptions (subscribing it too would make the robot encode at 30 fps).
                 return {n: t for n, t in node.get_topic_names_and_types()
-                        if n.startswith(ns + "/")
+                        if n.startswith(ns + "/") and n != f"{ns}/{COMPRESSED}"
                         and not any(tok.startswith("_") for tok in n.split("/"))}
 
             _wait(lambda names=names, ns=ns: f"{ns}/{RAW}" in names(), 60,  # type: ignore[misc]
@@ -283,6 +298,78 @@ class Robots:
             stop_process_group(proc)
 
 
+class Probe:
+    """Counts each robot's camera frames and its CPU time at the same moments.
+
+    A starved robot (a loaded machine) renders fewer frames, and its CPU time per wall
+    second says more about the scheduler than about its work. So the parent also follows
+    every robot's statistics topic at 1 Hz (in every mode alike: one snapshot a second) and,
+    as each arrives, reads the frames the ball detector has taken so far with the robot's
+    CPU time then: CPU per camera frame, watched and not, is what being watched costs.
+    """
+
+    def __init__(self, robots: list[tuple[int, str]], pids: list[int]) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        from efficient_comm_interfaces.msg import ExecutorStats
+
+        self.samples: dict[str, list[tuple[float, int, float]]] = {ns: [] for _, ns in robots}
+        self._stop = threading.Event()
+        self._parts: list[tuple[Any, Any, Any]] = []
+        self._threads = []
+        for domain in sorted({d for d, _ in robots}):
+            context = Context()
+            rclpy.init(context=context, domain_id=domain)
+            node = Node("gui_bench_probe", context=context)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            for (d, ns), pid in zip(robots, pids, strict=True):
+                if d == domain:
+                    node.create_subscription(ExecutorStats, f"{ns}/efficient_comm/stats",
+                                             self._listener(ns, pid), 10)
+            self._parts.append((context, node, executor))
+            thread = threading.Thread(target=self._spin, args=(executor,), daemon=True)
+            thread.start()
+            self._threads.append(thread)
+
+    def _listener(self, ns: str, pid: int) -> Callable[[Any], None]:
+        def on_stats(msg: Any) -> None:
+            frames = sum(c.calls for c in msg.callbacks
+                         if c.node == f"{ns}/ball_detector" and c.kind == "subscription"
+                         and c.name == f"{ns}/{RAW}")
+            self.samples[ns].append((time.monotonic(), frames, cpu_s([pid])))
+
+        return on_stats
+
+    def _spin(self, executor: Any) -> None:
+        while not self._stop.is_set():
+            executor.spin_once(timeout_sec=0.1)
+
+    def per_frame(self, t0: float, t1: float) -> tuple[float, int]:
+        """CPU seconds and frames of all robots between the samples inside [t0, t1]."""
+        cpu, frames = 0.0, 0
+        for samples in self.samples.values():
+            inside = [s for s in samples if t0 <= s[0] <= t1]
+            # A count that went down (the detector's subscription was re-created, a robot
+            # restarted) says nothing about this window: that robot is left out of it.
+            if len(inside) >= 2 and inside[-1][1] > inside[0][1]:
+                frames += inside[-1][1] - inside[0][1]
+                cpu += inside[-1][2] - inside[0][2]
+        return cpu, frames
+
+    def close(self) -> None:
+        self._stop.set()
+        for thread in self._threads:
+            thread.join(5)
+        for context, node, executor in self._parts:
+            executor.shutdown()
+            node.destroy_node()
+            context.try_shutdown()
+
+
 class Watcher:
     """A watcher child and its line protocol."""
 
@@ -324,7 +411,7 @@ class Watcher:
         stop_process_group(self.proc)
 
 
-def measure(mode: str, robots: Robots, window_s: float) -> dict[str, Any]:
+def measure(mode: str, robots: Robots, probe: Probe, window_s: float) -> dict[str, Any]:
     watcher = Watcher(mode, robots.robots, robots.env) if mode != "none" else None
     try:
         setup: dict[str, Any] = {}
@@ -343,10 +430,13 @@ def measure(mode: str, robots: Robots, window_s: float) -> dict[str, Any]:
         if watcher is not None:
             watcher.close()
     elapsed = t1 - t0
+    frame_cpu, frames = probe.per_frame(t0, t1)
     return {
         "mode": mode,
         "window_s": elapsed,
         "robot_cpu_cores": (cpu1 - cpu0) / elapsed,
+        "frames": frames,
+        "robot_cpu_ms_per_frame": frame_cpu / frames * 1e3 if frames else None,
         "bytes_per_s": sum(counts["bytes"].values()) / elapsed,
         "messages_per_s": sum(counts["messages"].values()) / elapsed,
         "per_topic_bytes_per_s": {k: v / elapsed for k, v in sorted(counts["bytes"].items())},
@@ -364,13 +454,24 @@ def summarize(records: list[dict[str, Any]], runs: int) -> dict[str, Any]:
         rec = {r["mode"]: r for r in records if r["run"] == run}
         gui_cost = rec["gui"]["robot_cpu_cores"] - rec["none"]["robot_cpu_cores"]
         gen_cost = rec["generic"]["robot_cpu_cores"] - rec["none"]["robot_cpu_cores"]
+        frame = {m: rec[m]["robot_cpu_ms_per_frame"] for m in MODES}
+        gui_frame = frame["gui"] - frame["none"] if None not in frame.values() else None
+        gen_frame = frame["generic"] - frame["none"] if None not in frame.values() else None
         per_run.append({
+            "gui_cost_ms_per_frame": gui_frame,
+            "generic_cost_ms_per_frame": gen_frame,
+            "frame_cost_gui_over_generic": gui_frame / gen_frame
+            if gui_frame is not None and gen_frame else None,
             "bytes_generic_over_gui": rec["generic"]["bytes_per_s"] / rec["gui"]["bytes_per_s"]
             if rec["gui"]["bytes_per_s"] else None,
             "gui_cpu_cost_cores": gui_cost,
             "generic_cpu_cost_cores": gen_cost,
             "cpu_cost_gui_over_generic": gui_cost / gen_cost if gen_cost > 0 else None,
         })
+
+    def med_opt(mode: str, key: str) -> float | None:
+        values = [r[key] for r in records if r["mode"] == mode and r[key] is not None]
+        return float(statistics.median(values)) if values else None
 
     def med_run(key: str) -> float | None:
         values = [p[key] for p in per_run if p[key] is not None]
@@ -388,6 +489,13 @@ def summarize(records: list[dict[str, Any]], runs: int) -> dict[str, Any]:
         "gui_cpu_cost_cores": med_run("gui_cpu_cost_cores"),
         "generic_cpu_cost_cores": med_run("generic_cpu_cost_cores"),
         "cpu_cost_gui_over_generic": med_run("cpu_cost_gui_over_generic"),
+        "robot_cpu_ms_per_frame_none": med_opt("none", "robot_cpu_ms_per_frame"),
+        "robot_cpu_ms_per_frame_gui": med_opt("gui", "robot_cpu_ms_per_frame"),
+        "robot_cpu_ms_per_frame_generic": med_opt("generic", "robot_cpu_ms_per_frame"),
+        "gui_cost_ms_per_frame": med_run("gui_cost_ms_per_frame"),
+        "generic_cost_ms_per_frame": med_run("generic_cost_ms_per_frame"),
+        "frame_cost_gui_over_generic": med_run("frame_cost_gui_over_generic"),
+        "frames_per_s": med("none", "frames") / med("none", "window_s"),
         "gui_image": image,
         "per_run": per_run,
     }
@@ -411,9 +519,18 @@ def report(summary: dict[str, Any], args: argparse.Namespace) -> str:
         f"{'generic':<10} {s['generic_bytes_per_s'] / 1e3:>20.1f} "
         f"{s['robot_cpu_cores_generic']:>18.3f} {_fmt(s['generic_cpu_cost_cores'], '+.3f'):>17}",
         "",
+        f"robot CPU per camera frame (ms; {s['frames_per_s']:.1f} frames/s of all robots "
+        "unwatched): none "
+        f"{_fmt(s['robot_cpu_ms_per_frame_none'], '.2f')}, gui "
+        f"{_fmt(s['robot_cpu_ms_per_frame_gui'], '.2f')}, generic "
+        f"{_fmt(s['robot_cpu_ms_per_frame_generic'], '.2f')}; cost of being watched per "
+        f"frame: gui {_fmt(s['gui_cost_ms_per_frame'], '+.2f')}, generic "
+        f"{_fmt(s['generic_cost_ms_per_frame'], '+.2f')}",
+        "",
         f"bytes on the link, generic bridge / GUI: {_fmt(s['bytes_generic_over_gui'], '.1f')}x",
         f"robot CPU cost of being watched, GUI / generic bridge: "
-        f"{_fmt(s['cpu_cost_gui_over_generic'], '.2f')}",
+        f"{_fmt(s['cpu_cost_gui_over_generic'], '.2f')} (per wall second), "
+        f"{_fmt(s['frame_cost_gui_over_generic'], '.2f')} (per camera frame)",
     ]
     return "\n".join(lines)
 
@@ -430,7 +547,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--robots", help=argparse.SUPPRESS)  # the watcher's DOMAIN/NS,...
     args = ap.parse_args(argv)
     if args.quick:
-        args.robots_n, args.repeat, args.window, args.warmup = 1, 1, 3.0, 2.0
+        args.robots_n, args.repeat, args.window, args.warmup = 1, 1, 4.0, 2.0
     return args
 
 
@@ -446,18 +563,22 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     with tempfile.TemporaryDirectory(prefix="gui_bench_") as tmp:
         robots = Robots(args.robots_n, Path(tmp))
+        probe: Probe | None = None
         try:
             robots.wait_up(180)
+            probe = Probe(robots.robots, robots.pids)
             time.sleep(args.warmup)
             records = []
             for run in range(args.repeat):
                 for i in range(len(MODES)):
                     mode = MODES[(i + run) % len(MODES)]
                     print(f"[run {run + 1}/{args.repeat}] {mode} ...", flush=True)
-                    rec = measure(mode, robots, args.window)
+                    rec = measure(mode, robots, probe, args.window)
                     rec["run"] = run
                     records.append(rec)
         finally:
+            if probe is not None:
+                probe.close()
             robots.close()
     summary = summarize(records, args.repeat)
     print(report(summary, args))

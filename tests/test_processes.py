@@ -11,6 +11,7 @@ from geometry_msgs.msg import PointStamped
 from sensor_msgs.msg import Image
 
 from efficient_comm.testing import isolated_domain_id, unique_topic
+from efficient_comm_interfaces.msg import ExecutorStats
 from efficient_comm_interfaces.srv import ListComponents, LoadComponent, UnloadComponent
 
 from ._ros import Peer, child, executable, peer, wait_until
@@ -201,3 +202,41 @@ def test_container_spin_in_a_users_program_stops_cleanly_on_signals(
     lines = log.read_text().splitlines()
     assert "closed b" in lines and "closed a" in lines and lines[-1] == "done", lines
     assert "Traceback" not in log.read_text()
+
+
+def test_processes_publish_their_callback_statistics_where_they_are_told(tmp_path: Path) -> None:
+    """A standalone node in its namespace (``-p stats_period_s``), a container under its
+    ``--stats-namespace``; a standalone node with ``stats_period_s:=0.0`` publishes none."""
+    domain = isolated_domain_id()
+    camera: list[str | Path] = [
+        executable("efficient_comm", "standalone"), "efficient_comm.examples.pipeline:Camera",
+        "--ros-args", "-r", "__ns:=/bot_a", "-p", "stats_period_s:=0.2",
+    ]
+    quiet: list[str | Path] = [
+        executable("efficient_comm", "standalone"), "efficient_comm.examples.pipeline:Monitor",
+        "--ros-args", "-r", "__ns:=/bot_q", "-p", "stats_period_s:=0.0",
+    ]
+    container: list[str | Path] = [
+        executable("efficient_comm", "container"), "--config", DEMO_YAML, "--name", "ctr",
+        "--stats-namespace", "/bot_c",
+    ]
+    with peer(domain) as p, child(camera, domain_id=domain, log=tmp_path / "cam.log"), child(
+        quiet, domain_id=domain, log=tmp_path / "quiet.log"
+    ), child(container, domain_id=domain, log=tmp_path / "ctr.log"):
+        got: dict[str, list[ExecutorStats]] = {"/bot_a": [], "/bot_c": []}
+        for ns, store in got.items():
+            p.node.create_subscription(ExecutorStats, f"{ns}/efficient_comm/stats",
+                                       store.append, 10)
+        assert p.wait_for(lambda: all(len(s) >= 2 for s in got.values()), timeout_s=60), (
+            (tmp_path / "cam.log").read_text() + (tmp_path / "ctr.log").read_text())
+        cam = got["/bot_a"][-1]
+        assert cam.process_name == "/bot_a/camera"
+        assert any(c.node == "/bot_a/camera" and c.kind == "timer" and c.rate_hz > 0
+                   for c in cam.callbacks)
+        assert 0 < cam.window_ns < 1_000_000_000  # the 0.2 s period, not the default
+        assert got["/bot_c"][-1].process_name == "/ctr"
+        assert {c.node for c in got["/bot_c"][-1].callbacks} >= {"/demo/camera"}
+        assert p.wait_for(lambda: ("monitor", "/bot_q") in
+                          p.node.get_node_names_and_namespaces(), timeout_s=30)
+        topics = dict(p.node.get_topic_names_and_types())
+        assert "/bot_q/efficient_comm/stats" not in topics

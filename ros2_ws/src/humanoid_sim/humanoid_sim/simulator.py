@@ -13,7 +13,8 @@ sees of the simulation is a serial port. Every timer tick advances physics by on
   lockstep: ``advance(t)`` steps the physics, the driver and the pipeline by exactly ``t``,
   and the same seed gives the same run.
 
-Published (names relative to the component): ``camera/image_raw`` (rgb8, rendered offscreen),
+Published (names relative to the component): ``camera/image_raw`` (rgb8, rendered offscreen
+only while someone wants a frame: a throttled publisher),
 ``camera/camera_info`` (transient local), ``imu/data``, and ground truth for tests and views:
 ``ground_truth/robot``, ``ground_truth/ball`` and ``ground_truth/camera`` (poses in the field
 frame: origin at the centre spot, x toward the opponent goal, z up; the camera pose uses
@@ -122,7 +123,9 @@ class Simulator:
             self.roll_ball(position=(ball_position[0], ball_position[1]),
                            velocity=(ball_velocity[0], ball_velocity[1]))
 
-            self.image_pub = node.create_publisher(Image, "camera/image_raw", qos=2)
+            # Throttled: a viewer off the robot asks for the rate it shows, and with nobody
+            # subscribed no frame is rendered at all (each counted in ``frames_skipped``).
+            self.image_pub = ThrottledPublisher(node, Image, "camera/image_raw", qos=2)
             info_pub = node.create_publisher(CameraInfo, "camera/camera_info",
                                              qos=TRANSIENT_LOCAL)
             info_pub.publish(self.camera_info(width, height))
@@ -135,6 +138,7 @@ class Simulator:
             node.create_subscription(Vector3, "push", self._on_push, qos=10)
             self.pushes = 0
             self.frames = 0
+            self.frames_skipped = 0
             self.render_ns = 0
             #: Simulated time given up because the machine fell behind (real time only).
             self.skipped_s = 0.0
@@ -274,6 +278,10 @@ class Simulator:
 
     def _publish_image(self, now: int) -> None:
         assert self.camera is not None
+        if not self.image_pub.wants():
+            self.image_pub.skip()  # so every_nth keeps counting the camera's frames
+            self.frames_skipped += 1
+            return
         w, h = self.camera.width, self.camera.height
         buffer = array.array("B", bytes(w * h * 3))
         started = time.perf_counter_ns()
@@ -321,6 +329,7 @@ class Simulator:
             "sim_time_s": self.sim_time_s,
             "real_time_factor": self.real_time_factor,
             "frames": self.frames,
+            "frames_skipped": self.frames_skipped,
             "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
             "skipped_s": self.skipped_s,
             "pushes": self.pushes,

@@ -145,3 +145,29 @@ def test_pushes_last_as_long_as_asked_from_a_method_a_topic_or_a_schedule() -> N
             sim.push((1.0, 0.0, 0.0), body="tail")
     finally:
         sim.close()
+
+
+def test_the_camera_renders_only_frames_someone_wants_and_counts_the_rest() -> None:
+    from sensor_msgs.msg import Image
+
+    from efficient_comm.testing import test_container
+    from throttle_publisher import ThrottledSubscription, ThrottleOptions
+
+    container = test_container()
+    sim = Simulator(TestHandle("sim", container=container,
+                               parameters={"camera_hz": 10.0, "camera_width": 32,
+                                           "camera_height": 24}))
+    try:
+        container.advance(0.5)
+        assert sim.frames == 0 and sim.frames_skipped >= 4  # nobody subscribed: no rendering
+        got: list[Image] = []
+        ThrottledSubscription(TestHandle("viewer", container=container), Image,
+                              "/camera/image_raw", got.append,
+                              options=ThrottleOptions(every_nth=2))
+        skipped = sim.frames_skipped
+        container.advance(1.0)
+        assert len(got) == sim.frames == 5  # every 2nd of 10 frames rendered and sent
+        assert sim.frames_skipped - skipped == 5
+        assert (got[0].width, got[0].height) == (32, 24)
+    finally:
+        sim.close()

@@ -242,3 +242,44 @@ def test_behaviour_stops_tracking_and_searching_while_the_robot_is_down() -> Non
     assert behaviour.state == "searching"
     node.advance(0.1)
     assert node.published("head/goal")[-1].position[1] == SEARCH_PITCH_RAD
+
+
+def test_detector_draws_its_layers_stamped_with_the_image_only_while_someone_looks() -> None:
+    from debug_probes import read_drawing
+    from efficient_comm.testing import test_container
+    from efficient_comm_interfaces.msg import ImageMarkerArray
+
+    container = test_container()
+    node = TestHandle("detector", container=container)
+    detector = BallDetector(node)
+    node.inject("camera/camera_info", _info())
+    node.inject("camera/image_raw", _image((250, 60), radius=12, stamp_ns=41))
+    assert detector.drawing.skipped == 1 and detector.drawing.published == 0  # nobody looks
+    got: list[ImageMarkerArray] = []
+    TestHandle("viewer", container=container).create_subscription(
+        ImageMarkerArray, "ball/debug_markers", got.append)
+    node.inject("camera/image_raw", _image((250, 60), radius=12, stamp_ns=42))
+    (msg,) = got
+    assert {(m.header.stamp.sec, m.header.stamp.nanosec) for m in msg.markers} == {(0, 42)}
+    drawing = read_drawing(msg)
+    assert drawing.stamp_ns == 42
+    assert drawing.layers == ["contours", "candidates", "choice", "internals"]
+    (chosen,) = [s for s in drawing.shapes if s.layer == "choice" and s.kind == "circle"]
+    assert chosen.points[0] == pytest.approx((250, 60), abs=1.5)
+    assert chosen.size == pytest.approx(12, abs=1.5)
+    texts = [s.text for s in drawing.shapes if s.kind == "text"]
+    assert texts[0] == "1 contours" and "hue 5..22" in texts[1]
+
+
+def test_detector_thresholds_changed_at_run_time_apply_to_the_next_image() -> None:
+    node = TestHandle("detector")
+    detector = BallDetector(node)
+    node.set_parameter("hue_range", [100, 120])  # blue: the orange ball is no longer seen
+    node.inject("camera/image_raw", _image((250, 60), radius=12))
+    assert node.published("ball/detection") == [] and detector.hue == [100, 120]
+    with pytest.raises(Exception, match="hue_range"):
+        node.set_parameter("hue_range", [30, 10])
+    node.set_parameter("min_radius_px", 20.0)
+    node.set_parameter("hue_range", [5, 22])
+    node.inject("camera/image_raw", _image((250, 60), radius=12))
+    assert node.published("ball/detection") == []  # 12 px < 20 px

@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from debug_probes import JpegCompressor
 from efficient_comm import Container
 
 from ..driver import ServoDriver
@@ -38,6 +39,8 @@ class SoccerRobot:
     behaviour: HeadBehaviour
     motion: Motion
     monitor: SoccerMonitor
+    #: ``camera/image_raw/compressed`` for viewers off the robot (encodes only on demand).
+    compressor: JpegCompressor
 
 
 def compose(container: Container, *, namespace: str = "/robot",
@@ -70,5 +73,6 @@ def compose(container: Container, *, namespace: str = "/robot",
         behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
         motion=container.add(Motion, name="motion", namespace=namespace),
         monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),
+        compressor=container.add(JpegCompressor, name="jpeg_compressor", namespace=namespace),
     )
     return robot
