@@ -59,7 +59,7 @@ from .hub import Feed, Hub
 from .robots import RobotId
 from .security import AccessPolicy, check_port
 
-__all__ = ["DEFAULT_PORT", "FoxgloveEndpoint", "serve_foxglove"]
+__all__ = ["DEFAULT_PORT", "FoxgloveEndpoint", "serve_foxglove", "start"]
 
 DEFAULT_PORT = 8765  # the port Foxglove's "open connection" dialog proposes
 _CDR = "cdr"
@@ -509,7 +509,8 @@ class FoxgloveEndpoint:
     @property
     def url(self) -> str:
         """Where a viewer connects to look (beyond loopback it needs :attr:`write_url`)."""
-        return f"ws://{self._policy.host}:{self.port}/"
+        host = self._policy.host
+        return f"ws://{f'[{host}]' if ':' in host else host}:{self.port}/"
 
     @property
     def write_url(self) -> str:
@@ -560,3 +561,17 @@ def serve_foxglove(hub: Hub, *, policy: AccessPolicy, port: int = DEFAULT_PORT,
     """
     check_port(port)
     return FoxgloveEndpoint(hub, policy=policy, port=port, refresh_s=refresh_s)
+
+
+def start(hub: Hub, *, host: str, port: int, policy: AccessPolicy) -> FoxgloveEndpoint:
+    """What ``debug_gui --foxglove-port P`` runs: serve, and print where viewers connect.
+
+    ``host`` must be the policy's (the one address both the GUI and the endpoint bind).
+    """
+    if host != policy.host:
+        raise InvalidInput(f"the Foxglove endpoint binds the GUI's host {policy.host}, "
+                           f"not {host}")
+    endpoint = serve_foxglove(hub, policy=policy, port=port)
+    print(f"debug_gui: Foxglove viewers connect to {endpoint.url} "
+          f"(to set parameters and call services: {endpoint.write_url})", flush=True)
+    return endpoint
