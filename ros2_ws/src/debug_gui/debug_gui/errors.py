@@ -1,0 +1,32 @@
+"""debug_gui's errors: one root, so a caller can catch everything the GUI raises at once.
+
+Tree (other views append their subclasses at the end, one class per block)::
+
+    DebugGuiError(Exception)
+    ├── AccessDenied(PermissionError)      a write without the right token
+    ├── InvalidInput(ValueError)           a name, value, option or layout that is malformed
+    ├── RobotUnavailable(LookupError)      no such robot, service or domain (or it went away)
+    └── CallFailed                         a service call that timed out or failed
+"""
+
+from __future__ import annotations
+
+
+class DebugGuiError(Exception):
+    """Root of every error debug_gui raises on purpose."""
+
+
+class AccessDenied(DebugGuiError, PermissionError):  # noqa: N818 (the views' contract names them)
+    """A write (parameters, recorder control, saving a layout) without the server's token."""
+
+
+class InvalidInput(DebugGuiError, ValueError):  # noqa: N818 (the views' contract names them)
+    """Input from a browser, a layout file or the command line that is malformed."""
+
+
+class RobotUnavailable(DebugGuiError, LookupError):  # noqa: N818 (the views' contract names them)
+    """The robot, its domain or the service asked for is not (or no longer) there."""
+
+
+class CallFailed(DebugGuiError):  # noqa: N818 (the views' contract names them)
+    """A service call that got no answer in time, or whose answer could not be had."""

@@ -1,0 +1,479 @@
+"""The data side: connections to robots in several DDS domains, feeds, service calls.
+
+One rclpy Context, node and executor thread per DDS domain (a participant can join only
+one domain). Robots are discovered by their ``<namespace>/efficient_comm/stats`` topic and
+appear and disappear live. Feeds go through throttle_publisher whenever the publisher
+understands it, so the robot sends (and computes) only the rate a view displays; for other
+publishers the Hub drops what the view would not show, which saves the GUI but not the link.
+
+Nothing here imports a UI toolkit: the Hub is tested without a browser, and the foxglove
+endpoint serves the same Hub.
+
+Thread rule: feed callbacks and ``on_robots_changed`` callbacks run on a domain's executor
+thread; every public method may be called from any other thread. :meth:`Hub.call` blocks,
+so a UI calls it off its event loop.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message
+
+from efficient_comm.handle import MessageCallback, NodeHandle, Publisher, QoSLike, Subscription
+from efficient_comm.standalone import StandaloneHandle
+from throttle_publisher import ThrottledSubscription, ThrottleOptions
+
+from .errors import CallFailed, InvalidInput, RobotUnavailable
+from .robots import STATS_SUFFIX, RobotId, Via, check_domain
+from .security import check_name, check_rate
+
+_log = logging.getLogger(__name__)
+
+#: How often each domain's graph is scanned for robots coming and going.
+DISCOVERY_PERIOD_S = 0.5
+#: Longest wait of the executor, so close() and new entities are noticed soon.
+SPIN_TIMEOUT_S = 0.05
+_THROTTLE_REQUEST = "_throttle"
+
+
+@dataclass(slots=True)
+class TopicCounter:
+    """What crossed the link for one (robot, topic): the benchmark's figure."""
+
+    messages: int = 0
+    bytes: int = 0
+
+
+class _CountingHandle:
+    """The domain's handle, but subscriptions arrive serialized and are counted.
+
+    ThrottledSubscription creates its reply subscription through this, so bytes are
+    counted for throttled feeds as for plain ones; deserializing here costs what rclpy
+    would spend doing it itself.
+    """
+
+    def __init__(self, domain: _Domain, counter: TopicCounter) -> None:
+        self._domain = domain
+        self._counter = counter
+
+    def create_publisher(self, msg_type: type, topic: str, *, qos: QoSLike = 10) -> Publisher:
+        return self._domain.handle.create_publisher(msg_type, topic, qos=qos)
+
+    def create_subscription(
+        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
+    ) -> Subscription:
+        counter = self._counter
+
+        def on_raw(data: bytes) -> None:
+            counter.messages += 1
+            counter.bytes += len(data)
+            callback(deserialize_message(data, msg_type))
+
+        profile = qos if isinstance(qos, QoSProfile) else QoSProfile(depth=int(qos))
+        return self._domain.node.create_subscription(
+            msg_type, topic, on_raw, profile, raw=True
+        )
+
+    def destroy_subscription(self, subscription: Subscription) -> None:
+        self._domain.node.destroy_subscription(subscription)  # type: ignore[arg-type]
+
+    def destroy_publisher(self, publisher: Publisher) -> None:
+        self._domain.node.destroy_publisher(publisher)  # type: ignore[arg-type]
+
+
+class Feed:
+    """One subscription of a view to a robot's topic, at the rate the view displays.
+
+    ``throttled`` says whether the robot itself limits what it sends (throttle-aware
+    publisher) or the Hub drops the surplus locally. ``received`` counts the messages
+    handed to the callback.
+    """
+
+    def __init__(
+        self,
+        hub: Hub,
+        robot: RobotId,
+        topic: str,
+        msg_type: type,
+        callback: Callable[[Any], None],
+        *,
+        rate_hz: float | None,
+        qos: QoSLike,
+    ) -> None:
+        self.robot = robot
+        self.topic = topic
+        self.received = 0
+        self._callback = callback
+        self._hub = hub
+        self._lock = threading.Lock()
+        self._rate_hz = rate_hz
+        self._last_ns = 0
+        self._closed = False
+        domain = hub._domain(robot)
+        self._domain = domain
+        handle = _CountingHandle(domain, hub._counter(robot, topic))
+        self._throttled: ThrottledSubscription | None = None
+        self._plain: Subscription | None = None
+        if domain.node.count_subscribers(f"{topic}/{_THROTTLE_REQUEST}") > 0:
+            self._throttled = ThrottledSubscription(
+                handle, msg_type, topic, self._deliver,  # type: ignore[arg-type]
+                options=_options(rate_hz), qos=qos,
+            )
+        else:
+            self._handle = handle
+            self._plain = handle.create_subscription(msg_type, topic, self._deliver, qos=qos)
+
+    @property
+    def throttled(self) -> bool:
+        return self._throttled is not None
+
+    @property
+    def rate_hz(self) -> float | None:
+        return self._rate_hz
+
+    def _deliver(self, msg: Any) -> None:
+        if self._closed:
+            return
+        if self._plain is not None and self._rate_hz is not None:
+            now = time.monotonic_ns()
+            if now - self._last_ns < int(1e9 / self._rate_hz):
+                return
+            self._last_ns = now
+        self.received += 1
+        try:
+            self._callback(msg)
+        except Exception:
+            _log.exception("feed %s of %s: callback raised", self.topic, self.robot.label)
+
+    def set_rate(self, rate_hz: float | None) -> None:
+        """Display another rate from now on (None: every message)."""
+        rate_hz = check_rate(rate_hz)
+        with self._lock:
+            self._rate_hz = rate_hz
+            if self._throttled is not None and not self._closed:
+                self._throttled.update(_options(rate_hz))
+
+    def close(self) -> None:
+        """Stop receiving; a throttle-aware publisher stops sending at once."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            try:
+                if self._throttled is not None:
+                    self._throttled.close()
+                elif self._plain is not None:
+                    self._handle.destroy_subscription(self._plain)
+            except Exception:  # the domain may be closing under us
+                _log.debug("closing feed %s", self.topic, exc_info=True)
+        self._hub._forget(self)
+
+
+def _options(rate_hz: float | None) -> ThrottleOptions:
+    return ThrottleOptions(max_rate_hz=rate_hz or 0.0)
+
+
+class _Domain:
+    """One DDS domain: context, node, handle and the thread that spins them."""
+
+    def __init__(self, domain: int, *, node_name: str, via: Via) -> None:
+        self.domain = domain
+        self.via = via
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        try:
+            self.node = Node(node_name, context=self.context)
+            self.handle = StandaloneHandle(self.node)
+            self.executor = SingleThreadedExecutor(context=self.context)
+            self.executor.add_node(self.node)
+        except BaseException:
+            self.context.try_shutdown()
+            raise
+        self.thread: threading.Thread | None = None
+        self.robots: set[RobotId] = set()
+        self.clients: dict[tuple[str, type], Any] = {}
+        self.clients_lock = threading.Lock()
+
+    def close(self) -> None:
+        self.context.try_shutdown()
+        if self.thread is not None and self.thread is not threading.current_thread():
+            self.thread.join(timeout=5.0)
+        self.executor.shutdown()
+        with contextlib.suppress(Exception):
+            self.node.destroy_node()
+
+
+class Hub:
+    """Connections to the robots of one or more DDS domains (a context manager).
+
+    ``team_link_domains`` are domains whose robots are reached through rf_bridge's team
+    link (a bridge republishes them locally); their robots say so in ``RobotId.via``.
+    """
+
+    def __init__(
+        self,
+        *,
+        domains: Iterable[int] = (0,),
+        team_link_domains: Iterable[int] = (),
+        node_name: str = "debug_gui",
+    ) -> None:
+        check_name(node_name, what="node name")
+        self._team = {check_domain(d) for d in team_link_domains}
+        self._domain_ids = [check_domain(d) for d in domains]
+        for d in self._team:
+            if d not in self._domain_ids:
+                self._domain_ids.append(d)
+        if not self._domain_ids:
+            raise InvalidInput("the Hub needs at least one domain")
+        self._node_name = node_name
+        self._domains: dict[int, _Domain] = {}
+        self._lock = threading.RLock()
+        self._listeners: list[Callable[[], None]] = []
+        self._feeds: set[Feed] = set()
+        self._counters: dict[tuple[RobotId, str], TopicCounter] = {}
+        self._stop = threading.Event()
+        self._started = False
+
+    # -- life cycle --------------------------------------------------------------------
+
+    def start(self) -> Hub:
+        """Join every domain and start discovering robots (idempotent)."""
+        with self._lock:
+            if self._started:
+                return self
+            self._started = True
+            try:
+                for d in self._domain_ids:
+                    via: Via = "team link" if d in self._team else "dds"
+                    dom = _Domain(d, node_name=self._node_name, via=via)
+                    self._domains[d] = dom
+                    dom.thread = threading.Thread(
+                        target=self._spin, args=(dom,), name=f"debug_gui domain {d}",
+                        daemon=True,
+                    )
+                    dom.thread.start()
+            except BaseException:
+                self.close()
+                raise
+        return self
+
+    def close(self) -> None:
+        """Close every feed and leave every domain."""
+        self._stop.set()
+        for feed in list(self._feeds):
+            feed.close()
+        with self._lock:
+            domains = list(self._domains.values())
+            self._domains.clear()
+        for dom in domains:
+            dom.close()
+
+    def __enter__(self) -> Hub:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def domains(self) -> list[int]:
+        return list(self._domain_ids)
+
+    def _spin(self, dom: _Domain) -> None:
+        next_scan = 0.0
+        with contextlib.suppress(ExternalShutdownException):
+            while dom.context.ok() and not self._stop.is_set():
+                now = time.monotonic()
+                if now >= next_scan:
+                    next_scan = now + DISCOVERY_PERIOD_S
+                    try:
+                        self._discover(dom)
+                    except Exception:
+                        if not dom.context.ok():
+                            break
+                        _log.exception("discovery in domain %d", dom.domain)
+                dom.executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+
+    def _discover(self, dom: _Domain) -> None:
+        found: set[RobotId] = set()
+        for topic, _types in dom.node.get_topic_names_and_types():
+            robot = RobotId.from_stats_topic(dom.domain, topic, via=dom.via)
+            if robot is not None and dom.node.count_publishers(topic) > 0:
+                found.add(robot)
+        if found != dom.robots:
+            dom.robots = found
+            self._notify()
+
+    def _notify(self) -> None:
+        with self._lock:
+            listeners = list(self._listeners)
+        for cb in listeners:
+            try:
+                cb()
+            except Exception:
+                _log.exception("on_robots_changed callback raised")
+
+    # -- robots ------------------------------------------------------------------------
+
+    def robots(self) -> list[RobotId]:
+        """The robots seen now, sorted by domain and namespace."""
+        with self._lock:
+            domains = list(self._domains.values())
+        return sorted(r for dom in domains for r in dom.robots)
+
+    def wait_for_robots(self, count: int, *, timeout_s: float = 30.0) -> list[RobotId]:
+        """Block until at least ``count`` robots are seen (or the timeout); returns them."""
+        event = threading.Event()
+        unsubscribe = self.on_robots_changed(event.set)
+        try:
+            end = time.monotonic() + timeout_s
+            while len(robots := self.robots()) < count and time.monotonic() < end:
+                event.wait(min(0.2, max(0.0, end - time.monotonic())))
+                event.clear()
+            return robots
+        finally:
+            unsubscribe()
+
+    def on_robots_changed(self, callback: Callable[[], None]) -> Callable[[], None]:
+        """Call ``callback()`` (no arguments; read :meth:`robots`) when robots come or go.
+
+        Runs on a domain's executor thread. Returns a function that unsubscribes.
+        """
+        with self._lock:
+            self._listeners.append(callback)
+
+        def unsubscribe() -> None:
+            with self._lock, contextlib.suppress(ValueError):
+                self._listeners.remove(callback)
+
+        return unsubscribe
+
+    def _domain(self, robot: RobotId) -> _Domain:
+        if not isinstance(robot, RobotId):
+            raise InvalidInput(f"not a robot: {robot!r}")
+        with self._lock:
+            dom = self._domains.get(robot.domain)
+        if dom is None or not dom.context.ok():
+            raise RobotUnavailable(
+                f"{robot.label}: domain {robot.domain} is not one this GUI joined "
+                f"({', '.join(map(str, self._domain_ids))}) or the GUI is closing"
+            )
+        return dom
+
+    def handle(self, robot: RobotId) -> NodeHandle:
+        """The efficient_comm node handle of the robot's domain, for what the Hub lacks.
+
+        Names are not put under the robot's namespace: use ``robot.resolve(name)``.
+        Destroy what you create when your view deactivates.
+        """
+        return self._domain(robot).handle
+
+    def topics(self, robot: RobotId) -> dict[str, list[str]]:
+        """Topic names and types under the robot's namespace (hidden ``_`` topics left out)."""
+        dom = self._domain(robot)
+        return {
+            name: list(types)
+            for name, types in sorted(dom.node.get_topic_names_and_types())
+            if robot.contains(name) and not any(t.startswith("_") for t in name.split("/"))
+        }
+
+    def nodes(self, robot: RobotId) -> list[str]:
+        """Fully qualified names of the nodes under the robot's namespace (not the GUI's)."""
+        dom = self._domain(robot)
+        own = dom.node.get_fully_qualified_name()
+        out = set()
+        for name, namespace in dom.node.get_node_names_and_namespaces():
+            full = f"{namespace.rstrip('/')}/{name}"
+            if full != own and robot.contains(full):
+                out.add(full)
+        return sorted(out)
+
+    # -- data --------------------------------------------------------------------------
+
+    def subscribe(
+        self,
+        robot: RobotId,
+        topic: str,
+        msg_type: type,
+        callback: Callable[[Any], None],
+        *,
+        rate_hz: float | None = None,
+        qos: QoSLike = 10,
+    ) -> Feed:
+        """Receive ``topic`` (relative to the robot's namespace, or absolute) at ``rate_hz``.
+
+        Through throttle_publisher when the topic has a throttle-aware publisher (the robot
+        then sends only this rate), else plainly with the surplus dropped here. ``callback``
+        runs on the domain's executor thread.
+        """
+        check_name(topic, what="topic name")
+        rate_hz = check_rate(rate_hz)
+        full = robot.resolve(topic)
+        feed = Feed(self, robot, full, msg_type, callback, rate_hz=rate_hz, qos=qos)
+        with self._lock:
+            self._feeds.add(feed)
+        return feed
+
+    def _forget(self, feed: Feed) -> None:
+        with self._lock:
+            self._feeds.discard(feed)
+
+    def _counter(self, robot: RobotId, topic: str) -> TopicCounter:
+        with self._lock:
+            return self._counters.setdefault((robot, topic), TopicCounter())
+
+    def counters(self) -> dict[tuple[RobotId, str], TopicCounter]:
+        """Messages and bytes received per (robot, absolute topic) since the start."""
+        with self._lock:
+            return {k: TopicCounter(v.messages, v.bytes) for k, v in self._counters.items()}
+
+    def call(
+        self,
+        robot: RobotId,
+        service: str,
+        srv_type: type,
+        request: Any,
+        *,
+        timeout_s: float = 5.0,
+    ) -> Any:
+        """Call a service of the robot and wait for the response (blocking).
+
+        Never on a UI event loop, never from a feed callback (it would wait for itself).
+        Raises RobotUnavailable when the service is not there, CallFailed on timeout.
+        """
+        check_name(service, what="service name")
+        dom = self._domain(robot)
+        if threading.current_thread() is dom.thread:
+            raise InvalidInput("Hub.call from a feed callback would wait for itself")
+        full = robot.resolve(service)
+        with dom.clients_lock:
+            client = dom.clients.get((full, srv_type))
+            if client is None:
+                client = dom.node.create_client(srv_type, full)
+                dom.clients[(full, srv_type)] = client
+        if not client.wait_for_service(timeout_sec=timeout_s):
+            raise RobotUnavailable(f"{robot.label}: no service {full}")
+        done = threading.Event()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _f: done.set())
+        if not done.wait(timeout_s):
+            future.cancel()
+            raise CallFailed(f"{robot.label}: {full} did not answer within {timeout_s:g} s")
+        exc = future.exception()
+        if exc is not None:
+            raise CallFailed(f"{robot.label}: {full} failed: {exc}") from exc
+        return future.result()
+
+
+__all__ = ["STATS_SUFFIX", "Feed", "Hub", "TopicCounter"]

@@ -1,0 +1,179 @@
+"""The components view's data: every callback of a robot with its figures and history.
+
+Fed by the robot's ``<namespace>/efficient_comm/stats`` topic (ExecutorStats, one message
+per process and period: a robot may run several containers and standalone nodes). Rows are
+keyed by process and callback, so two processes with a node of the same name stay apart;
+a process not heard from for :data:`STALE_AFTER_S` drops out (it ended).
+
+A callback is flagged when its own time exceeds its period: for a timer, its p95 longer
+than the timer's period; for anything else, its mean longer than the interval between its
+calls (``1 / rate``), i.e. it is busy more than all of the time and falls behind.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import InvalidInput
+from ..hub import Feed, Hub
+from ..robots import STATS_SUFFIX, RobotId
+
+#: How many past values each row keeps (one per stats message: 30 s at the default 1 s).
+HISTORY = 30
+#: A process whose stats stopped this long ago is gone.
+STALE_AFTER_S = 10.0
+#: Columns rows can be sorted by.
+SORT_KEYS = (
+    "node", "kind", "name", "process", "calls", "exceptions", "drops", "rate_hz",
+    "mean_ns", "p95_ns", "max_ns", "period_ns", "over_period",
+)
+
+
+@dataclass(slots=True)
+class Row:
+    """One callback of one process, as the view shows it."""
+
+    process: str
+    node: str
+    kind: str
+    name: str
+    calls: int = 0
+    exceptions: int = 0
+    drops: int = 0
+    rate_hz: float = 0.0
+    mean_ns: int = 0
+    p95_ns: int = 0
+    max_ns: int = 0
+    period_ns: int = 0
+    #: Past mean own times (ns), oldest first.
+    history: list[int] = field(default_factory=list)
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        return (self.process, self.node, self.kind, self.name)
+
+    @property
+    def over_period(self) -> bool:
+        """The callback's own time exceeds its period (it cannot keep its rate)."""
+        if self.period_ns > 0:
+            return self.p95_ns > self.period_ns
+        return self.rate_hz > 0 and self.mean_ns > 1e9 / self.rate_hz
+
+
+class _Series:
+    __slots__ = ("history", "last")
+
+    def __init__(self) -> None:
+        self.history: deque[int] = deque(maxlen=HISTORY)
+        self.last: Any = None
+
+
+class ComponentsModel:
+    """Callback statistics of one robot (activate to receive, deactivate to stop)."""
+
+    def __init__(
+        self,
+        hub: Hub,
+        robot: RobotId,
+        *,
+        rate_hz: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.hub = hub
+        self.robot = robot
+        self.rate_hz = rate_hz
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._feed: Feed | None = None
+        #: process key -> (time heard, {callback key -> series})
+        self._processes: dict[str, tuple[float, dict[tuple[str, str, str], _Series]]] = {}
+        self.messages = 0
+        self.last_heard: float | None = None
+
+    # -- feed --------------------------------------------------------------------------
+
+    def activate(self) -> None:
+        """Subscribe at the view's rate (idempotent)."""
+        from efficient_comm_interfaces.msg import ExecutorStats
+
+        if self._feed is None:
+            self._feed = self.hub.subscribe(
+                self.robot, STATS_SUFFIX, ExecutorStats, self.on_stats, rate_hz=self.rate_hz
+            )
+
+    def deactivate(self) -> None:
+        """Close the feed: the robot stops computing snapshots for us."""
+        feed, self._feed = self._feed, None
+        if feed is not None:
+            feed.close()
+
+    @property
+    def active(self) -> bool:
+        return self._feed is not None
+
+    def on_stats(self, msg: Any) -> None:
+        """One ExecutorStats message (called on the Hub's thread, or by tests)."""
+        process = f"{msg.process_name} ({msg.hostname}:{msg.pid})"
+        now = self._clock()
+        with self._lock:
+            _, series = self._processes.get(process, (now, {}))
+            seen = set()
+            for cb in msg.callbacks:
+                key = (cb.node, cb.kind, cb.name)
+                seen.add(key)
+                s = series.setdefault(key, _Series())
+                s.last = cb
+                s.history.append(int(cb.mean_ns))
+            for key in set(series) - seen:
+                del series[key]  # destroyed (a component unloaded)
+            self._processes[process] = (now, series)
+            self.messages += 1
+            self.last_heard = now
+
+    # -- what the view reads ------------------------------------------------------------
+
+    def rows(self, *, sort_by: str = "p95_ns", descending: bool = True) -> list[Row]:
+        """Every callback of every live process, sorted."""
+        if sort_by not in SORT_KEYS:
+            raise InvalidInput(f"cannot sort by {sort_by!r}; one of {', '.join(SORT_KEYS)}")
+        now = self._clock()
+        out: list[Row] = []
+        with self._lock:
+            for process, (heard, series) in list(self._processes.items()):
+                if now - heard > STALE_AFTER_S:
+                    del self._processes[process]
+                    continue
+                for s in series.values():
+                    cb = s.last
+                    out.append(Row(
+                        process=process, node=cb.node, kind=cb.kind, name=cb.name,
+                        calls=int(cb.calls), exceptions=int(cb.exceptions),
+                        drops=int(cb.drops), rate_hz=float(cb.rate_hz),
+                        mean_ns=int(cb.mean_ns), p95_ns=int(cb.p95_ns),
+                        max_ns=int(cb.max_ns), period_ns=int(cb.period_ns),
+                        history=list(s.history),
+                    ))
+        out.sort(key=lambda r: (getattr(r, sort_by), r.key), reverse=descending)
+        return out
+
+    def age_s(self) -> float | None:
+        """Seconds since the last stats message (None: none yet)."""
+        return None if self.last_heard is None else self._clock() - self.last_heard
+
+
+_BARS = "▁▂▃▄▅▆▇█"
+
+
+def sparkline(values: list[int]) -> str:
+    """A one-line history (``▁▃▇``), scaled to the row's own maximum."""
+    if not values:
+        return ""
+    top = max(values)
+    if top <= 0:
+        return _BARS[0] * len(values)
+    return "".join(_BARS[min(len(_BARS) - 1, v * len(_BARS) // (top + 1))] for v in values)

@@ -1,0 +1,156 @@
+"""The ``debug_gui`` command: join the robots' domains and serve the GUI to a browser.
+
+``debug_gui [--port P] [--host H] [--token T] [--domains 0,5] [--team-link-domains 7]
+[--layout FILE] [--foxglove-port P]`` prints the URL to open (with the token that gives
+write access) once it serves. Bad options end in one ``debug_gui: error: ...`` line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import socket
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from rclpy.utilities import remove_ros_args
+
+from .errors import DebugGuiError, InvalidInput
+from .hub import Hub
+from .layout import Layout
+from .security import AccessPolicy, check_port, parse_domains
+
+DEFAULT_PORT = 8080
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="debug_gui",
+        description="Serve the debugging GUI for the robots of one or more DDS domains.",
+    )
+    parser.add_argument("--port", type=int, default=DEFAULT_PORT,
+                        help=f"HTTP port (default {DEFAULT_PORT}; 0 = any free port)")
+    parser.add_argument("--host", default="127.0.0.1",
+                        help="address to bind (default 127.0.0.1; others need --token)")
+    parser.add_argument("--token", default=None,
+                        help="token for writes (and for pages beyond loopback); made up "
+                             "and printed in the URL when not given on loopback")
+    parser.add_argument("--domains", default=os.environ.get("ROS_DOMAIN_ID") or "0",
+                        help="DDS domain ids to look for robots in, e.g. 0,5 "
+                             "(default: $ROS_DOMAIN_ID or 0)")
+    parser.add_argument("--team-link-domains", default="",
+                        help="domains whose robots are reached over rf_bridge's team link")
+    parser.add_argument("--layout", type=Path, default=None,
+                        help="layout JSON file: restored at start if it exists, "
+                             "written by 'save layout'")
+    parser.add_argument("--foxglove-port", type=int, default=None,
+                        help="also serve the robots on a Foxglove WebSocket endpoint")
+    return parser
+
+
+def free_port(host: str) -> int:
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+def _check_bindable(host: str, port: int) -> None:
+    try:
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        with socket.socket(family) as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            s.bind((host, port))
+    except OSError as exc:
+        raise InvalidInput(f"cannot serve on {host}:{port}: {exc.strerror or exc}") from None
+
+
+def url(policy: AccessPolicy, port: int) -> str:
+    host = f"[{policy.host}]" if ":" in policy.host else policy.host
+    return f"http://{host}:{port}/?token={policy.token}"
+
+
+class Options:
+    """The command line, validated."""
+
+    def __init__(self, argv: Sequence[str]) -> None:
+        ns = _parser().parse_args(list(argv))
+        self.policy = AccessPolicy.for_server(host=ns.host, token=ns.token)
+        port = check_port(ns.port)
+        self.domains = parse_domains(ns.domains)
+        self.team_link_domains = (
+            parse_domains(ns.team_link_domains) if ns.team_link_domains else []
+        )
+        self.layout_path: Path | None = ns.layout
+        self.foxglove_port = None if ns.foxglove_port is None else check_port(ns.foxglove_port)
+        if port:
+            _check_bindable(self.policy.host, port)
+        self.port = port or free_port(self.policy.host)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = remove_ros_args(list(sys.argv if argv is None else ["debug_gui", *argv]))[1:]
+    try:
+        options = Options(argv)
+        return serve(options)
+    except DebugGuiError as exc:
+        print(f"debug_gui: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 0
+
+
+def serve(options: Options) -> int:
+    """Join the domains, then serve until Ctrl-C/SIGTERM (NiceGUI in this main thread)."""
+    from nicegui import app, ui
+
+    from .ui import registry
+    from .ui.app import Shell, install
+
+    registry.load_views()
+    known = [k.kind for k in registry.kinds()]
+    layout: Layout | None = None
+    if options.layout_path is not None and options.layout_path.exists():
+        layout = Layout.load(options.layout_path, known_kinds=known)
+    hub = Hub(domains=options.domains, team_link_domains=options.team_link_domains)
+    hub.start()
+    closers: list[Any] = [hub.close]
+    try:
+        if options.foxglove_port is not None:
+            closers.append(_start_foxglove(hub, options))
+        shell = Shell(hub=hub, policy=options.policy, layout=Layout(),
+                      layout_path=options.layout_path)
+        shell.layout = layout if layout is not None else shell.default_layout()
+        install(shell)
+        address = url(options.policy, options.port)
+
+        def announce() -> None:
+            domains = ", ".join(map(str, options.domains))
+            print(f"debug_gui: serving robots of domain(s) {domains} at {address}", flush=True)
+
+        app.on_startup(announce)
+        ui.run(
+            host=options.policy.host, port=options.port, title="debug_gui", reload=False,
+            show=False, show_welcome_message=False, uvicorn_logging_level="warning",
+            favicon="🤖",
+        )
+    finally:
+        for close in reversed(closers):
+            with contextlib.suppress(Exception):
+                close()
+    return 0
+
+
+def _start_foxglove(hub: Hub, options: Options) -> Any:
+    """The foxglove endpoint (debug_gui.foxglove); returns its close function."""
+    try:
+        from . import foxglove  # type: ignore[attr-defined]
+    except ImportError as exc:
+        raise InvalidInput(
+            f"--foxglove-port: the Foxglove endpoint is not available ({exc})"
+        ) from None
+    server = foxglove.start(hub, host=options.policy.host, port=options.foxglove_port,
+                            policy=options.policy)
+    return server.close

@@ -1,0 +1,344 @@
+"""The shell: robots, the central binding view, panels of view instances, layouts.
+
+Each browser tab gets its own copy of the server's current layout (read from ``--layout``
+at start, replaced by "save layout"), and its own view instances: a view's models live as
+long as the tab shows it. A panel is one view kind bound to one robot, or a team panel with
+one instance per robot side by side; robots that appear join team panels live.
+
+The binding view (seed Fig. 5.7) lists every panel with a robot selector (rebind), "clone
+for" another robot (Fig. 5.8) and remove; below it a view kind can be added for one robot or
+as a team panel.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from nicegui import Client, app, ui
+
+from ..errors import DebugGuiError, InvalidInput
+from ..hub import Hub
+from ..layout import Layout, Panel
+from ..robots import RobotId
+from ..security import AccessPolicy
+from . import registry
+from .registry import ViewContext
+
+_log = logging.getLogger(__name__)
+TEAM = "team"
+#: How often the shell looks for robots coming and going.
+ROBOTS_POLL_S = 1.0
+
+
+@dataclass
+class Shell:
+    """Server-wide state: the Hub, the access policy and the layout new tabs start from."""
+
+    hub: Hub
+    policy: AccessPolicy
+    layout: Layout
+    layout_path: Path | None = None
+
+    def default_layout(self) -> Layout:
+        kinds = [k.kind for k in registry.kinds()]
+        return Layout((Panel(kind="components"),)) if "components" in kinds else Layout()
+
+    def save(self, layout: Layout, token: str | None) -> Path:
+        self.policy.check_write(token)
+        if self.layout_path is None:
+            raise InvalidInput("no layout file: start debug_gui with --layout FILE")
+        layout.save(self.layout_path)
+        self.layout = layout
+        return self.layout_path
+
+    def restore(self) -> Layout:
+        if self.layout_path is None:
+            raise InvalidInput("no layout file: start debug_gui with --layout FILE")
+        self.layout = Layout.load(
+            self.layout_path, known_kinds=[k.kind for k in registry.kinds()]
+        )
+        return self.layout
+
+
+@dataclass
+class _Instance:
+    robot: RobotId | None
+    ctx: ViewContext
+    container: Any
+
+
+@dataclass
+class _PanelView:
+    panel: Panel
+    expansion: Any
+    body: Any
+    instances: list[_Instance] = field(default_factory=list)
+    robots: tuple[RobotId, ...] = ()
+
+
+class _Tab:
+    """One browser tab's shell: its layout, its panels, its view instances."""
+
+    def __init__(self, shell: Shell, client: Client, token: str | None) -> None:
+        self.shell = shell
+        self.client = client
+        self.token = token
+        self.layout = shell.layout
+        self.views: list[_PanelView] = []
+        self.robots: list[RobotId] = shell.hub.robots()
+
+    # -- page --------------------------------------------------------------------------
+
+    def build(self) -> None:
+        with ui.header().classes("items-center gap-4"):
+            ui.label("debug_gui").classes("text-h6")
+            self.robots_row = ui.row().classes("items-center gap-2").props(
+                "data-testid=robots"
+            )
+            ui.space()
+            access = "write access" if self.shell.policy.valid(self.token) else "read-only"
+            ui.label(access).props("data-testid=access")
+        self.binding = ui.card().classes("w-full").props("data-testid=binding")
+        self.panels = ui.column().classes("w-full gap-2")
+        self._render_robots()
+        self._render_binding()
+        self._render_panels()
+        ui.timer(ROBOTS_POLL_S, self._poll_robots)
+        self.client.on_delete(self._hide_all)
+        self.client.on_disconnect(self._hide_all)
+
+    def _poll_robots(self) -> None:
+        robots = self.shell.hub.robots()
+        if robots == self.robots:
+            return
+        self.robots = robots
+        self._render_robots()
+        self._render_binding()
+        for view in self.views:
+            if view.panel.team and tuple(robots) != view.robots:
+                self._fill(view)
+            elif not view.panel.team:
+                online = view.panel.robot in robots
+                view.expansion.props(f"caption='{'' if online else 'robot gone'}'")
+
+    def _render_robots(self) -> None:
+        self.robots_row.clear()
+        with self.robots_row:
+            if not self.robots:
+                ui.label("no robots yet").classes("italic")
+            for robot in self.robots:
+                ui.chip(robot.label, icon="smart_toy").props(
+                    f"dense data-testid=robot-{robot.key}"
+                )
+
+    # -- binding view ------------------------------------------------------------------
+
+    def _robot_options(self, *, team: bool) -> dict[str, str]:
+        options = {r.key: r.label for r in self.robots}
+        if team:
+            options[TEAM] = "team: every robot"
+        return options
+
+    def _robot_of(self, key: str) -> RobotId | None:
+        if key == TEAM:
+            return None
+        for robot in self.robots:
+            if robot.key == key:
+                return robot
+        raise InvalidInput(f"no robot {key!r} (robots: {[r.key for r in self.robots]})")
+
+    def _render_binding(self) -> None:
+        self.binding.clear()
+        with self.binding:
+            ui.label("Views and robots").classes("text-subtitle1")
+            for index, panel in enumerate(self.layout.panels):
+                self._binding_row(index, panel)
+            with ui.row().classes("items-center gap-2"):
+                kinds = {k.kind: k.title for k in registry.kinds()}
+                kind = ui.select(kinds, label="view", value=next(iter(kinds), None)).props(
+                    "dense data-testid=add-kind"
+                ).classes("w-40")
+                robot = ui.select(
+                    self._robot_options(team=True), label="robot", value=TEAM
+                ).props("dense data-testid=add-robot").classes("w-56")
+                ui.button("add", on_click=lambda: self._guard(
+                    lambda: self._add(Panel(kind=kind.value, robot=self._robot_of(robot.value)))
+                )).props("data-testid=add-view")
+                ui.button("team layout", on_click=lambda: self._guard(
+                    lambda: self._add(Panel(kind=kind.value))
+                )).props("flat data-testid=team-layout")
+            with ui.row().classes("items-center gap-2"):
+                where = self.shell.layout_path or "no --layout file"
+                ui.button("save layout", on_click=lambda: self._guard(self._save)).props(
+                    "flat data-testid=save-layout"
+                )
+                ui.button("restore layout", on_click=lambda: self._guard(self._restore)).props(
+                    "flat data-testid=restore-layout"
+                )
+                ui.label(str(where)).classes("text-caption")
+
+    def _binding_row(self, index: int, panel: Panel) -> None:
+        title = registry.get(panel.kind).title if panel.kind in _kinds() else panel.kind
+        with ui.row().classes("items-center gap-2").props(f"data-testid=binding-{index}"):
+            ui.label(f"{index + 1}. {title}").classes("w-40")
+            options = self._robot_options(team=True)
+            value = TEAM if panel.robot is None else panel.robot.key
+            if value not in options and panel.robot is not None:
+                options[value] = f"{panel.robot.label} (gone)"
+            ui.select(
+                options, value=value,
+                on_change=lambda e, i=index: self._guard(
+                    lambda: self._rebind(i, e.value)
+                ),
+            ).props(f"dense data-testid=bind-{index}").classes("w-56")
+            clone = ui.select(
+                self._robot_options(team=False), label="clone for",
+            ).props(f"dense data-testid=clone-{index}").classes("w-56")
+            clone.on_value_change(lambda e, p=panel: self._guard(lambda: self._clone(p, e.value)))
+            ui.button(icon="close", on_click=lambda i=index: self._guard(
+                lambda: self._remove(i)
+            )).props(f"flat dense data-testid=remove-{index}")
+
+    def _guard(self, action: Callable[[], Any]) -> None:
+        """Run a user's action; our errors become a notification, never a dead page."""
+        try:
+            action()
+        except DebugGuiError as exc:
+            ui.notify(str(exc), type="negative")
+
+    # -- layout changes ----------------------------------------------------------------
+
+    def _set_layout(self, layout: Layout) -> None:
+        self.layout = layout
+        self._render_binding()
+        self._render_panels()
+
+    def _add(self, panel: Panel) -> None:
+        registry.get(panel.kind)
+        self.layout = self.layout.adding(panel)
+        self._render_binding()
+        self._add_panel(panel)
+
+    def _clone(self, panel: Panel, key: str | None) -> None:
+        if key:
+            self._add(Panel(kind=panel.kind, robot=self._robot_of(key)))
+
+    def _remove(self, index: int) -> None:
+        self.layout = self.layout.without(index)
+        view = self.views.pop(index)
+        self._hide(view)
+        view.expansion.delete()
+        self._render_binding()
+
+    def _rebind(self, index: int, key: str) -> None:
+        panel = Panel(kind=self.layout.panels[index].kind, robot=self._robot_of(key))
+        self.layout = self.layout.replacing(index, panel)
+        view = self.views[index]
+        view.panel = panel
+        view.expansion.text = self._title(panel)
+        self._fill(view)
+        self._render_binding()
+
+    def _save(self) -> None:
+        path = self.shell.save(self.layout, self.token)
+        ui.notify(f"layout saved to {path}", type="positive")
+
+    def _restore(self) -> None:
+        self._set_layout(self.shell.restore())
+        ui.notify("layout restored", type="positive")
+
+    # -- panels ------------------------------------------------------------------------
+
+    def _title(self, panel: Panel) -> str:
+        title = registry.get(panel.kind).title
+        return f"{title} — {'team' if panel.robot is None else panel.robot.label}"
+
+    def _render_panels(self) -> None:
+        self._hide_all()
+        self.views.clear()
+        self.panels.clear()
+        for panel in self.layout.panels:
+            self._add_panel(panel)
+
+    def _add_panel(self, panel: Panel) -> None:
+        index = len(self.views)
+        with self.panels:
+            expansion = ui.expansion(self._title(panel), value=True).classes(
+                "w-full"
+            ).props(f"dense header-class=bg-grey-3 data-testid=panel-{index}")
+            with expansion:
+                body = ui.row().classes("w-full no-wrap items-start gap-2 overflow-auto")
+        view = _PanelView(panel=panel, expansion=expansion, body=body)
+        expansion.on_value_change(lambda e, v=view: self._toggle(v, bool(e.value)))
+        self.views.append(view)
+        self._fill(view)
+
+    def _toggle(self, view: _PanelView, shown: bool) -> None:
+        for inst in view.instances:
+            if shown:
+                inst.ctx.show()
+            else:
+                inst.ctx.hide()
+
+    def _fill(self, view: _PanelView) -> None:
+        """(Re)build the panel's instances: one, or one per robot for a team panel."""
+        self._hide(view)
+        view.instances.clear()
+        view.body.clear()
+        kind = registry.get(view.panel.kind)
+        robots: list[RobotId | None]
+        if view.panel.robot is not None:
+            robots = [view.panel.robot]
+        elif kind.team:
+            robots = [None]
+        else:
+            robots = list(self.robots)
+        view.robots = tuple(self.robots)
+        with view.body:
+            if not robots:
+                ui.label("no robots yet: they appear here when found").classes("italic")
+            for robot in robots:
+                with ui.column().classes("min-w-[24rem] flex-1") as container:
+                    if view.panel.robot is None and robot is not None:
+                        ui.label(robot.label).classes("text-bold")
+                    ctx = ViewContext(
+                        hub=self.shell.hub, robot=robot, robots=list(self.robots),
+                        policy=self.shell.policy, token=self.token, app=app,
+                    )
+                    try:
+                        kind.build(ctx)
+                    except Exception as exc:
+                        _log.exception("building view %s for %s", kind.kind, robot)
+                        ui.label(f"this view failed to build: {exc}").classes("text-negative")
+                view.instances.append(_Instance(robot=robot, ctx=ctx, container=container))
+        if view.expansion.value:
+            self._toggle(view, True)
+
+    def _hide(self, view: _PanelView) -> None:
+        for inst in view.instances:
+            inst.ctx.hide()
+
+    def _hide_all(self) -> None:
+        for view in self.views:
+            self._hide(view)
+
+
+def _kinds() -> set[str]:
+    return {k.kind for k in registry.kinds()}
+
+
+def install(shell: Shell) -> None:
+    """Register the page (``/``, with ``?token=`` for write access) and the policy's guard."""
+
+    @ui.page("/", title="debug_gui")
+    def index(client: Client, token: str | None = None) -> None:
+        if not shell.policy.loopback and not shell.policy.valid(token):
+            ui.label("This debug_gui needs its token: open the URL it printed.").props(
+                "data-testid=denied"
+            )
+            return
+        _Tab(shell, client, token).build()
