@@ -12,6 +12,8 @@ from __future__ import annotations
 import contextlib
 import json
 import queue
+import re
+import socket
 import struct
 import subprocess
 import sys
@@ -33,6 +35,8 @@ from debug_gui.foxglove import FoxgloveEndpoint, serve_foxglove
 from debug_gui.security import AccessPolicy
 from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group, unique_topic
 from efficient_comm_interfaces.srv import UnloadComponent
+
+from ._ros import executable
 
 PEER = Path(__file__).with_name("_foxglove_peer.py")
 TIMEOUT_S = 30.0
@@ -310,3 +314,47 @@ def test_beyond_loopback_even_looking_needs_the_token(robot: Robot) -> None:
         viewer = Viewer(f"ws://127.0.0.1:{served.port}/?token=secret-token-1")
         assert "parameters" in viewer.info["capabilities"]
         viewer.close()
+
+
+def _debug_gui(*args: str, domain: int) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [str(executable("debug_gui", "debug_gui")), *args], env=ros_env(domain),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def test_the_command_serves_foxglove_as_a_user_starts_it(robot: Robot) -> None:
+    proc = _debug_gui("--port", "0", "--foxglove-port", "0", "--domains", str(robot.domain),
+                      domain=robot.domain)
+    try:
+        assert proc.stdout is not None
+        end = time.monotonic() + TIMEOUT_S
+        line = ""
+        while "Foxglove viewers connect to" not in line:
+            assert time.monotonic() < end and proc.poll() is None, \
+                f"debug_gui never printed the Foxglove URL (last line {line!r})"
+            line = proc.stdout.readline()
+        found = re.search(r"\(to set parameters and call services: (ws://\S+)\)", line)
+        assert found, line
+        viewer = Viewer(found.group(1))
+        try:
+            channel = viewer.wait_for_channel(f"{robot.namespace}/{robot.topic}")
+            assert channel["schemaName"] == "std_msgs/msg/String"
+        finally:
+            viewer.close()
+    finally:
+        stop_process_group(proc)
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+def test_a_taken_foxglove_port_is_one_line_of_error(robot: Robot) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        proc = _debug_gui("--port", "0", "--foxglove-port", str(taken.getsockname()[1]),
+                          "--domains", str(robot.domain), domain=robot.domain)
+        output, _ = proc.communicate(timeout=TIMEOUT_S)
+    lines = output.strip().splitlines()
+    assert proc.returncode == 2
+    assert len(lines) == 1 and lines[0].startswith("debug_gui: error: cannot serve Foxglove on"), \
+        output

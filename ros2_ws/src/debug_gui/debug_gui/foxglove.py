@@ -45,6 +45,7 @@ from rcl_interfaces.msg import ParameterEvent, ParameterValue
 from rcl_interfaces.msg import ParameterType as RosType
 from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
 from rclpy.serialization import deserialize_message, serialize_message
+
 from rosbag2_layout import (
     Rosbag2Error,
     full_definition,
