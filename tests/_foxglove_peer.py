@@ -1,7 +1,9 @@
 """A plain rclpy robot (no efficient_comm) for the Foxglove endpoint's tests.
 
-``python tests/_foxglove_peer.py NAMESPACE TOPIC`` runs a node ``detector`` in NAMESPACE that
-publishes std_msgs/String ``hello N`` on TOPIC (relative: under the namespace) at 20 Hz,
+``python tests/_foxglove_peer.py NAMESPACE TOPIC [throttled]`` runs a node ``detector`` in
+NAMESPACE that publishes std_msgs/String ``hello N`` on TOPIC (relative: under the
+namespace) at 20 Hz (with ``throttled``: through a ThrottledPublisher, only while someone
+wants it, printing ``wants True``/``wants False`` as that changes),
 publishes ``efficient_comm/stats`` (so the GUI's Hub sees a robot), declares a double
 parameter ``threshold`` (0.5; negative values are vetoed), offers ``~/check``
 (efficient_comm_interfaces/srv/UnloadComponent: success when the id is 7) and prints, from
@@ -21,8 +23,10 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
+from efficient_comm.standalone import StandaloneHandle
 from efficient_comm_interfaces.msg import ExecutorStats
 from efficient_comm_interfaces.srv import UnloadComponent
+from throttle_publisher import ThrottledPublisher
 
 
 def main() -> None:
@@ -30,7 +34,10 @@ def main() -> None:
     rclpy.init()
     node = Node("detector", namespace=namespace)
     node.declare_parameter("threshold", 0.5)
-    pub = node.create_publisher(String, topic, 10)
+    throttled = ThrottledPublisher(StandaloneHandle(node), String, topic) \
+        if sys.argv[3:] == ["throttled"] else None
+    plain = node.create_publisher(String, topic, 10) if throttled is None else None
+    wanted: list[bool | None] = [None]
     stats = node.create_publisher(ExecutorStats, "efficient_comm/stats", 10)
     sequence = [0]
     subscribers = [-1]
@@ -46,8 +53,17 @@ def main() -> None:
 
     def tick() -> None:
         sequence[0] += 1
-        pub.publish(String(data=f"hello {sequence[0]}"))
-        count = pub.get_subscription_count()
+        if throttled is not None:
+            wants = throttled.wants()
+            if wants != wanted[0]:
+                wanted[0] = wants
+                print(f"wants {wants}", flush=True)
+            if wants:  # else nothing is computed, nothing sent
+                throttled.publish(String(data=f"hello {sequence[0]}"))
+            return
+        assert plain is not None
+        plain.publish(String(data=f"hello {sequence[0]}"))
+        count = plain.get_subscription_count()
         if count != subscribers[0]:
             subscribers[0] = count
             print(f"subscribers {count}", flush=True)

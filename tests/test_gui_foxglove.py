@@ -47,10 +47,10 @@ SERVICE_CALL_RESPONSE = 0x03
 class Robot:
     """The peer process and the lines it prints, waited for with a deadline."""
 
-    def __init__(self, domain: int, namespace: str, topic: str) -> None:
+    def __init__(self, domain: int, namespace: str, topic: str, *extra: str) -> None:
         self.domain, self.namespace, self.topic = domain, namespace, topic
         self.proc = subprocess.Popen(
-            [sys.executable, str(PEER), namespace, topic], env=ros_env(domain),
+            [sys.executable, str(PEER), namespace, topic, *extra], env=ros_env(domain),
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
             start_new_session=True)
         self.lines: queue.Queue[str] = queue.Queue()
@@ -358,3 +358,55 @@ def test_a_taken_foxglove_port_is_one_line_of_error(robot: Robot) -> None:
     assert proc.returncode == 2
     assert len(lines) == 1 and lines[0].startswith("debug_gui: error: cannot serve Foxglove on"), \
         output
+
+
+def test_robots_of_several_domains_sharing_a_namespace_are_told_apart() -> None:
+    namespace, topic = f"/robot_{unique_topic('r')[3:11]}", unique_topic("chatter")[1:]
+    first = Robot(isolated_domain_id(), namespace, topic)
+    second = Robot(isolated_domain_id(), namespace, topic)
+    try:
+        with Hub(domains=[first.domain, second.domain]) as hub, \
+                serve_foxglove(hub, policy=AccessPolicy.for_server(), port=0,
+                               refresh_s=0.2) as served:
+            viewer = Viewer(served.url)
+            try:
+                one = viewer.wait_for_channel(f"/domain{first.domain}{namespace}/{topic}")
+                two = viewer.wait_for_channel(f"/domain{second.domain}{namespace}/{topic}")
+                assert one["id"] != two["id"]
+                first.expect("subscribers 0")
+                second.expect("subscribers 0")
+                mark = len(second.seen)
+                viewer.send("subscribe", subscriptions=[{"id": 1, "channelId": two["id"]}])
+                second.expect("subscribers 1", after=mark)
+                viewer.next_binary(MESSAGE_DATA)
+                assert first.last("subscribers") == "subscribers 0"  # only the one watched
+            finally:
+                viewer.close()
+    finally:
+        first.close()
+        second.close()
+
+
+def test_a_throttle_aware_publisher_computes_only_while_a_viewer_subscribes() -> None:
+    robot = Robot(isolated_domain_id(), f"/robot_{unique_topic('r')[3:11]}",
+                  unique_topic("camera")[1:], "throttled")
+    try:
+        with Hub(domains=[robot.domain]) as hub, \
+                serve_foxglove(hub, policy=AccessPolicy.for_server(), port=0,
+                               refresh_s=0.2) as served:
+            viewer = Viewer(served.url)
+            try:
+                channel = viewer.wait_for_channel(f"{robot.namespace}/{robot.topic}")
+                robot.expect("wants False")  # advertised, yet nothing computed or sent
+                mark = len(robot.seen)
+                viewer.send("subscribe", subscriptions=[{"id": 3, "channelId": channel["id"]}])
+                robot.expect("wants True", after=mark)
+                frame = viewer.next_binary(MESSAGE_DATA)
+                assert deserialize_message(frame[13:], String).data.startswith("hello ")
+                mark = len(robot.seen)
+                viewer.send("unsubscribe", subscriptionIds=[3])
+                robot.expect("wants False", after=mark)
+            finally:
+                viewer.close()
+    finally:
+        robot.close()
