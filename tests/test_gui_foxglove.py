@@ -278,6 +278,10 @@ def test_a_service_call_answers(robot: Robot, endpoint: FoxgloveEndpoint) -> Non
         assert (service_id, call_id) == (service["id"], 5)
         response = deserialize_message(frame[13 + length:], UnloadComponent.Response)
         assert response.success and response.error_message == "got 7"
+        # A malformed request is answered with a failure, and the endpoint goes on.
+        viewer.ws.send(struct.pack("<BIII", 0x02, service["id"], 6, 3) + b"cdr" + b"\x00")
+        failure = viewer.next_json(lambda m: m.get("op") == "serviceCallFailure")
+        assert failure["callId"] == 6 and "not a CDR" in failure["message"]
     finally:
         viewer.close()
 

@@ -19,6 +19,7 @@ several, two robots may share a namespace, so every name is prefixed with ``/dom
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -62,6 +63,7 @@ from .security import AccessPolicy, check_port
 
 __all__ = ["DEFAULT_PORT", "FoxgloveEndpoint", "serve_foxglove", "start"]
 
+_log = logging.getLogger(__name__)
 DEFAULT_PORT = 8765  # the port Foxglove's "open connection" dialog proposes
 _CDR = "cdr"
 _ROS2MSG = "ros2msg"
@@ -531,6 +533,8 @@ class FoxgloveEndpoint:
                 self._bridge.sync()
             except DebugGuiError:
                 continue  # a robot vanished mid-sync: the next round sees the new state
+            except Exception:  # keep serving: one bad round must not end discovery
+                _log.exception("Foxglove endpoint: updating channels and services failed")
 
     def close(self) -> None:
         """Stop serving and release every subscription on the robots; idempotent."""
