@@ -1,9 +1,9 @@
 """The gate in front of the foxglove-sdk server: both protocol names, the token, write checks.
 
 The SDK's WebSocket server (foxglove-sdk 0.30) accepts only the subprotocol name
-``foxglove.sdk.v1``, which is the Foxglove WebSocket protocol v1 under a new name; viewers
-released before that rename (PlotJuggler's Foxglove client, Lichtblick before 1.22, scripts
-written against the spec) offer only ``foxglove.websocket.v1`` and are refused with HTTP
+``foxglove.sdk.v1``, which is the Foxglove WebSocket protocol v1 under a new name; viewers and
+libraries written before that rename (Lichtblick until its December 2025 release, clients
+written against the published spec) offer only ``foxglove.websocket.v1`` and are refused with HTTP
 400. The SDK also has no hook to see a client's handshake or to refuse a single request.
 So the endpoint serves through this gate: an asyncio WebSocket server in a thread of its
 own that accepts either name, checks the token a client presents (``?token=T`` in the URL,
