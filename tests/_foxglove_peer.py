@@ -4,7 +4,8 @@
 NAMESPACE that publishes std_msgs/String ``hello N`` on TOPIC (relative: under the
 namespace) at 20 Hz (with ``throttled``: through a ThrottledPublisher, only while someone
 wants it, printing ``wants True``/``wants False`` as that changes),
-publishes ``efficient_comm/stats`` (so the GUI's Hub sees a robot), declares a double
+publishes ``efficient_comm/stats`` (so the GUI's Hub sees a robot) and, once at the start,
+a transient-local (latched) String on TOPIC_latched, declares a double
 parameter ``threshold`` (0.5; negative values are vetoed), offers ``~/check``
 (efficient_comm_interfaces/srv/UnloadComponent: success when the id is 7) and prints, from
 the robot's side, what the tests check: ``subscribers N`` whenever the number of
@@ -21,6 +22,7 @@ import rclpy
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 
 from efficient_comm.standalone import StandaloneHandle
@@ -39,6 +41,9 @@ def main() -> None:
     plain = node.create_publisher(String, topic, 10) if throttled is None else None
     wanted: list[bool | None] = [None]
     stats = node.create_publisher(ExecutorStats, "efficient_comm/stats", 10)
+    latched = node.create_publisher(String, f"{topic}_latched", QoSProfile(
+        depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    latched.publish(String(data="published once, before anyone looked"))
     sequence = [0]
     subscribers = [-1]
 

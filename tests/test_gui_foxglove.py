@@ -414,3 +414,16 @@ def test_a_throttle_aware_publisher_computes_only_while_a_viewer_subscribes() ->
                 viewer.close()
     finally:
         robot.close()
+
+
+def test_a_latched_message_reaches_a_viewer_that_subscribes_later(
+        robot: Robot, endpoint: FoxgloveEndpoint) -> None:
+    viewer = Viewer(endpoint.url)
+    try:
+        channel = viewer.wait_for_channel(f"{robot.namespace}/{robot.topic}_latched")
+        viewer.send("subscribe", subscriptions=[{"id": 8, "channelId": channel["id"]}])
+        frame = viewer.next_binary(MESSAGE_DATA)
+        assert deserialize_message(frame[13:], String).data == \
+            "published once, before anyone looked"
+    finally:
+        viewer.close()

@@ -47,6 +47,7 @@ from rcl_interfaces.msg import ParameterType as RosType
 from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
 from rclpy.serialization import deserialize_message, serialize_message
 
+from efficient_comm import matching_qos
 from rosbag2_layout import (
     Rosbag2Error,
     full_definition,
@@ -277,9 +278,13 @@ class _Bridge(ServerListener):
             if entry.feed is not None:
                 return
             log = entry.channel.log
+            # What the publishers offer: best effort reaches a best-effort camera, transient
+            # local gives a latched topic's last message, as foxglove_bridge does.
+            offered = self._hub.handle(entry.robot).graph.publishers_qos(entry.topic)
             entry.feed = self._hub.subscribe(
                 entry.robot, entry.topic, entry.msg_type,
-                lambda msg: log(serialize_message(msg), log_time=time.time_ns()))
+                lambda msg: log(serialize_message(msg), log_time=time.time_ns()),
+                qos=matching_qos(offered))
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
         with self._lock:
