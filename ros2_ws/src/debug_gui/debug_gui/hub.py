@@ -123,17 +123,37 @@ class Feed:
         self._closed = False
         domain = hub._domain(robot)
         self._domain = domain
-        handle = _CountingHandle(domain, hub._counter(robot, topic))
+        self._msg_type = msg_type
+        self._qos = qos
+        self._handle = _CountingHandle(domain, hub._counter(robot, topic))
         self._throttled: ThrottledSubscription | None = None
         self._plain: Subscription | None = None
-        if domain.node.count_subscribers(f"{topic}/{_THROTTLE_REQUEST}") > 0:
-            self._throttled = ThrottledSubscription(
-                handle, msg_type, topic, self._deliver,  # type: ignore[arg-type]
-                options=_options(rate_hz), qos=qos,
+        if not self.upgrade():
+            self._plain = self._handle.create_subscription(
+                msg_type, topic, self._deliver, qos=qos
             )
-        else:
-            self._handle = handle
-            self._plain = handle.create_subscription(msg_type, topic, self._deliver, qos=qos)
+
+    def upgrade(self) -> bool:
+        """Go through throttle_publisher if the topic now has a throttle-aware publisher.
+
+        Called at creation and by the Hub's discovery, so a feed made before the robot's
+        publisher was discovered moves to the robot-side rate as soon as it is. True if
+        the feed is throttled (now or already).
+        """
+        with self._lock:
+            if self._throttled is not None or self._closed:
+                return self._throttled is not None
+            node = self._domain.node
+            if node.count_subscribers(f"{self.topic}/{_THROTTLE_REQUEST}") == 0:
+                return False
+            self._throttled = ThrottledSubscription(
+                self._handle, self._msg_type, self.topic,  # type: ignore[arg-type]
+                self._deliver, options=_options(self._rate_hz), qos=self._qos,
+            )
+            plain, self._plain = self._plain, None
+        if plain is not None:
+            self._handle.destroy_subscription(plain)
+        return True
 
     @property
     def throttled(self) -> bool:
@@ -146,7 +166,7 @@ class Feed:
     def _deliver(self, msg: Any) -> None:
         if self._closed:
             return
-        if self._plain is not None and self._rate_hz is not None:
+        if self._throttled is None and self._rate_hz is not None:
             now = time.monotonic_ns()
             if now - self._last_ns < int(1e9 / self._rate_hz):
                 return
@@ -194,7 +214,9 @@ class _Domain:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain)
         try:
-            self.node = Node(node_name, context=self.context)
+            # No rosout: one node a domain in one process would share the logger's rosout
+            # publisher (rcl warns), and the GUI's own log is no robot's business.
+            self.node = Node(node_name, context=self.context, enable_rosout=False)
             self.handle = StandaloneHandle(self.node)
             self.executor = SingleThreadedExecutor(context=self.context)
             self.executor.add_node(self.node)
@@ -292,18 +314,19 @@ class Hub:
 
     def _spin(self, dom: _Domain) -> None:
         next_scan = 0.0
-        with contextlib.suppress(ExternalShutdownException):
-            while dom.context.ok() and not self._stop.is_set():
+        while dom.context.ok() and not self._stop.is_set():
+            try:
                 now = time.monotonic()
                 if now >= next_scan:
                     next_scan = now + DISCOVERY_PERIOD_S
-                    try:
-                        self._discover(dom)
-                    except Exception:
-                        if not dom.context.ok():
-                            break
-                        _log.exception("discovery in domain %d", dom.domain)
+                    self._discover(dom)
                 dom.executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+            except ExternalShutdownException:
+                break
+            except Exception:
+                if not dom.context.ok() or self._stop.is_set():
+                    break  # closing under us: rclpy raises on a context shut down mid-wait
+                _log.exception("domain %d: executor or discovery failed", dom.domain)
 
     def _discover(self, dom: _Domain) -> None:
         found: set[RobotId] = set()
@@ -314,6 +337,10 @@ class Hub:
         if found != dom.robots:
             dom.robots = found
             self._notify()
+        with self._lock:
+            plain = [f for f in self._feeds if not f.throttled and f.robot.domain == dom.domain]
+        for feed in plain:
+            feed.upgrade()
 
     def _notify(self) -> None:
         with self._lock:

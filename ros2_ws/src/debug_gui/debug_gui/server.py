@@ -104,6 +104,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def serve(options: Options) -> int:
     """Join the domains, then serve until Ctrl-C/SIGTERM (NiceGUI in this main thread)."""
+    # NiceGUI takes a variable inherited from a pytest parent (a test that starts this
+    # command) to mean it runs under its own test fixture, and then ignores --port.
+    os.environ.pop("PYTEST_CURRENT_TEST", None)
     from nicegui import app, ui
 
     from .ui import registry

@@ -9,7 +9,7 @@ Where things live (read ARCHITECTURE.md for the why):
 * ``testing``    a handle with no DDS and a manual clock, for users' own tests;
 * ``config``     container files; ``dds`` keeping in-process and DDS delivery apart;
 * ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing
-                 (``format_stats`` prints it);
+                 (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
 * ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
 
 Everything public is re-exported here once; modules starting with ``_`` are private.
@@ -43,3 +43,5 @@ from .standalone import run_standalone as run_standalone
 from .standalone import standalone_main as standalone_main
 from .stats import StatsSnapshot as StatsSnapshot
 from .stats import format_stats as format_stats
+from .stats_publisher import STATS_TOPIC as STATS_TOPIC
+from .stats_publisher import StatsPublisher as StatsPublisher

@@ -12,11 +12,13 @@ from rclpy.utilities import remove_ros_args
 from ._signals import stop_on_sigterm
 from .container import Container
 from .dds import prepare_process
+from .errors import ConfigError
 from .standalone import cli as standalone
 
 
 def container(argv: Sequence[str] | None = None) -> int:
-    """``container [--config FILE ...] [--name NAME] [--strategy S] [--no-dds]``."""
+    """``container [--config FILE ...] [--name NAME] [--strategy S] [--no-dds]
+    [--stats-period S] [--stats-namespace NS]``."""
     argv = list(sys.argv if argv is None else argv)
     parser = argparse.ArgumentParser(
         prog="container", description="Run components from container files in one process."
@@ -27,14 +29,24 @@ def container(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--strategy", choices=["depth_first", "breadth_first"],
                         default="depth_first")
     parser.add_argument("--no-dds", action="store_true")
+    parser.add_argument("--stats-period", type=float, default=1.0, metavar="S",
+                        help="seconds between callback statistics on "
+                        "<stats namespace>/efficient_comm/stats (0: none; default 1)")
+    parser.add_argument("--stats-namespace", default="/", metavar="NS",
+                        help="namespace of the statistics topic, i.e. the robot (default /)")
     args = parser.parse_args(remove_ros_args(argv)[1:])
     prepare_process()
     stop_on_sigterm()
     # Ctrl-C or SIGTERM at any point (even while loading) unloads what was loaded.
-    with contextlib.suppress(KeyboardInterrupt), Container(
-        args.name, namespace=args.namespace, dds=not args.no_dds, strategy=args.strategy,
-        args=argv,
-    ) as c:
+    try:
+        c = Container(
+            args.name, namespace=args.namespace, dds=not args.no_dds, strategy=args.strategy,
+            args=argv, stats_period_s=args.stats_period, stats_namespace=args.stats_namespace,
+        )
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    with contextlib.suppress(KeyboardInterrupt), c:
         for path in args.config:
             report = c.load_file(path)
             for loaded in report.loaded:

@@ -298,7 +298,10 @@ class ComposedHandle(ParameterMethods):
 
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> ExecutorTimer:
         executor = self._container.executor
-        stats = executor.registry.add(self._fqn, "timer", getattr(callback, "__qualname__", ""))
+        stats = executor.registry.add(
+            self._fqn, "timer", getattr(callback, "__qualname__", ""),
+            period_ns=round(period_s * 1e9) if period_s > 0 else 0,
+        )
         timer = executor.create_timer(period_s, callback, stats=stats, logger=self._logger)
         self._timers.append(timer)
         return timer

@@ -39,6 +39,7 @@ from .errors import ComponentError, ConfigError, DdsSetupError, EfficientCommErr
 from .executor import ConsecutiveExecutor, GuardMode, Strategy
 from .handle import Clock, ClockKind, Logger
 from .stats import StatsSnapshot
+from .stats_publisher import DEFAULT_STATS_PERIOD_S, StatsPublisher, check_stats_period
 
 
 @dataclass(frozen=True)
@@ -83,8 +84,23 @@ class Container(Closing):
         guard_mutation: GuardMode | None = None,
         serve: bool = True,
         args: Sequence[str] | None = None,
+        stats_period_s: float = DEFAULT_STATS_PERIOD_S,
+        stats_namespace: str = "/",
     ) -> None:
         self.name, self.namespace = check_node_name(name, namespace)
+        try:
+            stats_period_s = check_stats_period(stats_period_s)
+        except ValueError as exc:
+            raise ConfigError(f"container {self.name}: {exc}") from exc
+        try:
+            check_node_name(f"{self.name}_stats", stats_namespace)
+        except ValueError as exc:  # rclpy's text points at the character on a second line
+            reason = str(exc).splitlines()[0].rstrip(":")
+            raise ConfigError(
+                f"container {self.name}: stats_namespace {stats_namespace!r}: {reason}"
+            ) from exc
+        self.stats_publisher: StatsPublisher | None = None
+        self._stats_handle: ComposedHandle | None = None
         self.context: Context | None = None
         self._services: dict[str, LocalService] = {}
         self._components: dict[int, LoadedComponent] = {}
@@ -130,6 +146,27 @@ class Container(Closing):
                 from ._services import serve_container
 
                 serve_container(self, self._node)
+        if stats_period_s > 0:
+            self._start_stats(stats_period_s, stats_namespace)
+
+    def _start_stats(self, period_s: float, namespace: str) -> None:
+        """``<stats_namespace>/efficient_comm/stats`` from a handle of the container's own.
+
+        Not a component (``components()`` and the list service do not show it), but a
+        composed handle like theirs, so in-process and DDS listeners both count.
+        """
+        handle = ComposedHandle(
+            self, name=f"{self.name}_stats", namespace=namespace, remappings={}, parameters={}
+        )
+        self._stats_handle = handle
+        self.stats_publisher = StatsPublisher(
+            handle,
+            registry=self.executor.registry,
+            period_s=period_s,
+            process_name=fully_qualified(self.name, self.namespace),
+        )
+        if handle.rclpy_node is not None and self._rclpy_executor is not None:
+            self._rclpy_executor.add_node(handle.rclpy_node)
 
     # -- composition ----------------------------------------------------------------------
 
@@ -276,6 +313,12 @@ class Container(Closing):
                 self.unload(unique_id)
             except Exception as exc:
                 self.logger.error(f"unloading component {unique_id} raised {exc!r}")
+        if self._stats_handle is not None:
+            node = self._stats_handle.rclpy_node
+            if node is not None and self._rclpy_executor is not None:
+                self._rclpy_executor.remove_node(node)
+            self._stats_handle.close()
+            self._stats_handle = None
         if self._rclpy_executor is not None:
             self.executor.detach_dds()
             self._rclpy_executor.shutdown()

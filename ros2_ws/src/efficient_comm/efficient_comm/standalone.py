@@ -52,6 +52,7 @@ from .handle import (
     Timer,
 )
 from .stats import CallbackKind, CallbackStats, StatsRegistry, StatsSnapshot
+from .stats_publisher import DEFAULT_STATS_PERIOD_S, StatsPublisher, check_stats_period
 
 #: Longest wait of an idle standalone node before Python's signal handlers get to run.
 SIGNAL_CHECK_S = 0.1
@@ -121,10 +122,11 @@ class StandaloneHandle(ParameterMethods):
         return None
 
     def _timed(
-        self, kind: CallbackKind, name: str, callback: Callable[..., Any]
+        self, kind: CallbackKind, name: str, callback: Callable[..., Any], *, period_ns: int = 0
     ) -> Callable[..., Any]:
         """Record time and frequency, and log (not propagate) exceptions, like composed."""
-        return self._guarded(self.registry.add(self.fully_qualified_name, kind, name), callback)
+        stats = self.registry.add(self.fully_qualified_name, kind, name, period_ns=period_ns)
+        return self._guarded(stats, callback)
 
     def _guarded(
         self,
@@ -164,7 +166,9 @@ class StandaloneHandle(ParameterMethods):
         if not period_s > 0:
             raise ValueError(f"timer period must be positive, got {period_s!r}")
         name = getattr(callback, "__qualname__", "")
-        return self.rclpy_node.create_timer(period_s, self._timed("timer", name, callback))
+        return self.rclpy_node.create_timer(
+            period_s, self._timed("timer", name, callback, period_ns=round(period_s * 1e9))
+        )
 
     def create_service(
         self, srv_type: type, name: str, callback: Callable[[Any, Any], Any]
@@ -233,13 +237,18 @@ class Standalone(Closing):
         namespace: str | None = None,
         args: Sequence[str] | None = None,
         domain_id: int | None = None,
+        stats_period_s: float = DEFAULT_STATS_PERIOD_S,
     ) -> None:
+        check_stats_period(stats_period_s)
+        self.stats_publisher: StatsPublisher | None = None
         self.context = Context()
         rclpy.init(args=list(args) if args is not None else None, context=self.context,
                    domain_id=domain_id)
         try:
             self.node = Node(name, namespace=namespace, context=self.context)
             self.handle = StandaloneHandle(self.node)
+            # Declared before the component exists, so its parameter callbacks never see it.
+            period_s = self._stats_period(stats_period_s)
             try:
                 self.component = factory(self.handle)
             except Exception as exc:
@@ -247,11 +256,28 @@ class Standalone(Closing):
                     f"constructing {getattr(factory, '__qualname__', factory)} as "
                     f"{self.node.get_fully_qualified_name()} raised {exc!r}"
                 ) from exc
+            if period_s > 0:
+                self.stats_publisher = StatsPublisher(
+                    self.handle,
+                    registry=self.handle.registry,
+                    period_s=period_s,
+                    process_name=self.node.get_fully_qualified_name(),
+                )
             self.executor = SingleThreadedExecutor(context=self.context)
             self.executor.add_node(self.node)
         except BaseException:
             self.context.try_shutdown()
             raise
+
+    def _stats_period(self, default_s: float) -> float:
+        """The ``stats_period_s`` parameter: how often ``<node namespace>/efficient_comm/stats``
+        is published (``-p stats_period_s:=0.0`` turns it off)."""
+        try:
+            return check_stats_period(
+                self.handle.declare_parameter("stats_period_s", float(default_s))
+            )
+        except ValueError as exc:
+            raise ComponentError(f"{self.node.get_fully_qualified_name()}: {exc}") from exc
 
     def spin(self) -> None:
         """Run until Ctrl-C, SIGTERM or :meth:`close` from another thread.

@@ -48,6 +48,7 @@ from .dds import _MARK, PROFILES_ENV
 from .executor import GuardMode, Strategy
 from .handle import QoSLike
 from .stats import CallbackStats
+from .stats_publisher import DEFAULT_STATS_PERIOD_S
 
 __all__ = [
     "ManualClock",
@@ -67,9 +68,17 @@ _INJECT_QOS = QoSProfile(
 
 
 def test_container(
-    *, strategy: Strategy = "depth_first", guard_mutation: GuardMode = "raise"
+    *,
+    strategy: Strategy = "depth_first",
+    guard_mutation: GuardMode = "raise",
+    stats_period_s: float = DEFAULT_STATS_PERIOD_S,
+    stats_namespace: str = "/",
 ) -> Container:
-    """A container with no DDS on a :class:`ManualClock` starting at t = 0."""
+    """A container with no DDS on a :class:`ManualClock` starting at t = 0.
+
+    Like every container it publishes its callback statistics (``stats_period_s``, 0 turns
+    that off), so a test can subscribe to ``<stats_namespace>/efficient_comm/stats``.
+    """
     return Container(
         f"test_{uuid.uuid4().hex[:8]}",
         dds=False,
@@ -77,6 +86,8 @@ def test_container(
         strategy=strategy,
         guard_mutation=guard_mutation,
         serve=False,
+        stats_period_s=stats_period_s,
+        stats_namespace=stats_namespace,
     )
 
 

@@ -29,6 +29,7 @@ BACKENDS = ["standalone", "composed", "test"]
 class Harness(Protocol):
     handle: Any  # the backend's NodeHandle
     component: Any
+    stats_publisher: Any  # the container's or standalone node's StatsPublisher (or None)
 
     def send(self, topic: str, msg: Any) -> None: ...
 
@@ -122,6 +123,7 @@ class _TestHarness:
     def __init__(self, handle: TestHandle, component: Any) -> None:
         self.handle = handle
         self.component = component
+        self.stats_publisher: Any = handle.container.stats_publisher
         self._injector = TestHandle("peer", container=handle.container)
 
     def send(self, topic: str, msg: Any) -> None:
@@ -161,12 +163,16 @@ def harness(
     namespace: str = "/",
     parameters: Mapping[str, Any] | None = None,
     remappings: Mapping[str, str] | None = None,
+    stats_period_s: float = 1.0,
 ) -> Iterator[Harness]:
-    """Run ``factory`` as node ``namespace/name`` on ``backend``; yields its harness."""
+    """Run ``factory`` as node ``namespace/name`` on ``backend``; yields its harness.
+
+    ``stats_period_s`` goes to the container or standalone node (0: no stats topic).
+    """
     parameters = dict(parameters or {})
     remappings = dict(remappings or {})
     if backend == "test":
-        container = test_container()
+        container = test_container(stats_period_s=stats_period_s, stats_namespace=namespace)
         handle = TestHandle(
             name, namespace=namespace, parameters=parameters, remappings=remappings,
             container=container,
@@ -186,19 +192,25 @@ def harness(
             for src, dst in remappings.items():
                 args += ["-r", f"{src}:={dst}"]
             with Standalone(
-                factory, name=name, namespace=namespace, args=args, domain_id=domain_id
+                factory, name=name, namespace=namespace, args=args, domain_id=domain_id,
+                stats_period_s=stats_period_s,
             ) as node:
                 h: Any = _DdsHarness(lambda t: node.spin_once(t), peer)
                 h.handle, h.component = node.handle, node.component
+                h.stats_publisher = node.stats_publisher
                 yield h
         elif backend == "composed":
-            with Container("conformance", domain_id=domain_id, serve=False) as container:
+            with Container(
+                "conformance", domain_id=domain_id, serve=False, stats_period_s=stats_period_s,
+                stats_namespace=namespace,
+            ) as container:
                 instance = container.add(
                     factory, name=name, namespace=namespace, parameters=parameters,
                     remappings=remappings,
                 )
                 h = _DdsHarness(container.spin_once, peer)
                 h.handle, h.component = container.components()[0].handle, instance
+                h.stats_publisher = container.stats_publisher
                 yield h
         else:
             raise ValueError(backend)

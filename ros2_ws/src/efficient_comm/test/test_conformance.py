@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import socket
 from collections.abc import Mapping
 from typing import Any
 
@@ -11,6 +13,7 @@ from std_msgs.msg import Int32, String
 
 from efficient_comm import ParameterError, ServiceFailedError
 from efficient_comm.handle import NodeHandle, ParameterValue
+from efficient_comm_interfaces.msg import ExecutorStats
 from efficient_comm_interfaces.srv import ListComponents, UnloadComponent
 
 from .conformance import BACKENDS, harness
@@ -290,7 +293,7 @@ class Elsewhere:
 
 def test_capabilities_names_graph_clock_kind_and_timer_schedule(backend: str) -> None:
     with harness(backend, Prober, name="prober", namespace="/robot",
-                 remappings={"probe": "/robot/probed"}) as h:
+                 remappings={"probe": "/robot/probed"}, stats_period_s=0.0) as h:
         node: NodeHandle = h.handle
         assert node.resolve_topic_name("probe") == "/robot/probed"
         assert node.resolve_topic_name("x") == "/robot/x"
@@ -329,7 +332,62 @@ def test_capabilities_names_graph_clock_kind_and_timer_schedule(backend: str) ->
         if backend == "standalone":
             assert schedule is None  # rclpy's executor does not tell
         else:
+            # No timer (the stats topic, which has one, is off here).
             assert schedule is not None and schedule.next_timer_due_ns() is None
             node.create_timer(2.0, lambda: None)
             due = schedule.next_timer_due_ns()
             assert due is not None and 0 < due - schedule.clock.now_ns() <= 2_000_000_000
+
+
+class Busy:
+    """A 20 Hz timer and a subscription that fails on 'boom': something for the stats."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        node.create_subscription(String, "in", self._on_in)
+        node.create_timer(0.05, self._tick)
+        self.ticks = 0
+
+    def _tick(self) -> None:
+        self.ticks += 1
+
+    def _on_in(self, msg: String) -> None:
+        if msg.data == "boom":
+            raise RuntimeError("boom")
+
+
+def test_callback_statistics_are_published_only_while_someone_listens(backend: str) -> None:
+    with harness(backend, Busy, name="busy", namespace="/robot", stats_period_s=0.2) as h:
+        h.run_for(0.5)
+        assert h.component.ticks > 0
+        assert h.stats_publisher.published == 0  # nobody listened: no snapshot was computed
+        got = h.collect("/robot/efficient_comm/stats", ExecutorStats)
+        h.send("/robot/in", String(data="boom"))
+        h.send("/robot/in", String(data="fine"))
+
+        def rows() -> dict[str, Any]:
+            """The latest message's rows of /robot/busy by kind, once both calls counted."""
+            for msg in reversed(got):
+                mine = {c.kind: c for c in msg.callbacks
+                        if c.node == "/robot/busy" and c.name != "StatsPublisher._tick"}
+                if "subscription" in mine and mine["subscription"].calls == 2:
+                    return mine
+            return {}
+
+        assert h.wait_for(lambda: bool(rows()) and rows()["timer"].rate_hz > 0)
+        assert h.stats_publisher.published >= 1
+        msg = got[-1]
+        assert msg.pid == os.getpid() and msg.hostname == socket.gethostname()
+        assert msg.window_ns > 0 and msg.process_name
+        sub, timer = rows()["subscription"], rows()["timer"]
+        assert (sub.name, sub.exceptions, sub.drops, sub.period_ns) == ("/robot/in", 1, 0, 0)
+        assert timer.period_ns == 50_000_000 and timer.exceptions == 0
+        assert timer.calls >= h.component.ticks - 1 > 0
+        assert timer.mean_ns > 0 and 0 < timer.p95_ns <= timer.max_ns
+        # The publisher's own timer is a callback like the others: being watched shows.
+        assert any(c.name == "StatsPublisher._tick" for c in msg.callbacks)
+        if backend == "test":  # manual time: every later window of 0.2 s holds 4 ticks
+            count = len(got)
+            h.run_for(0.4)
+            assert len(got) == count + 2
+            (tick,) = [c for c in got[-1].callbacks if c.name == "Busy._tick"]
+            assert (tick.rate_hz, got[-1].window_ns) == (20.0, 200_000_000)

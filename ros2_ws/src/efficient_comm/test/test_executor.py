@@ -218,7 +218,7 @@ def test_unloaded_components_are_dead() -> None:
 
 
 def test_next_timer_due_is_the_earliest_deadline_and_readable_from_another_thread() -> None:
-    container = test_container()
+    container = test_container(stats_period_s=0)  # no stats timer: only the test's own
     executor = container.executor
     assert executor.next_timer_due_ns() is None
     node = TestHandle(container=container)
@@ -231,3 +231,15 @@ def test_next_timer_due_is_the_earliest_deadline_and_readable_from_another_threa
     reader.start()
     reader.join(5)
     assert seen == [400_000_000]
+
+
+def test_a_clock_set_far_ahead_skips_the_missed_periods_of_older_timers() -> None:
+    container = test_container(stats_period_s=0)
+    node = TestHandle(container=container)
+    ticks: list[int] = []
+    node.create_timer(1.0, lambda: ticks.append(container.executor.clock.now_ns()))
+    clock = container.executor.clock
+    assert isinstance(clock, ManualClock)
+    clock.set_ns(10**18)  # a simulated epoch; a billion periods after the timer's deadline
+    node.advance(1.5)
+    assert ticks == [10**18, 10**18 + 1_000_000_000]  # once for all missed, then in phase

@@ -8,6 +8,12 @@ ball model -> behaviour -> motion), passing messages by reference on one thread.
 ``--stats-period`` seconds it prints rates, latency and tracking error; at the end (after
 ``--duration`` or on Ctrl-C/SIGTERM) it writes a short Markdown report.
 
+``--namespace`` names the robot (default ``/robot``): its topics, its recorder
+(``<ns>/recorder``, idle until its ``~/start`` service is called; bags under ``--bag-dir``)
+and its callback statistics (``<ns>/efficient_comm/stats``) live there, so several demo
+processes (one robot each, in separate DDS domains and/or namespaces) can be told apart by
+a debugging tool such as debug_gui.
+
 ``--lockstep`` runs on a manual clock as fast as the machine allows, the same run for the
 same ``--seed``; by default the simulation runs in real time. ``--push-at`` shoves the robot
 from behind at that simulated second (``--push-newtons`` for 0.1 s; 40 N fells it).
@@ -27,12 +33,21 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from rclpy.validate_namespace import validate_namespace
+
 from efficient_comm import Container, ManualClock, format_stats, stop_on_sigterm
+from robot_recorder import Recorder
 
 from .soccer.compose import SoccerRobot, compose
 from .soccer.monitor import Figures
 
 EXIT_OK, EXIT_BUG, EXIT_FELL = 0, 1, 3
+#: What the robot's recorder records once started (relative to the robot's namespace);
+#: a viewer may change it (the recorder's ``~/set_topics`` service).
+RECORDED_TOPICS = [
+    "joint_states", "imu/data", "ball/detection", "ball/estimate", "head/goal",
+    "fall/state", "ground_truth/robot", "ground_truth/ball", "camera/image_raw max_rate_hz=5",
+]
 
 HEADER = (f"{'sim s':>6} {'RTF':>5} {'cam fps':>7} {'det Hz':>6} {'bus Hz':>6} "
           f"{'err mean°':>9} {'err p95°':>8} {'lat ms':>6} {'head':<9} {'bus err':>7}")
@@ -113,6 +128,26 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
     return "\n".join(lines)
 
 
+def namespace_arg(text: str) -> str:
+    """``--namespace``: an absolute ROS namespace (a relative one gets its leading slash)."""
+    namespace = text if text.startswith("/") else "/" + text
+    try:
+        validate_namespace(namespace)
+    except Exception as exc:  # rclpy's InvalidNamespaceException, with a caret line
+        reason = str(exc).splitlines()[0].rstrip(":")
+        raise argparse.ArgumentTypeError(f"{text!r}: {reason}") from None
+    return namespace
+
+
+def add_recorder(container: Container, namespace: str, bag_dir: Path) -> Recorder:
+    """The robot's recorder, ``<namespace>/recorder``: idle until told to start."""
+    recorder: Recorder = container.add(
+        Recorder, name="recorder", namespace=namespace,
+        parameters={"topics": RECORDED_TOPICS, "output_dir": str(bag_dir)},
+    )
+    return recorder
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="soccer_demo", description=__doc__.split("\n\n")[0])
     parser.add_argument("--duration", type=float, default=30.0, help="seconds; 0 = until Ctrl-C")
@@ -124,23 +159,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--line-noise", type=float, default=0.0,
                         help="share of servo bus packets (either way) with a flipped bit")
     parser.add_argument("--no-dds", action="store_true", help="no DDS: nothing leaves the process")
-    parser.add_argument("--stats-period", type=float, default=2.0)
+    parser.add_argument("--stats-period", type=float, default=2.0,
+                        help="seconds between the printed live lines")
+    parser.add_argument("--namespace", type=namespace_arg, default="/robot",
+                        help="the robot's namespace (default /robot)")
+    parser.add_argument("--bag-dir", type=Path, default=None,
+                        help="where the robot's recorder writes bags "
+                        "(default recordings/<namespace>)")
     parser.add_argument("--report", type=Path, default=Path("soccer_report.md"))
     parser.add_argument("--push-at", type=float, default=0.0, metavar="SECONDS",
                         help="push the robot from behind at this simulated time (0: never)")
     parser.add_argument("--push-newtons", type=float, default=40.0,
                         help="force of that push, for 0.1 s")
     args = parser.parse_args(argv)
+    bag_dir = args.bag_dir or Path("recordings", args.namespace.strip("/") or "root")
     stop_on_sigterm()
 
     clock = ManualClock() if args.lockstep else None
     started = time.monotonic()
-    with Container("soccer", dds=not args.no_dds, clock=clock) as container:
-        robot = compose(container, simulator={
+    with Container("soccer", namespace=args.namespace, dds=not args.no_dds, clock=clock,
+                   stats_namespace=args.namespace) as container:
+        robot = compose(container, namespace=args.namespace, simulator={
             "seed": args.seed, "ball_velocity": [0.0, 0.3], "ball_kick_period": args.kick_period,
             "line_noise": args.line_noise,
             "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
         })
+        add_recorder(container, args.namespace, bag_dir)
         print(f"soccer demo: {robot.simulator.camera.backend if robot.simulator.camera else 'no'}"
               f" camera, servos on {robot.simulator.port}; "
               f"{'lockstep' if args.lockstep else 'real time'}, "

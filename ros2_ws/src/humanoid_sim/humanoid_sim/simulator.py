@@ -44,6 +44,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu
 from efficient_comm import to_msg
 from efficient_comm.handle import NodeHandle
 from efficient_comm.standalone import standalone_main
+from throttle_publisher import ThrottledPublisher
 
 from .dynamixel.bus import Bus
 from .dynamixel.pty import PtyBus
@@ -126,8 +127,9 @@ class Simulator:
                                              qos=TRANSIENT_LOCAL)
             info_pub.publish(self.camera_info(width, height))
             self.imu_pub = node.create_publisher(Imu, "imu/data", qos=10)
+            # Throttled, so a viewer's rate (the debug GUI's world view) reaches them.
             self.truth_pubs = {
-                what: node.create_publisher(PoseStamped, f"ground_truth/{what}", qos=10)
+                what: ThrottledPublisher(node, PoseStamped, f"ground_truth/{what}", qos=10)
                 for what in ("robot", "ball", "camera")
             }
             node.create_subscription(Vector3, "push", self._on_push, qos=10)

@@ -15,7 +15,7 @@ from ..models.components import ComponentsModel, Row, sparkline
 from .registry import ViewContext, register
 
 POLL_S = 1.0
-_COLUMNS: list[dict[str, Any]] = [
+COLUMNS: list[dict[str, Any]] = [
     {"name": "flag", "label": "", "field": "flag", "sortable": True, "align": "left"},
     {"name": "node", "label": "component", "field": "node", "sortable": True, "align": "left"},
     {"name": "kind", "label": "kind", "field": "kind", "sortable": True, "align": "left"},
@@ -61,7 +61,7 @@ def build(ctx: ViewContext) -> None:
         f"data-testid=components-status-{ctx.robot.key}"
     )
     table = ui.table(
-        columns=_COLUMNS, rows=[], row_key="id", pagination=0,
+        columns=COLUMNS, rows=[], row_key="id", pagination=0,
     ).props(
         f"dense flat data-testid=components-{ctx.robot.key}"
     ).classes("w-full")

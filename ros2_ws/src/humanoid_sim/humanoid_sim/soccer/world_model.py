@@ -16,6 +16,7 @@ from sensor_msgs.msg import JointState
 
 from efficient_comm import from_msg
 from efficient_comm.handle import NodeHandle
+from throttle_publisher import ThrottledPublisher
 
 from ..errors import SimConfigError
 
@@ -70,7 +71,8 @@ class BallModel:
         #: Neck joints as last reported: stamp (ns), position (rad), velocity (rad/s).
         self.neck: dict[str, tuple[int, float, float]] = {name: (0, 0.0, 0.0) for name in NECK}
         self._last_ns: int | None = None
-        self.pub = node.create_publisher(PointStamped, "ball/estimate", qos=10)
+        # Throttled, so a viewer's rate (the debug GUI's world view) reaches it.
+        self.pub = ThrottledPublisher(node, PointStamped, "ball/estimate", qos=10)
         node.create_subscription(JointState, "joint_states", self._on_joints, qos=10)
         node.create_subscription(PointStamped, "ball/detection", self._on_detection, qos=10)
 

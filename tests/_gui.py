@@ -1,0 +1,266 @@
+"""Fixtures for debug_gui's browser tests: robots, the GUI as a user starts it, chromium.
+
+* :func:`robot` starts one simulated robot (``python -m humanoid_sim.demo --duration 0
+  --namespace NS``) in its own process and session, on a domain the test reserved;
+  :func:`fake_robot` a light one (a plain rclpy process publishing callback statistics,
+  ``tests/_gui_fake_robot.py``) for tests about the GUI rather than the robot.
+* :func:`gui` starts ``ros2 run debug_gui debug_gui --port 0 --domains ...`` the way a
+  user types it and waits for the URL it prints and for the page to answer.
+* the ``browser`` fixture (re-exported by ``tests/conftest.py``) is a headless chromium
+  WebDriver; whatever the test did, its last screen is saved under ``tests/artifacts/``.
+
+Waiting is on conditions with deadlines (:func:`wait_for`), never on sleeps.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import time
+import urllib.request
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from efficient_comm.testing import ros_env, stop_process_group
+
+ROOT = Path(__file__).resolve().parents[1]
+ARTIFACTS = ROOT / "tests" / "artifacts"
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMEDRIVER = Path("/usr/bin/chromedriver")
+FAKE_ROBOT = Path(__file__).with_name("_gui_fake_robot.py")
+_URL = re.compile(r"at (http://\S+)")
+
+
+@dataclass
+class Process:
+    """A program a test started, with the log it writes."""
+
+    proc: subprocess.Popen[bytes]
+    log: Path
+
+    def output(self) -> str:
+        return self.log.read_text(errors="replace") if self.log.exists() else ""
+
+    def stop(self) -> int:
+        return stop_process_group(self.proc)
+
+
+@dataclass
+class RobotProcess(Process):
+    domain_id: int
+    namespace: str
+
+
+@dataclass
+class GuiProcess(Process):
+    #: The URL it printed (with ``?token=``: write access).
+    url: str
+
+    @property
+    def base_url(self) -> str:
+        """The URL without the token: what someone without it opens (read-only)."""
+        return self.url.split("?", 1)[0]
+
+    @property
+    def token(self) -> str:
+        return self.url.split("token=", 1)[1]
+
+
+@contextmanager
+def _started(args: Sequence[str | Path], *, env: dict[str, str], log: Path) -> Iterator[Any]:
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(
+            [str(a) for a in args], env=env, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True, cwd=log.parent,
+        )
+    try:
+        yield proc
+    finally:
+        stop_process_group(proc)
+
+
+def wait_for(
+    predicate: Callable[[], Any],
+    *,
+    timeout_s: float = 30.0,
+    what: str = "condition",
+    alive: Sequence[Process] = (),
+) -> Any:
+    """Poll ``predicate`` until it returns something true; fail the test with ``what`` and
+    the logs of ``alive`` when the deadline passes or one of them exits."""
+    end = time.monotonic() + timeout_s
+    while True:
+        result = predicate()
+        if result:
+            return result
+        dead = [p for p in alive if p.proc.poll() is not None]
+        if dead or time.monotonic() > end:
+            logs = "\n".join(f"--- {p.log}:\n{p.output()[-3000:]}" for p in alive)
+            reason = f"{[p.proc.args for p in dead]} exited" if dead else f"{timeout_s} s passed"
+            pytest.fail(f"waiting for {what}: {reason}\n{logs}")
+        time.sleep(0.05)
+
+
+@contextmanager
+def robot(
+    tmp_path: Path, *, domain_id: int, namespace: str = "/robot", args: Sequence[str] = ()
+) -> Iterator[RobotProcess]:
+    """One simulated humanoid (the soccer demo, until stopped) as robot ``namespace``."""
+    log = tmp_path / f"robot_{domain_id}{namespace.replace('/', '_')}.log"
+    cmd = [sys.executable, "-m", "humanoid_sim.demo", "--duration", "0",
+           "--namespace", namespace, *args]
+    with _started(cmd, env=ros_env(domain_id), log=log) as proc:
+        yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
+
+
+@contextmanager
+def fake_robot(
+    tmp_path: Path, *, domain_id: int, namespace: str = "/robot", period_s: float = 0.5,
+    callbacks: int = 3,
+) -> Iterator[RobotProcess]:
+    """A light robot: a plain rclpy process publishing ExecutorStats for ``namespace``.
+
+    Its callback names carry its namespace (``<ns>/camera``) so two robots' rows differ;
+    the last callback's time exceeds its period, to be flagged.
+    """
+    log = tmp_path / f"fake_{domain_id}{namespace.replace('/', '_')}.log"
+    cmd: list[str | Path] = [sys.executable, FAKE_ROBOT, "--namespace", namespace,
+                             "--period", str(period_s), "--callbacks", str(callbacks)]
+    with _started(cmd, env=ros_env(domain_id), log=log) as proc:
+        yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
+
+
+@contextmanager
+def gui(
+    tmp_path: Path, *, domains: Sequence[int], args: Sequence[str] = (),
+    env: dict[str, str] | None = None,
+) -> Iterator[GuiProcess]:
+    """``ros2 run debug_gui debug_gui --port 0 --domains D,...`` until the page answers."""
+    log = tmp_path / "debug_gui.log"
+    cmd = ["ros2", "run", "debug_gui", "debug_gui", "--port", "0",
+           "--domains", ",".join(map(str, domains)), *args]
+    environment = env or ros_env(domains[0])
+    with _started(cmd, env=environment, log=log) as proc:
+        started = Process(proc=proc, log=log)
+        match = wait_for(lambda: _URL.search(started.output()), timeout_s=60,
+                         what="debug_gui's URL", alive=[started])
+        running = GuiProcess(proc=proc, log=log, url=match.group(1))
+        wait_for(lambda: _answers(running.base_url), timeout_s=30,
+                 what="the page to answer", alive=[running])
+        yield running
+
+
+def _answers(url: str) -> bool:
+    try:
+        with urllib.request.urlopen(url, timeout=5) as response:
+            return int(response.status) == 200
+    except OSError:
+        return False
+
+
+def new_browser() -> Any:
+    """A headless chromium WebDriver (Debian's chromium and chromedriver)."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    if not (CHROMIUM.exists() and CHROMEDRIVER.exists()):
+        pytest.fail("chromium and chromedriver missing: run bash scripts/setup_browser.sh")
+    options = webdriver.ChromeOptions()
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
+                "--window-size=1600,1000", "--disable-gpu"):
+        options.add_argument(arg)
+    options.binary_location = str(CHROMIUM)
+    return webdriver.Chrome(options=options, service=Service(str(CHROMEDRIVER)))
+
+
+def screenshot(driver: Any, name: str) -> Path:
+    """Save the browser's screen as ``tests/artifacts/<name>.png`` (kept after the test)."""
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    path = ARTIFACTS / f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}.png"
+    driver.save_screenshot(str(path))
+    return path
+
+
+@pytest.fixture
+def browser(request: pytest.FixtureRequest) -> Iterator[Any]:
+    """A headless chromium; its last screen is saved as ``tests/artifacts/<test>.png``."""
+    driver = new_browser()
+    try:
+        yield driver
+    finally:
+        try:
+            screenshot(driver, request.node.name)
+        finally:
+            driver.quit()
+
+
+def page_text(driver: Any) -> str:
+    from selenium.webdriver.common.by import By
+
+    try:
+        return str(driver.find_element(By.TAG_NAME, "body").text)
+    except Exception:  # the page is being replaced
+        return ""
+
+
+def wait_for_text(
+    driver: Any, text: str | re.Pattern[str], *, timeout_s: float = 30.0,
+    alive: Sequence[Process] = (),
+) -> str:
+    """Wait until the page shows ``text`` (a string or a pattern); returns the page text."""
+    def shown() -> str:
+        body = page_text(driver)
+        found = text.search(body) if isinstance(text, re.Pattern) else text in body
+        return body if found else ""
+
+    return str(wait_for(shown, timeout_s=timeout_s, what=f"the page to show {text!r}",
+                        alive=alive))
+
+
+def by_testid(driver: Any, testid: str) -> Any:
+    """The element NiceGUI rendered with ``.props('data-testid=...')``."""
+    from selenium.webdriver.common.by import By
+
+    return driver.find_element(By.CSS_SELECTOR, f'[data-testid="{testid}"]')
+
+
+def text_of(driver: Any, testid: str) -> str:
+    try:
+        return str(by_testid(driver, testid).text)
+    except Exception:
+        return ""
+
+
+def click(driver: Any, testid: str) -> None:
+    by_testid(driver, testid).click()
+
+
+def choose(driver: Any, testid: str, option: str, *, timeout_s: float = 10.0) -> None:
+    """Pick ``option`` (its text) in the NiceGUI select ``testid``."""
+    from selenium.webdriver.common.by import By
+
+    by_testid(driver, testid).click()
+
+    def item() -> Any:
+        for element in driver.find_elements(By.CSS_SELECTOR, ".q-menu .q-item"):
+            try:
+                if element.text.strip() == option:
+                    return element
+            except Exception:  # re-rendered meanwhile
+                continue
+        return None
+
+    wait_for(item, timeout_s=timeout_s, what=f"option {option!r} of {testid}").click()
+
+
+def present(driver: Any, testid: str) -> bool:
+    from selenium.webdriver.common.by import By
+
+    return bool(driver.find_elements(By.CSS_SELECTOR, f'[data-testid="{testid}"]'))

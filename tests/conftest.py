@@ -1,0 +1,3 @@
+"""Fixtures shared by the top-level suites: the browser of debug_gui's tests (tests/_gui.py)."""
+
+from ._gui import browser as browser

@@ -1,0 +1,146 @@
+"""debug_gui's Hub against robots in other processes, without a browser.
+
+Robots are fake_robot processes (tests/_gui_fake_robot.py: plain rclpy, callback statistics,
+a plain and a throttle-aware topic) in isolated domains.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+from pathlib import Path
+
+import pytest
+from rcl_interfaces.srv import ListParameters
+from std_msgs.msg import String
+
+from debug_gui import Hub, InvalidInput, RobotId, RobotUnavailable
+from debug_gui.errors import CallFailed
+from efficient_comm.testing import isolated_domain_id
+
+from ._gui import RobotProcess, fake_robot, wait_for
+
+
+def _robots(hub: Hub, expected: set[RobotId], procs: list[RobotProcess]) -> None:
+    wait_for(lambda: set(hub.robots()) == expected, what=f"robots {expected}", alive=procs,
+             timeout_s=40)
+
+
+def test_robots_in_several_domains_and_namespaces_appear_and_disappear_live(
+    tmp_path: Path,
+) -> None:
+    d1, d2 = isolated_domain_id(), isolated_domain_id()
+    a, b, c = RobotId(d1, "/a"), RobotId(d2, "/b"), RobotId(d2, "/c")
+    changes = threading.Event()
+    with Hub(domains=[d1, d2]) as hub, \
+            fake_robot(tmp_path, domain_id=d1, namespace="/a") as ra, \
+            fake_robot(tmp_path, domain_id=d2, namespace="/b") as rb:
+        hub.on_robots_changed(changes.set)
+        _robots(hub, {a, b}, [ra, rb])
+        assert changes.is_set()
+        assert a.label == f"a @ domain {d1}"
+        with fake_robot(tmp_path, domain_id=d2, namespace="/c") as rc:
+            _robots(hub, {a, b, c}, [ra, rb, rc])
+            # One domain, two namespaces: each robot sees only what lies under its own.
+            wait_for(lambda: "/c/chatter" in hub.topics(c), what="c's topics", alive=[rc])
+            assert "/b/chatter" not in hub.topics(c)
+            assert all(t.startswith("/b/") for t in hub.topics(b))
+            wait_for(lambda: hub.nodes(c) == ["/c/fake_robot"], what="c's nodes", alive=[rc])
+            # Hidden topics (throttle requests and replies) are not listed.
+            assert not any("_throttle" in t for t in hub.topics(c))
+        _robots(hub, {a, b}, [ra, rb])  # c stopped: gone
+
+
+def test_team_link_domains_mark_their_robots(tmp_path: Path) -> None:
+    domain = isolated_domain_id()
+    with Hub(domains=[], team_link_domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/far") as far:
+        robot = RobotId(domain, "/far", via="team link")
+        _robots(hub, {robot}, [far])
+        assert robot.label == f"far @ domain {domain}, team link"
+
+
+def _computed(robot: RobotProcess) -> int:
+    found = re.findall(r"computed (\d+)", robot.output())
+    return int(found[-1]) if found else -1
+
+
+def test_feeds_go_through_throttle_publisher_and_a_closed_feed_costs_nothing(
+    tmp_path: Path,
+) -> None:
+    """The robot sends (and computes) only the view's rate; when the view goes, nothing."""
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/r") as proc:
+        robot = RobotId(domain, "/r")
+        _robots(hub, {robot}, [proc])
+        wait_for(lambda: _computed(proc) == 0, what="the robot idle", alive=[proc])
+        got: list[String] = []
+        feed = hub.subscribe(robot, "counter", String, got.append, rate_hz=5.0)
+        assert feed.throttled
+        wait_for(lambda: len(got) >= 10, what="10 samples", alive=[proc])
+        counted = hub.counters()[(robot, "/r/counter")]
+        # The link carried only what the view asked for: nothing dropped locally.
+        assert counted.messages == feed.received >= 10
+        # 5 Hz of a 50 Hz source: the robot computed about a tenth of its samples.
+        sent = [int(m.data.split()[1]) for m in got]
+        assert sent == sorted(sent) and (sent[-1] - sent[0]) / (len(sent) - 1) < 2.5
+        feed.close()
+        reports, at_close = proc.output().count("computed "), _computed(proc)
+        wait_for(lambda: proc.output().count("computed ") >= reports + 3,
+                 what="3 more reports", alive=[proc])
+        # A sample in flight when the reader went, then nothing at all.
+        assert _computed(proc) - at_close <= 2
+
+
+def test_plain_publishers_are_rate_limited_locally(tmp_path: Path) -> None:
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/p") as proc:
+        robot = RobotId(domain, "/p")
+        _robots(hub, {robot}, [proc])
+        got: list[String] = []
+        feed = hub.subscribe(robot, "/p/chatter", String, got.append, rate_hz=2.0)
+        assert not feed.throttled
+        wait_for(lambda: hub.counters()[(robot, "/p/chatter")].messages >= 40,
+                 what="2 s of chatter", alive=[proc])
+        # 20 Hz arrive (the link pays), the view gets its 2 Hz.
+        assert 1 <= feed.received <= 8
+        feed.set_rate(None)
+        start = feed.received
+        wait_for(lambda: feed.received >= start + 20, what="every message", alive=[proc])
+        feed.close()
+
+
+def test_service_calls_answer_or_fail_clearly(tmp_path: Path) -> None:
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/s") as proc:
+        robot = RobotId(domain, "/s")
+        _robots(hub, {robot}, [proc])
+        answer = hub.call(robot, "fake_robot/list_parameters", ListParameters,
+                          ListParameters.Request())
+        assert "use_sim_time" in answer.result.names
+        with pytest.raises(RobotUnavailable, match="no service /s/nothing"):
+            hub.call(robot, "nothing", ListParameters, ListParameters.Request(), timeout_s=1)
+        with pytest.raises(CallFailed, match="did not answer"):
+            hub.call(robot, "fake_robot/slow", ListParameters, ListParameters.Request(),
+                     timeout_s=2)
+
+
+def test_bad_input_is_refused_with_a_clear_error() -> None:
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub:
+        robot = RobotId(domain, "/x")
+        with pytest.raises(InvalidInput, match="topic name"):
+            hub.subscribe(robot, "bad name", String, print)
+        with pytest.raises(InvalidInput, match="rate"):
+            hub.subscribe(robot, "ok", String, print, rate_hz=-1)
+        with pytest.raises(RobotUnavailable, match="not one this GUI joined"):
+            hub.subscribe(RobotId(domain + 1, "/x"), "ok", String, print)
+        with pytest.raises(InvalidInput, match="service name"):
+            hub.call(robot, "a//b", ListParameters, ListParameters.Request())
+    with pytest.raises(InvalidInput, match="namespace"):
+        RobotId(domain, "robot")
+    with pytest.raises(InvalidInput, match="domain"):
+        RobotId(300, "/robot")

@@ -1,0 +1,85 @@
+"""The shell in a real browser: binding views to robots, clone, team layout, layouts saved
+and restored across a restart, robots appearing and leaving live."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from efficient_comm.testing import isolated_domain_id
+
+from ._gui import (
+    choose,
+    click,
+    fake_robot,
+    gui,
+    present,
+    screenshot,
+    text_of,
+    wait_for,
+    wait_for_text,
+)
+
+
+def _tables(browser, panel: int, keys: list[str]) -> set[str]:
+    """Which robots' component tables panel ``panel`` shows (of ``keys``)."""
+    shown = text_of(browser, f"panel-{panel}")
+    return {k for k in keys if present(browser, f"components-{k}") and k.split(":")[1] in shown}
+
+
+def test_bind_clone_team_layout_save_and_restore(tmp_path: Path, browser) -> None:
+    d1, d2 = isolated_domain_id(), isolated_domain_id()
+    alpha, beta = f"{d1}:/alpha", f"{d2}:/beta"
+    alpha_label, beta_label = f"alpha @ domain {d1}", f"beta @ domain {d2}"
+    layout = tmp_path / "layout.json"
+    with fake_robot(tmp_path, domain_id=d1, namespace="/alpha") as a, \
+            fake_robot(tmp_path, domain_id=d2, namespace="/beta") as b:
+        with gui(tmp_path, domains=[d1, d2], args=["--layout", str(layout)]) as server:
+            alive = [a, b, server]
+            browser.get(server.url)
+            wait_for_text(browser, beta_label, alive=alive)
+            # The default layout: one components panel for the whole team.
+            wait_for(lambda: present(browser, f"components-{alpha}")
+                     and present(browser, f"components-{beta}"), what="both tables",
+                     alive=alive)
+            # Bind the panel to alpha alone (the central binding view).
+            choose(browser, "bind-0", alpha_label)
+            wait_for(lambda: f"Components — {alpha_label}" in text_of(browser, "panel-0")
+                     and not present(browser, f"components-{beta}"),
+                     what="panel 0 bound to alpha", alive=alive)
+            # Clone it for beta.
+            choose(browser, "clone-0", beta_label)
+            wait_for(lambda: f"Components — {beta_label}" in text_of(browser, "panel-1")
+                     and present(browser, f"components-{beta}"), what="the clone for beta",
+                     alive=alive)
+            wait_for(lambda: "/beta/component0" in text_of(browser, f"components-{beta}"),
+                     what="beta's rows in the clone", alive=alive)
+            # A team layout of the components view: one instance per robot, side by side.
+            click(browser, "team-layout")
+            wait_for(lambda: "Components — team" in text_of(browser, "panel-2"),
+                     what="the team panel", alive=alive)
+            # Robots appear and leave live; the team panel follows.
+            with fake_robot(tmp_path, domain_id=d2, namespace="/gamma") as c:
+                gamma = f"{d2}:/gamma"
+                wait_for(lambda: present(browser, f"components-{gamma}"),
+                         what="gamma joining the team panel", alive=[*alive, c])
+                assert present(browser, f"robot-{gamma}")
+                screenshot(browser, "shell_bound_clone_team")
+            wait_for(lambda: not present(browser, f"robot-{gamma}")
+                     and not present(browser, f"components-{gamma}"),
+                     what="gamma leaving", alive=alive)
+            click(browser, "save-layout")
+            wait_for_text(browser, "layout saved", alive=alive)
+        saved = json.loads(layout.read_text())["panels"]
+        assert saved == [
+            {"kind": "components", "robot": {"domain": d1, "namespace": "/alpha", "via": "dds"}},
+            {"kind": "components", "robot": {"domain": d2, "namespace": "/beta", "via": "dds"}},
+            {"kind": "components", "team": True},
+        ]
+        # A new server restores the layout it is given.
+        with gui(tmp_path, domains=[d1, d2], args=["--layout", str(layout)]) as server:
+            browser.get(server.url)
+            wait_for(lambda: f"Components — {alpha_label}" in text_of(browser, "panel-0")
+                     and f"Components — {beta_label}" in text_of(browser, "panel-1")
+                     and "Components — team" in text_of(browser, "panel-2"),
+                     what="the restored layout", alive=[a, b, server])
