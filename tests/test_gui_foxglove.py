@@ -427,3 +427,27 @@ def test_a_latched_message_reaches_a_viewer_that_subscribes_later(
             "published once, before anyone looked"
     finally:
         viewer.close()
+
+
+def test_writes_that_bypass_the_gate_are_refused(
+        robot: Robot, endpoint: FoxgloveEndpoint) -> None:
+    # A local process that finds the SDK server's own loopback port and talks to it
+    # directly: it may look (loopback), but it was never introduced with the token.
+    sneak = Viewer(f"ws://127.0.0.1:{endpoint.sdk_port}/", subprotocol="foxglove.sdk.v1")
+    name = f"{robot.namespace}/detector.threshold"
+    try:
+        sneak.send("setParameters", parameters=[{"name": name, "value": 4.0,
+                                                  "type": "float64"}], id="s")
+        status = sneak.next_json(lambda m: m.get("op") == "status")
+        assert "token" in status["message"]
+        service = sneak.wait_for_service(f"{robot.namespace}/detector/check")
+        payload = bytes(serialize_message(UnloadComponent.Request(unique_id=7)))
+        sneak.ws.send(struct.pack("<BIII", 0x02, service["id"], 4, 3) + b"cdr" + payload)
+        failure = sneak.next_json(lambda m: m.get("op") == "serviceCallFailure")
+        assert failure["callId"] == 4 and "token" in failure["message"]
+        sneak.send("getParameters", parameterNames=[name], id="r")
+        got = sneak.next_json(lambda m: m.get("op") == "parameterValues" and m.get("id") == "r")
+        assert got["parameters"][0]["value"] == 0.5
+        assert robot.last("threshold") is None
+    finally:
+        sneak.close()

@@ -22,6 +22,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import secrets
 import struct
 import threading
 from collections.abc import Callable
@@ -85,16 +86,26 @@ class Gate:
 
     ``may_connect(token)`` decides whether a handshake is accepted at all (401 otherwise);
     ``may_write(token)`` whether the connection's writes are forwarded.
+
+    The SDK's server listens on loopback without any check, so a local process could
+    connect to it directly and write. To close that door the gate introduces each of its
+    connections: its first request is a ``getParameters`` whose id is a fresh nonce, which
+    ``introduce(nonce, may_write)`` announced to the endpoint beforehand; the endpoint learns
+    the SDK's client id from that request and accepts writes only from clients introduced
+    as writers. The gate waits for the answer (and swallows it) before it forwards anything
+    the viewer sends.
     """
 
     def __init__(self, *, host: str, port: int, backend_port: int,
                  may_connect: Callable[[str | None], bool],
-                 may_write: Callable[[str | None], bool]) -> None:
+                 may_write: Callable[[str | None], bool],
+                 introduce: Callable[[str, bool], None]) -> None:
         self._host = host
         self._port = port
         self._backend = f"ws://127.0.0.1:{backend_port}/"
         self._may_connect = may_connect
         self._may_write = may_write
+        self._introduce = introduce
         self._loop = asyncio.new_event_loop()
         self._stopping: asyncio.Event | None = None
         self._started = threading.Event()
@@ -152,13 +163,27 @@ class Gate:
         try:
             async with connect(self._backend, subprotocols=[SDK_SUBPROTOCOL], compression=None,
                                max_size=None, ping_interval=None) as backend:
+                await self._introduce_to(backend, client, writes=writes)
                 down = asyncio.ensure_future(self._pump(backend, client))
                 up = asyncio.ensure_future(self._pump_up(client, backend, writes=writes))
                 _, pending = await asyncio.wait({down, up}, return_when=asyncio.FIRST_COMPLETED)
                 for task in pending:
                     task.cancel()
-        except (OSError, ConnectionClosed):
+        except (OSError, ConnectionClosed, TimeoutError):
             pass  # the SDK server stopped or the viewer left: the connection ends either way
+
+    async def _introduce_to(self, backend: ClientConnection, client: ServerConnection, *,
+                            writes: bool) -> None:
+        """Tell the endpoint who this SDK client is; forward what arrives meanwhile."""
+        nonce = secrets.token_hex(16)
+        self._introduce(nonce, writes)
+        await backend.send(json.dumps({"op": "getParameters", "parameterNames": [],
+                                       "id": nonce}))
+        async with asyncio.timeout(_START_TIMEOUT_S):
+            async for message in backend:
+                if isinstance(message, str) and nonce in message:
+                    return  # the answer to the introduction: the viewer never asked for it
+                await client.send(message)
 
     @staticmethod
     async def _pump(source: ClientConnection, sink: ServerConnection) -> None:

@@ -182,6 +182,9 @@ class _Bridge(ServerListener):
         self._by_topic: dict[tuple[RobotId, str, str], _Channel] = {}
         self._services: dict[str, tuple[RobotId, str]] = {}
         self._watched_params: set[str] = set()
+        # SDK client id -> may it write; only the gate's connections are here (see the gate).
+        self._writers: dict[int, bool] = {}
+        self._introduced: dict[str, bool] = {}
         self._param_feeds: dict[RobotId, Feed] = {}
         self.server: WebSocketServer | None = None
 
@@ -307,6 +310,8 @@ class _Bridge(ServerListener):
 
     def _call_service(self, request: ServiceRequest) -> bytes:
         """Forward one viewer's call; raising sends the viewer a serviceCallFailure."""
+        if not self._may_write(request.client_id):  # only a gate connection with the token
+            raise AccessDenied("calling services needs the token")
         with self._lock:
             target = self._services.get(request.service_name)
         if target is None:
@@ -356,8 +361,22 @@ class _Bridge(ServerListener):
                 for name, value in zip(names, got.values, strict=False)
                 if value.type != RosType.PARAMETER_NOT_SET]
 
+    def introduce(self, nonce: str, may_write: bool) -> None:
+        """The gate's next connection will ask for parameters with this request id."""
+        with self._lock:
+            self._introduced[nonce] = may_write
+
+    def _may_write(self, client_id: int) -> bool:
+        with self._lock:
+            return self._writers.get(client_id, False)
+
     def on_get_parameters(self, client: Client, param_names: list[str],
                           request_id: str | None = None) -> list[Parameter]:
+        with self._lock:
+            introduced = self._introduced.pop(request_id, None) if request_id else None
+            if introduced is not None:
+                self._writers[client.id] = introduced
+                return []
         out: list[Parameter] = []
         if not param_names:
             for robot in self._hub.robots():
@@ -384,6 +403,9 @@ class _Bridge(ServerListener):
 
     def on_set_parameters(self, client: Client, parameters: list[Parameter],
                           request_id: str | None = None) -> list[Parameter]:
+        if not self._may_write(client.id):  # only a gate connection with the token
+            self._status("setting parameters needs the token", StatusLevel.Error)
+            return []
         grouped: dict[tuple[RobotId, str], list[tuple[str, Parameter]]] = {}
         for parameter in parameters:
             try:
@@ -501,7 +523,8 @@ class FoxgloveEndpoint:
         self._bridge.server = self._server
         self._gate = Gate(host=policy.host, port=port, backend_port=self._server.port,
                           may_connect=_allowed(policy.check_read),
-                          may_write=_allowed(policy.check_write))
+                          may_write=_allowed(policy.check_write),
+                          introduce=self._bridge.introduce)
         try:
             self._gate.start()
         except DebugGuiError:
@@ -527,6 +550,11 @@ class FoxgloveEndpoint:
 
     def subscribed_topics(self) -> list[tuple[RobotId, str]]:
         return self._bridge.subscribed_topics()
+
+    @property
+    def sdk_port(self) -> int:
+        """The SDK server's own loopback port behind the gate (writes there are refused)."""
+        return self._server.port
 
     def _refresh(self) -> None:
         while not self._stop.is_set():
