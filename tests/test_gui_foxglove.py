@@ -97,6 +97,7 @@ class Viewer:
         self.channels: dict[str, dict[str, Any]] = {}
         self.services: dict[str, dict[str, Any]] = {}
         self.binary: list[bytes] = []
+        self.pending: list[dict[str, Any]] = []
         self.info = self.next_json(lambda m: m.get("op") == "serverInfo")
 
     def send(self, op: str, **fields: Any) -> None:
@@ -118,15 +119,25 @@ class Viewer:
 
     def next_json(self, accept: Callable[[dict[str, Any]], bool], *,
                   timeout_s: float = TIMEOUT_S, required: bool = True) -> Any:
-        """The next JSON message ``accept`` takes, recording everything on the way."""
+        """The first JSON message ``accept`` takes, in arrival order, waited for.
+
+        Messages it does not take stay for later calls: the endpoint may send a status and
+        an answer in either order.
+        """
+        for i, waiting in enumerate(self.pending):
+            if accept(waiting):
+                return self.pending.pop(i)
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             try:
                 parsed = self._take(self.ws.recv(timeout=max(0.01, end - time.monotonic())))
             except TimeoutError:
                 break
-            if parsed is not None and accept(parsed):
+            if parsed is None:
+                continue
+            if accept(parsed):
                 return parsed
+            self.pending.append(parsed)
         if required:
             pytest.fail("no such message from the endpoint in time")
         return None
@@ -235,6 +246,7 @@ def test_a_parameter_round_trips_and_a_veto_is_reported(
         assert "threshold must not be negative" in status["message"]
         after = viewer.next_json(lambda m: m.get("op") == "parameterValues"
                                  and m.get("id") == "veto")
+        assert after["parameters"], viewer.pending  # the statuses say why
         assert after["parameters"][0]["value"] == 1.0
     finally:
         viewer.close()
@@ -302,6 +314,7 @@ def test_without_the_token_a_viewer_looks_but_cannot_write(
         assert failure["callId"] == 9 and "token" in failure["message"]
         viewer.send("getParameters", parameterNames=[name], id="r")
         got = viewer.next_json(lambda m: m.get("op") == "parameterValues" and m.get("id") == "r")
+        assert got["parameters"], viewer.pending
         assert got["parameters"][0]["value"] == 0.5  # the write never reached the robot
         assert robot.last("threshold") is None
     finally:
@@ -447,6 +460,7 @@ def test_writes_that_bypass_the_gate_are_refused(
         assert failure["callId"] == 4 and "token" in failure["message"]
         sneak.send("getParameters", parameterNames=[name], id="r")
         got = sneak.next_json(lambda m: m.get("op") == "parameterValues" and m.get("id") == "r")
+        assert got["parameters"], sneak.pending
         assert got["parameters"][0]["value"] == 0.5
         assert robot.last("threshold") is None
     finally:

@@ -70,7 +70,10 @@ _CDR = "cdr"
 _ROS2MSG = "ros2msg"
 _PARAM_SEP = "."
 _PARAMETER_EVENTS = "/parameter_events"
-_GET_TIMEOUT_S = 3.0
+#: Per node when a viewer asks for every parameter: a node that hangs must not stall it all.
+_LIST_TIMEOUT_S = 3.0
+#: For the parameters a viewer names (and sets): a loaded robot answers late, not never.
+_CALL_TIMEOUT_S = 5.0
 
 
 @dataclass
@@ -348,14 +351,16 @@ class _Bridge(ServerListener):
         raise RobotUnavailable(f"no node {node!r} on any robot")
 
     def _get(self, robot: RobotId, node: str, names: list[str] | None) -> list[Parameter]:
+        """Named parameters of ``node``, or all of them (``names=None``, sooner given up)."""
+        timeout_s = _CALL_TIMEOUT_S if names is not None else _LIST_TIMEOUT_S
         if names is None:
             listed = self._hub.call(robot, f"{node}/list_parameters", ListParameters,
-                                    ListParameters.Request(), timeout_s=_GET_TIMEOUT_S)
+                                    ListParameters.Request(), timeout_s=timeout_s)
             names = list(listed.result.names)
         if not names:
             return []
         got = self._hub.call(robot, f"{node}/get_parameters", GetParameters,
-                             GetParameters.Request(names=names), timeout_s=_GET_TIMEOUT_S)
+                             GetParameters.Request(names=names), timeout_s=timeout_s)
         prefix = self._naming.public(robot, node) + _PARAM_SEP
         return [_to_foxglove(prefix + name, value)
                 for name, value in zip(names, got.values, strict=False)
@@ -426,7 +431,7 @@ class _Bridge(ServerListener):
              items: list[tuple[str, Parameter]]) -> list[Parameter]:
         names = [name for name, _ in items]
         current = self._hub.call(robot, f"{node}/get_parameters", GetParameters,
-                                 GetParameters.Request(names=names), timeout_s=_GET_TIMEOUT_S)
+                                 GetParameters.Request(names=names), timeout_s=_CALL_TIMEOUT_S)
         request = SetParameters.Request()
         for (name, parameter), now in zip(items, current.values, strict=False):
             try:
@@ -436,7 +441,8 @@ class _Bridge(ServerListener):
                 continue
             request.parameters.append(RosParameter(name=name, value=value))
         if request.parameters:
-            result = self._hub.call(robot, f"{node}/set_parameters", SetParameters, request)
+            result = self._hub.call(robot, f"{node}/set_parameters", SetParameters, request,
+                                    timeout_s=_CALL_TIMEOUT_S)
             for sent, outcome in zip(request.parameters, result.results, strict=False):
                 if not outcome.successful:  # a veto: say why, the value stays as it was
                     self._status(f"{self._naming.public(robot, node)}{_PARAM_SEP}{sent.name} "
