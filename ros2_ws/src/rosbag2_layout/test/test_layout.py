@@ -173,7 +173,7 @@ def test_service_definitions_decode_what_rclpy_serializes() -> None:
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 
     request_def, response_def = service_definitions("rcl_interfaces/srv/SetParameters")
-    srv = import_service("rcl_interfaces/srv/SetParameters")
+    srv: Any = import_service("rcl_interfaces/srv/SetParameters")
     request = srv.Request(parameters=[Parameter(name="threshold", value=ParameterValue(
         type=ParameterType.PARAMETER_DOUBLE, double_value=0.25))])
     decode = generate_dynamic("rcl_interfaces/srv/SetParameters_Request", request_def)
