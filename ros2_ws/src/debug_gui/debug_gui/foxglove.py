@@ -23,6 +23,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -74,6 +75,8 @@ _PARAMETER_EVENTS = "/parameter_events"
 _LIST_TIMEOUT_S = 3.0
 #: For the parameters a viewer names (and sets): a loaded robot answers late, not never.
 _CALL_TIMEOUT_S = 5.0
+#: Nodes asked at once for a get of every parameter.
+_PARALLEL_GETS = 16
 
 
 @dataclass
@@ -366,6 +369,24 @@ class _Bridge(ServerListener):
                 for name, value in zip(names, got.values, strict=False)
                 if value.type != RosType.PARAMETER_NOT_SET]
 
+    def _get_all(self) -> list[Parameter]:
+        """Every node's parameters, the nodes asked in parallel (as foxglove_bridge does):
+        one after the other, each new service client's discovery adds up to seconds."""
+        nodes = [(robot, node) for robot in self._hub.robots()
+                 for node in self._hub.nodes(robot)]
+
+        def get(target: tuple[RobotId, str]) -> list[Parameter]:
+            try:
+                return self._get(*target, None)
+            except (RobotUnavailable, CallFailed):
+                return []  # a node without parameter services, or one that hangs
+
+        if not nodes:
+            return []
+        with ThreadPoolExecutor(max_workers=min(len(nodes), _PARALLEL_GETS),
+                                thread_name_prefix="foxglove-params") as pool:
+            return [p for params in pool.map(get, nodes) for p in params]
+
     def introduce(self, nonce: str, may_write: bool) -> None:
         """The gate's next connection will ask for parameters with this request id."""
         with self._lock:
@@ -384,13 +405,7 @@ class _Bridge(ServerListener):
                 return []
         out: list[Parameter] = []
         if not param_names:
-            for robot in self._hub.robots():
-                for node in self._hub.nodes(robot):
-                    try:
-                        out.extend(self._get(robot, node, None))
-                    except (RobotUnavailable, CallFailed):
-                        continue  # a node without parameter services, or one that hangs
-            return out
+            return self._get_all()
         wanted: dict[tuple[RobotId, str], list[str]] = {}
         for public in param_names:
             try:
