@@ -232,12 +232,14 @@ def test_a_parameter_round_trips_and_a_veto_is_reported(
     try:
         viewer.send("getParameters", parameterNames=[name], id="get")
         got = viewer.next_json(lambda m: m.get("op") == "parameterValues" and m.get("id") == "get")
-        assert got["parameters"] == [{"name": name, "type": "float64", "value": 0.5}]
+        assert got["parameters"] == [{"name": name, "type": "float64", "value": 0.5}], \
+            viewer.pending
 
         # JSON has no 1 vs 1.0: the endpoint keeps the parameter a double.
         viewer.send("setParameters", parameters=[{"name": name, "value": 1}], id="set")
         done = viewer.next_json(lambda m: m.get("op") == "parameterValues" and m.get("id") == "set")
-        assert done["parameters"] == [{"name": name, "type": "float64", "value": 1.0}]
+        assert done["parameters"] == [{"name": name, "type": "float64", "value": 1.0}], \
+            viewer.pending
         robot.expect("threshold 1.0")
 
         viewer.send("setParameters", parameters=[{"name": name, "value": -2.0,
