@@ -289,11 +289,14 @@ class _Bridge(ServerListener):
             log = entry.channel.log
             # What the publishers offer: best effort reaches a best-effort camera, transient
             # local gives a latched topic's last message, as foxglove_bridge does.
-            offered = self._hub.handle(entry.robot).graph.publishers_qos(entry.topic)
-            entry.feed = self._hub.subscribe(
-                entry.robot, entry.topic, entry.msg_type,
-                lambda msg: log(serialize_message(msg), log_time=time.time_ns()),
-                qos=matching_qos(offered))
+            try:
+                offered = self._hub.handle(entry.robot).graph.publishers_qos(entry.topic)
+                entry.feed = self._hub.subscribe(
+                    entry.robot, entry.topic, entry.msg_type,
+                    lambda msg: log(serialize_message(msg), log_time=time.time_ns()),
+                    qos=matching_qos(offered))
+            except DebugGuiError as exc:  # the robot went away: its channel goes at the next sync
+                self._status(f"{channel.topic}: {exc}", StatusLevel.Warning)
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
         with self._lock:
