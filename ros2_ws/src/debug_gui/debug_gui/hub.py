@@ -434,6 +434,15 @@ class Hub:
                 out.add(full)
         return sorted(out)
 
+    def services(self, robot: RobotId) -> dict[str, list[str]]:
+        """Service names and types under the robot's namespace (hidden ``_`` ones left out)."""
+        dom = self._domain(robot)
+        return {
+            name: list(types)
+            for name, types in sorted(dom.node.get_service_names_and_types())
+            if robot.contains(name) and not any(t.startswith("_") for t in name.split("/"))
+        }
+
     # -- data --------------------------------------------------------------------------
 
     def subscribe(

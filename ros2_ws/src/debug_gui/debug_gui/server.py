@@ -152,12 +152,9 @@ def serve(options: Options) -> int:
 
 def _start_foxglove(hub: Hub, options: Options) -> Any:
     """The foxglove endpoint (debug_gui.foxglove); returns its close function."""
-    try:
-        from . import foxglove  # type: ignore[attr-defined]
-    except ImportError as exc:
-        raise InvalidInput(
-            f"--foxglove-port: the Foxglove endpoint is not available ({exc})"
-        ) from None
+    from . import foxglove
+
+    assert options.foxglove_port is not None
     server = foxglove.start(hub, host=options.policy.host, port=options.foxglove_port,
                             policy=options.policy)
     return server.close

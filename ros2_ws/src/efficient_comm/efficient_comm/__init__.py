@@ -20,6 +20,7 @@ from ._clock import SystemClock as SystemClock
 from ._clock import from_msg as from_msg
 from ._clock import to_msg as to_msg
 from ._closing import Closing as Closing
+from ._qos import matching_qos as matching_qos
 from ._signals import stop_on_sigterm as stop_on_sigterm
 from .config import ComponentSpec as ComponentSpec
 from .container import Container as Container

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -46,3 +48,20 @@ def incompatible_policy(pub: QoSProfile, sub: QoSProfile) -> str | None:
     if is_transient_local(sub) and not is_transient_local(pub):
         return "DURABILITY"
     return None
+
+
+def matching_qos(offered: Sequence[QoSProfile], *, depth: int = 10) -> QoSProfile:
+    """The QoS a reader takes to receive from publishers offering ``offered``.
+
+    Reliable unless a publisher is best effort (a reliable reader would get nothing from
+    it); transient local when every publisher offers it, so a latched publisher's last
+    message arrives (a transient-local reader would not match a volatile publisher, so
+    one volatile publisher makes it volatile). Pass ``node.graph.publishers_qos(topic)``.
+    """
+    best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
+    latched = bool(offered) and all(is_transient_local(q) for q in offered)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=depth,
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )

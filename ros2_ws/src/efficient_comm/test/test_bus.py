@@ -6,7 +6,7 @@ import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32, String
 
-from efficient_comm import NameResolutionError, TopicTypeError
+from efficient_comm import NameResolutionError, TopicTypeError, matching_qos
 from efficient_comm.testing import TestHandle, test_container
 
 BEST_EFFORT = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -150,3 +150,15 @@ def test_incompatible_qos_in_process_is_warned_once_on_both_sides() -> None:
                        reliability=ReliabilityPolicy.BEST_EFFORT),
     )
     assert "DURABILITY" in warnings(viewer)[-1] and len(warnings(viewer)) == 2
+
+
+def test_matching_qos_receives_from_what_publishers_offer() -> None:
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    sensor = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
+    nobody = matching_qos([])
+    assert (nobody.reliability, nobody.durability) == (
+        ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE)
+    assert matching_qos([latched, latched]).durability == DurabilityPolicy.TRANSIENT_LOCAL
+    mixed = matching_qos([latched, sensor], depth=3)
+    assert (mixed.reliability, mixed.durability, mixed.depth) == (
+        ReliabilityPolicy.BEST_EFFORT, DurabilityPolicy.VOLATILE, 3)

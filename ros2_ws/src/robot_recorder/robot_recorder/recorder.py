@@ -27,9 +27,9 @@ from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 
-from efficient_comm import to_msg
+from efficient_comm import matching_qos, to_msg
 from efficient_comm.handle import NodeHandle, Subscription, TimerSchedule
 from rosbag2_layout import (
     FileSystem,
@@ -490,20 +490,11 @@ def _graph_types(node: NodeHandle) -> dict[str, str]:
 def _record_qos(node: NodeHandle, topic: str) -> tuple[QoSProfile, list[QoSProfile]]:
     """The QoS to record ``topic`` with, and the profiles its known publishers offer.
 
-    Reliable unless a known publisher is best effort (a reliable reader would miss it);
-    transient local when every known publisher offers it, so the message a latched
-    publisher sent before the recorder started is recorded too (a transient-local reader
-    would not match a volatile publisher, so one volatile publisher makes it volatile).
+    :func:`efficient_comm.matching_qos`: best effort if a publisher is, transient local if
+    all are, so a latched publisher's message from before the recorder started is recorded.
     """
     offered = node.graph.publishers_qos(topic)
-    best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
-    latched = bool(offered) and all(
-        q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                      reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
-                                   else ReliabilityPolicy.RELIABLE),
-                      durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
-                                  else DurabilityPolicy.VOLATILE)), offered
+    return matching_qos(offered, depth=100), offered
 
 
 def _timer_pacer(node: NodeHandle, before_s: float, after_s: float

@@ -9,7 +9,8 @@ through this package, so both agree on every detail. Where things live (after ro
 * ``reader``    :class:`BagReader`: messages in log-time order, topics with their offered
   QoS, MCAP metadata records; files cut short are read up to their last complete chunk;
 * ``metadata``  ``metadata.yaml`` (version 9) as typed dicts, offered QoS profiles;
-* ``msgdefs``   message types by name and their complete ``ros2msg`` definitions;
+* ``msgdefs``   message and service types by name and their complete ``ros2msg``
+  definitions;
 * ``cdr``       the exact CDR length of a message (what rclpy's serializer pads);
 * ``recover``   a complete bag from one cut short;
 * ``errors``    :class:`Rosbag2Error` and its tree.
@@ -33,7 +34,9 @@ from .metadata import qos_dict as qos_dict
 from .metadata import qos_profile as qos_profile
 from .metadata import read_metadata as read_metadata
 from .msgdefs import full_definition as full_definition
+from .msgdefs import import_service as import_service
 from .msgdefs import import_type as import_type
+from .msgdefs import service_definitions as service_definitions
 from .msgdefs import type_name as type_name
 from .reader import BagMessage as BagMessage
 from .reader import BagReader as BagReader

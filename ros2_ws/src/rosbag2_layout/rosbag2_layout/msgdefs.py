@@ -18,7 +18,8 @@ from pathlib import Path
 
 from .errors import UnknownTypeError
 
-__all__ = ["full_definition", "import_type", "type_name"]
+__all__ = ["full_definition", "import_service", "import_type", "service_definitions",
+           "type_name"]
 
 DELIMITER = "=" * 80
 _PRIMITIVES = frozenset({
@@ -26,6 +27,7 @@ _PRIMITIVES = frozenset({
     "int32", "uint32", "int64", "uint64", "string", "wstring",
 })
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*/(msg/)?[A-Za-z][A-Za-z0-9_]*$")
+_SRV_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Za-z][A-Za-z0-9_]*$")
 
 
 def type_name(msg_type: type) -> str:
@@ -99,7 +101,10 @@ def _dependencies(package: str, text: str) -> list[tuple[str, str]]:
 def full_definition(name: str) -> str:
     """The complete ``ros2msg`` definition of ``pkg/msg/Type``: its text, then its deps."""
     package, short = _split(name)
-    text = _msg_text(package, short)
+    return _with_dependencies(package, short, _msg_text(package, short))
+
+
+def _with_dependencies(package: str, short: str, text: str) -> str:
     seen: list[tuple[str, str]] = []
     todo = _dependencies(package, text)
     while todo:
@@ -113,3 +118,52 @@ def full_definition(name: str) -> str:
         parts.append(f"{DELIMITER}\nMSG: {dep_package}/msg/{dep_short}\n"
                      + _msg_text(dep_package, dep_short).rstrip("\n"))
     return "\n".join(parts) + "\n"
+
+
+def _split_service(name: str) -> tuple[str, str]:
+    if not _SRV_NAME.match(name):
+        raise UnknownTypeError(f"service type must be pkg/srv/Type, not {name!r}")
+    package, _, short = name.split("/")
+    return package, short
+
+
+def import_service(name: str) -> type:
+    """The service class for ``pkg/srv/Type`` (with ``.Request`` and ``.Response``)."""
+    package, short = _split_service(name)
+    try:
+        module = importlib.import_module(f"{package}.srv")
+    except ImportError as exc:
+        raise UnknownTypeError(f"service package {package!r} is not installed: {exc}") from exc
+    srv_type = getattr(module, short, None)
+    if not isinstance(srv_type, type):
+        raise UnknownTypeError(f"{package}.srv has no service {short!r}")
+    return srv_type
+
+
+@functools.cache
+def service_definitions(name: str) -> tuple[str, str]:
+    """The complete ``ros2msg`` definitions of ``pkg/srv/Type``'s request and response.
+
+    Viewers that call a service without its package installed (Foxglove through a
+    WebSocket endpoint) encode the request and decode the response from these, exactly as
+    they decode topics: each half of the .srv text, then every type it uses.
+    """
+    package, short = _split_service(name)
+    text = ""
+    for prefix in _prefixes():
+        path = prefix / "share" / package / "srv" / f"{short}.srv"
+        if path.is_file():
+            text = path.read_text(encoding="utf-8")
+            break
+    else:
+        raise UnknownTypeError(f"no {package}/srv/{short}.srv under share/ of any "
+                               "AMENT_PREFIX_PATH entry; is the package installed and sourced?")
+    lines = text.splitlines()
+    cut = next((i for i, line in enumerate(lines) if line.strip() == "---"), None)
+    if cut is None:
+        raise UnknownTypeError(f"{package}/srv/{short}.srv has no '---' between request "
+                               "and response")
+    request = "\n".join(lines[:cut]) + "\n"
+    response = "\n".join(lines[cut + 1:]) + "\n"
+    return (_with_dependencies(package, f"{short}_Request", request),
+            _with_dependencies(package, f"{short}_Response", response))

@@ -19,9 +19,12 @@ from rosbag2_layout import (
     BagReader,
     BagWriter,
     FileSystem,
+    UnknownTypeError,
+    import_service,
     qos_dict,
     qos_profile,
     recover,
+    service_definitions,
 )
 
 STRING = "std_msgs/msg/String"
@@ -162,3 +165,23 @@ def test_a_damaged_file_is_refused_or_read_up_to_the_damage(tmp_path: Path) -> N
     assert 0 < readable < 200
     assert reader.truncated == [damaged]
     assert len(reader.problems) == 1 and len(reader.problems[0]) < 400
+
+
+def test_service_definitions_decode_what_rclpy_serializes() -> None:
+    # A viewer without rcl_interfaces installed decodes a request from the schema alone.
+    from mcap_ros2._dynamic import generate_dynamic
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+
+    request_def, response_def = service_definitions("rcl_interfaces/srv/SetParameters")
+    srv: Any = import_service("rcl_interfaces/srv/SetParameters")
+    request = srv.Request(parameters=[Parameter(name="threshold", value=ParameterValue(
+        type=ParameterType.PARAMETER_DOUBLE, double_value=0.25))])
+    decode = generate_dynamic("rcl_interfaces/srv/SetParameters_Request", request_def)
+    decoded = decode["rcl_interfaces/srv/SetParameters_Request"](serialize_message(request))
+    assert decoded.parameters[0].name == "threshold"
+    assert decoded.parameters[0].value.double_value == 0.25
+    assert "MSG: rcl_interfaces/msg/SetParametersResult" in response_def
+    with pytest.raises(UnknownTypeError):
+        service_definitions("rcl_interfaces/msg/Parameter")
+    with pytest.raises(UnknownTypeError):
+        import_service("no_such_pkg/srv/Nothing")
