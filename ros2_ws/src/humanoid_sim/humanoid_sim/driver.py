@@ -343,7 +343,7 @@ class ServoDriver:
             level, message = self._servo_status(dxl_id)
             array.status.append(DiagnosticStatus(
                 level=level,
-                name=f"{self.node.name}: servo {dxl_id} ({name})",
+                name=f"{self.node.fully_qualified_name}: servo {dxl_id} ({name})",
                 message=message,
                 hardware_id=f"dynamixel:{self.port_name}:{dxl_id}",
                 values=[KeyValue(key="comm_errors", value=str(self.comm_errors))],

@@ -135,7 +135,7 @@ class FallDetector:
         array.header.stamp = to_msg(self.node.clock.now_ns())
         array.status.append(DiagnosticStatus(
             level=LEVELS[self.state],
-            name=f"{self.node.name}: posture",
+            name=f"{self.node.fully_qualified_name}: posture",
             message=self.state,
             hardware_id="imu",
             values=[KeyValue(key="tilt_deg", value=f"{math.degrees(self.tilt):.1f}"),

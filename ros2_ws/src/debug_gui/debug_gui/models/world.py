@@ -1,0 +1,239 @@
+"""The world view's data: every robot's pose and ball on the field, beliefs and truth.
+
+Per robot it follows (relative to the robot's namespace):
+
+* ``odom`` (nav_msgs/Odometry): the robot's own belief of its pose, from its steps;
+* ``ball/estimate`` (geometry_msgs/PointStamped, frame ``torso``): the ball model's bearing
+  (``x`` yaw, ``y`` pitch, radians) and line-of-sight distance (``z``, metres; 0 = unknown);
+* ``ground_truth/robot``, ``ground_truth/ball`` (PoseStamped, field frame): what a
+  simulation knows to be true, drawn apart from the beliefs so errors show.
+
+Odometry starts where the robot started, not at the field's origin, so its frame is anchored
+where it agrees with ground truth the first time the view has both (a simulation: drift
+then shows from that moment on), else at the field's centre. A robot
+without odometry is placed by ground truth, and its pose is labelled so: the ball estimate
+is then the robot's belief on a true pose.
+
+The team's ball is what the robots' fresh estimates (younger than :data:`FRESH_S`) say
+together: their mean, each weighted by 1 / distance, because a ball seen from nearer is
+seen sharper. It is the GUI's fusion (the robots share no ball today), labelled as such.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from ..hub import Feed, Hub
+from ..robots import RobotId
+
+#: KidSize field (RoboCup Humanoid League rules 2025, as humanoid_sim's field model):
+#: length, width, goal area depth and width, penalty area depth and width, penalty mark
+#: distance, centre circle diameter, border, goal width (metres).
+FIELD = {
+    "length": 9.0, "width": 6.0, "goal_area_depth": 1.0, "goal_area_width": 3.0,
+    "penalty_area_depth": 2.0, "penalty_area_width": 5.0, "penalty_mark": 1.5,
+    "centre_circle": 1.5, "border": 1.0, "goal_width": 2.6,
+}
+#: A ball estimate older than this (seconds, GUI clock) no longer counts for the team ball.
+FRESH_S = 1.0
+#: Distinct colours, one per robot in the order robots are bound.
+COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
+TOPICS = ("odom", "ball/estimate", "ground_truth/robot", "ground_truth/ball")
+
+
+@dataclass(frozen=True, slots=True)
+class Pose2D:
+    x: float
+    y: float
+    yaw: float
+
+
+@dataclass(frozen=True, slots=True)
+class RobotState:
+    """One robot on the field, as the view draws it (field frame, metres, radians)."""
+
+    robot: RobotId
+    colour: str
+    #: The robot's pose belief (odometry anchored to the field) or, without odometry,
+    #: ground truth; ``pose_source`` says which ("odom", "ground truth" or "" = unknown).
+    pose: Pose2D | None
+    pose_source: str
+    #: Where the robot believes the ball is, on the field (None: no estimate yet).
+    ball: tuple[float, float] | None
+    ball_age_s: float | None
+    true_pose: Pose2D | None
+    true_ball: tuple[float, float] | None
+
+
+def yaw_of(q: Any) -> float:
+    """Heading (rotation about z) of a geometry_msgs quaternion."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def compose(base: Pose2D, local: Pose2D) -> Pose2D:
+    """``local`` (a pose in ``base``'s frame) in the frame ``base`` is given in."""
+    c, s = math.cos(base.yaw), math.sin(base.yaw)
+    return Pose2D(base.x + c * local.x - s * local.y, base.y + s * local.x + c * local.y,
+                  math.atan2(math.sin(base.yaw + local.yaw), math.cos(base.yaw + local.yaw)))
+
+
+def invert(pose: Pose2D) -> Pose2D:
+    """The inverse transform: ``compose(pose, invert(pose))`` is the identity."""
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    return Pose2D(-c * pose.x - s * pose.y, s * pose.x - c * pose.y, -pose.yaw)
+
+
+def ball_in_torso(estimate: Any) -> tuple[float, float] | None:
+    """The ball on the ground relative to the torso, from the ball model's bearing/distance."""
+    yaw, pitch, distance = estimate.point.x, estimate.point.y, estimate.point.z
+    if not (distance > 0 and math.isfinite(distance) and math.isfinite(yaw)):
+        return None
+    ground = distance * abs(math.cos(pitch)) if math.isfinite(pitch) else distance
+    return ground * math.cos(yaw), ground * math.sin(yaw)
+
+
+class _Robot:
+    """What one robot's feeds told (written on the Hub's thread, read under the lock)."""
+
+    def __init__(self, robot: RobotId, colour: str) -> None:
+        self.robot = robot
+        self.colour = colour
+        self.odom: Pose2D | None = None
+        self.anchor: Pose2D | None = None
+        self.ball: tuple[float, float] | None = None  # torso frame
+        self.ball_heard: float | None = None
+        self.true_pose: Pose2D | None = None
+        self.true_ball: tuple[float, float] | None = None
+        self.feeds: list[Feed] = []
+
+    def anchor_if_possible(self) -> None:
+        """Fix the odometry frame on the field where odometry and truth first meet."""
+        if self.anchor is None and self.odom is not None and self.true_pose is not None:
+            self.anchor = compose(self.true_pose, invert(self.odom))
+
+
+class WorldModel:
+    """Several robots on one field (activate to receive, deactivate to stop)."""
+
+    def __init__(
+        self,
+        hub: Hub,
+        robots: list[RobotId],
+        *,
+        rate_hz: float = 10.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.hub = hub
+        self.rate_hz = rate_hz
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._robots = [_Robot(r, COLOURS[i % len(COLOURS)]) for i, r in enumerate(robots)]
+        self.active = False
+
+    # -- feeds ---------------------------------------------------------------------------
+
+    def activate(self) -> None:
+        """Subscribe to every robot's poses and ball at the view's rate (idempotent)."""
+        from geometry_msgs.msg import PointStamped, PoseStamped
+        from nav_msgs.msg import Odometry
+
+        if self.active:
+            return
+        self.active = True
+        for r in self._robots:
+            handlers: list[tuple[str, type, Callable[[RobotId, Any], None]]] = [
+                ("odom", Odometry, self.on_odom),
+                ("ball/estimate", PointStamped, self.on_ball),
+                ("ground_truth/robot", PoseStamped, self.on_true_robot),
+                ("ground_truth/ball", PoseStamped, self.on_true_ball),
+            ]
+            r.feeds = [self.hub.subscribe(r.robot, topic, msg_type,
+                                          functools.partial(handler, r.robot),
+                                          rate_hz=self.rate_hz)
+                       for topic, msg_type, handler in handlers]
+
+    def deactivate(self) -> None:
+        """Close every feed: the robots stop sending to this view."""
+        self.active = False
+        for r in self._robots:
+            feeds, r.feeds = r.feeds, []
+            for feed in feeds:
+                feed.close()
+
+    # -- messages (Hub thread, or tests) -------------------------------------------------
+
+    def _get(self, robot: RobotId) -> _Robot:
+        for r in self._robots:
+            if r.robot == robot:
+                return r
+        raise KeyError(robot)
+
+    def on_odom(self, robot: RobotId, msg: Any) -> None:
+        p = msg.pose.pose
+        with self._lock:
+            r = self._get(robot)
+            r.odom = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
+            r.anchor_if_possible()
+
+    def on_ball(self, robot: RobotId, msg: Any) -> None:
+        local = ball_in_torso(msg)
+        with self._lock:
+            r = self._get(robot)
+            if local is not None:
+                r.ball, r.ball_heard = local, self._clock()
+
+    def on_true_robot(self, robot: RobotId, msg: Any) -> None:
+        p = msg.pose
+        pose = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
+        with self._lock:
+            r = self._get(robot)
+            r.true_pose = pose
+            r.anchor_if_possible()
+
+    def on_true_ball(self, robot: RobotId, msg: Any) -> None:
+        with self._lock:
+            self._get(robot).true_ball = (msg.pose.position.x, msg.pose.position.y)
+
+    # -- what the view reads -------------------------------------------------------------
+
+    def states(self) -> list[RobotState]:
+        """Every robot as it stands now, in binding order (colours stay with robots)."""
+        now = self._clock()
+        out = []
+        with self._lock:
+            for r in self._robots:
+                if r.odom is not None:
+                    pose: Pose2D | None = compose(r.anchor or Pose2D(0.0, 0.0, 0.0), r.odom)
+                    source = "odom"
+                elif r.true_pose is not None:
+                    pose, source = r.true_pose, "ground truth"
+                else:
+                    pose, source = None, ""
+                ball = None
+                if r.ball is not None and pose is not None:
+                    b = compose(pose, Pose2D(r.ball[0], r.ball[1], 0.0))
+                    ball = (b.x, b.y)
+                age = None if r.ball_heard is None else now - r.ball_heard
+                out.append(RobotState(r.robot, r.colour, pose, source, ball, age,
+                                      r.true_pose, r.true_ball))
+        return out
+
+    def team_ball(self, states: list[RobotState] | None = None) -> tuple[float, float] | None:
+        """The robots' fresh ball estimates fused: mean weighted by 1 / distance."""
+        total = wx = wy = 0.0
+        for s in self.states() if states is None else states:
+            if s.ball is None or s.pose is None or s.ball_age_s is None:
+                continue
+            if s.ball_age_s > FRESH_S:
+                continue
+            w = 1.0 / max(0.1, math.hypot(s.ball[0] - s.pose.x, s.ball[1] - s.pose.y))
+            total += w
+            wx += w * s.ball[0]
+            wy += w * s.ball[1]
+        return (wx / total, wy / total) if total else None
