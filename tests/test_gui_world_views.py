@@ -43,7 +43,8 @@ PEER = Path(__file__).with_name("_gui_world_peer.py")
 def peer(tmp_path: Path, *, domain_id: int, namespace: str, x: float,
          token: str = "hello") -> Iterator[RobotProcess]:
     log = tmp_path / f"peer_{domain_id}{namespace.replace('/', '_')}.log"
-    cmd = [sys.executable, PEER, "--namespace", namespace, "--x", str(x), "--token", token]
+    cmd: list[str | Path] = [sys.executable, PEER, "--namespace", namespace, "--x", str(x),
+                             "--token", token]
     with started(cmd, env=ros_env(domain_id), log=log) as proc:
         yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
 
