@@ -135,8 +135,17 @@ def watch_gui(robots: list[tuple[int, str]], counter: Counter) -> Iterator[dict[
 
                 feeds.append(hub.subscribe(robot, topic, msg_type, count, rate_hz=rate))
                 subscribed[key] = rate
-        yield {"subscribed": subscribed,
-               "throttled": sum(bool(getattr(f, "throttled", False)) for f in feeds)}
+        # A feed turns throttled once the Hub discovers the publisher's request reader:
+        # measure after that (every topic but the statistics is throttle-aware here), or
+        # after 15 s, whatever the Hub then has.
+        def throttled() -> int:
+            return sum(bool(getattr(f, "throttled", False)) for f in feeds)
+
+        end = time.monotonic() + 15
+        while throttled() < len(feeds) - len(wanted) * len(COMPONENTS) and (
+                time.monotonic() < end):
+            time.sleep(0.1)
+        yield {"subscribed": subscribed, "throttled": throttled()}
         for feed in feeds:
             feed.close()
 
