@@ -73,7 +73,7 @@ class GuiProcess(Process):
 
 
 @contextmanager
-def _started(args: Sequence[str | Path], *, env: dict[str, str], log: Path) -> Iterator[Any]:
+def started(args: Sequence[str | Path], *, env: dict[str, str], log: Path) -> Iterator[Any]:
     log.parent.mkdir(parents=True, exist_ok=True)
     with open(log, "wb") as out:
         proc = subprocess.Popen(
@@ -116,7 +116,7 @@ def robot(
     log = tmp_path / f"robot_{domain_id}{namespace.replace('/', '_')}.log"
     cmd = [sys.executable, "-m", "humanoid_sim.demo", "--duration", "0",
            "--namespace", namespace, *args]
-    with _started(cmd, env=ros_env(domain_id), log=log) as proc:
+    with started(cmd, env=ros_env(domain_id), log=log) as proc:
         yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
 
 
@@ -133,7 +133,7 @@ def fake_robot(
     log = tmp_path / f"fake_{domain_id}{namespace.replace('/', '_')}.log"
     cmd: list[str | Path] = [sys.executable, FAKE_ROBOT, "--namespace", namespace,
                              "--period", str(period_s), "--callbacks", str(callbacks)]
-    with _started(cmd, env=ros_env(domain_id), log=log) as proc:
+    with started(cmd, env=ros_env(domain_id), log=log) as proc:
         yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
 
 
@@ -147,10 +147,10 @@ def gui(
     cmd = ["ros2", "run", "debug_gui", "debug_gui", "--port", "0",
            "--domains", ",".join(map(str, domains)), *args]
     environment = env or ros_env(domains[0])
-    with _started(cmd, env=environment, log=log) as proc:
-        started = Process(proc=proc, log=log)
-        match = wait_for(lambda: _URL.search(started.output()), timeout_s=60,
-                         what="debug_gui's URL", alive=[started])
+    with started(cmd, env=environment, log=log) as proc:
+        first = Process(proc=proc, log=log)
+        match = wait_for(lambda: _URL.search(first.output()), timeout_s=60,
+                         what="debug_gui's URL", alive=[first])
         running = GuiProcess(proc=proc, log=log, url=match.group(1))
         wait_for(lambda: _answers(running.base_url), timeout_s=30,
                  what="the page to answer", alive=[running])

@@ -2,7 +2,8 @@
 
 ``python tests/_gui_fake_robot.py --namespace /robot2`` publishes on
 ``/robot2/efficient_comm/stats`` what an efficient_comm container would: callbacks of
-components named after the namespace, the last one slower than its period (to be flagged).
+components named after the robot (``robot2_component0``), the last one slower than its
+period (to be flagged).
 It also offers a plain topic ``<ns>/chatter`` (std_msgs/String, 20 Hz, not throttle-aware),
 a throttle-aware one ``<ns>/counter`` (std_msgs/String, 50 Hz, through a ThrottledPublisher;
 it prints ``computed N`` once a second: samples it computed because someone wanted them) and
@@ -46,6 +47,7 @@ def main() -> int:
     chatter = node.create_publisher(String, "chatter", 10)
     count = 0
     ns = args.namespace.rstrip("/")
+    robot = ns.rsplit("/", 1)[-1] or "root"
 
     def publish_stats() -> None:
         nonlocal count
@@ -55,8 +57,8 @@ def main() -> int:
         for i in range(args.callbacks):
             slow = i == args.callbacks - 1
             msg.callbacks.append(CallbackStats(
-                node=f"{ns}/component{i}", kind="timer" if slow else "subscription",
-                name=f"{ns}/topic{i}", calls=count * (i + 1), exceptions=0, drops=0,
+                node=f"{ns}/{robot}_component{i}", kind="timer" if slow else "subscription",
+                name=f"{ns}/{robot}_topic{i}", calls=count * (i + 1), exceptions=0, drops=0,
                 rate_hz=10.0 * (i + 1), mean_ns=(1 + count % 4) * 1_000_000 * (i + 1),
                 p95_ns=(60_000_000 if slow else 2_000_000 * (i + 1)),
                 max_ns=70_000_000 if slow else 3_000_000 * (i + 1),

@@ -7,10 +7,10 @@ from pathlib import Path
 from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.common.by import By
 
-from debug_gui.ui.components import COLUMNS
+from debug_gui.ui.components import ALL
 from efficient_comm.testing import isolated_domain_id
 
-from ._gui import by_testid, fake_robot, gui, screenshot, text_of, wait_for, wait_for_text
+from ._gui import by_testid, click, fake_robot, gui, screenshot, text_of, wait_for, wait_for_text
 
 
 def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
@@ -26,27 +26,29 @@ def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
         wait_for_text(browser, f"alpha @ domain {d1}", alive=alive)
         wait_for_text(browser, f"beta @ domain {d2}", alive=alive)
         table_a, table_b = f"components-{d1}:/alpha", f"components-{d2}:/beta"
-        text_a = wait_for(lambda: "/alpha/component0" in text_of(browser, table_a)
+        text_a = wait_for(lambda: "alpha_component0" in text_of(browser, table_a)
                           and text_of(browser, table_a), what="alpha's rows", alive=alive)
-        text_b = wait_for(lambda: "/beta/component0" in text_of(browser, table_b)
+        text_b = wait_for(lambda: "beta_component0" in text_of(browser, table_b)
                           and text_of(browser, table_b), what="beta's rows", alive=alive)
         # Each robot's view shows its own data only.
-        assert "/beta/" not in text_a and "/alpha/" not in text_b
+        assert "beta_" not in text_a and "alpha_" not in text_b
         # The slow timer (p95 60 ms over a 50 ms period) is flagged, the others are not.
         assert text_a.count("over period") == 1, text_a
-        # Live: the cumulative call count of component0 grows.
-        first = _calls(browser, table_a, "/alpha/component0")
-        wait_for(lambda: _calls(browser, table_a, "/alpha/component0") > first >= 0,
+        # Live: the cumulative call count of component0 grows (a column shown on demand).
+        click(browser, f"components-columns-{d1}:/alpha")
+        first = _calls(browser, table_a, "alpha_component0")
+        wait_for(lambda: _calls(browser, table_a, "alpha_component0") > first >= 0,
                  what="the calls to grow", alive=alive)
         screenshot(browser, "components_two_robots")
 
 
 def _calls(browser, testid: str, node: str) -> int:
     """The calls column of ``node``'s row in the table ``testid`` (-1: no such row)."""
-    calls = [c["name"] for c in COLUMNS].index("calls")
+    calls = ALL.index("calls")
     try:
         for tr in by_testid(browser, testid).find_elements(By.CSS_SELECTOR, "tbody tr"):
-            cells = [td.text for td in tr.find_elements(By.TAG_NAME, "td")]
+            cells = [td.get_attribute("textContent").strip()
+                     for td in tr.find_elements(By.TAG_NAME, "td")]
             if node in cells:
                 return int(cells[calls])
     except (StaleElementReferenceException, ValueError, IndexError):

@@ -52,7 +52,7 @@ def test_bind_clone_team_layout_save_and_restore(tmp_path: Path, browser) -> Non
             wait_for(lambda: f"Components — {beta_label}" in text_of(browser, "panel-1")
                      and present(browser, f"components-{beta}"), what="the clone for beta",
                      alive=alive)
-            wait_for(lambda: "/beta/component0" in text_of(browser, f"components-{beta}"),
+            wait_for(lambda: "beta_component0" in text_of(browser, f"components-{beta}"),
                      what="beta's rows in the clone", alive=alive)
             # A team layout of the components view: one instance per robot, side by side.
             click(browser, "team-layout")

@@ -12,38 +12,50 @@ from typing import Any
 from nicegui import ui
 
 from ..models.components import ComponentsModel, Row, sparkline
+from ..robots import RobotId
 from .registry import ViewContext, register
 
 POLL_S = 1.0
 COLUMNS: list[dict[str, Any]] = [
     {"name": "flag", "label": "", "field": "flag", "sortable": True, "align": "left"},
     {"name": "node", "label": "component", "field": "node", "sortable": True, "align": "left"},
-    {"name": "kind", "label": "kind", "field": "kind", "sortable": True, "align": "left"},
     {"name": "name", "label": "callback", "field": "name", "sortable": True, "align": "left"},
     {"name": "rate_hz", "label": "rate Hz", "field": "rate_hz", "sortable": True},
     {"name": "mean_ms", "label": "mean ms", "field": "mean_ms", "sortable": True},
     {"name": "p95_ms", "label": "p95 ms", "field": "p95_ms", "sortable": True},
     {"name": "max_ms", "label": "max ms", "field": "max_ms", "sortable": True},
+    {"name": "history", "label": "mean, last 30", "field": "history", "align": "left"},
     {"name": "period_ms", "label": "period ms", "field": "period_ms", "sortable": True},
     {"name": "calls", "label": "calls", "field": "calls", "sortable": True},
     {"name": "exceptions", "label": "exceptions", "field": "exceptions", "sortable": True},
     {"name": "drops", "label": "drops", "field": "drops", "sortable": True},
-    {"name": "history", "label": "mean, last 30", "field": "history", "align": "left"},
+    {"name": "kind", "label": "kind", "field": "kind", "sortable": True, "align": "left"},
     {"name": "process", "label": "process", "field": "process", "sortable": True,
      "align": "left"},
 ]
+
+
+ALL = [c["name"] for c in COLUMNS]
+#: What fits when several robots' tables stand side by side.
+COMPACT = [n for n in ALL if n not in {"period_ms", "calls", "kind", "process"}]
 
 
 def _ms(ns: int) -> float:
     return round(ns / 1e6, 3)
 
 
-def table_row(row: Row) -> dict[str, Any]:
-    """A model row as the browser table shows it."""
+def _short(name: str, robot: RobotId) -> str:
+    """``/robot2/camera/image_raw`` as ``camera/image_raw`` (the robot is the view's title)."""
+    prefix = robot.namespace.rstrip("/") + "/"
+    return name[len(prefix):] if robot.namespace != "/" and name.startswith(prefix) else name
+
+
+def table_row(row: Row, robot: RobotId) -> dict[str, Any]:
+    """A model row as the browser table shows it (names relative to the robot)."""
     return {
         "id": "|".join(row.key),
         "flag": "over period" if row.over_period else "",
-        "node": row.node, "kind": row.kind, "name": row.name,
+        "node": _short(row.node, robot), "kind": row.kind, "name": _short(row.name, robot),
         "rate_hz": round(row.rate_hz, 2),
         "mean_ms": _ms(row.mean_ns), "p95_ms": _ms(row.p95_ns), "max_ms": _ms(row.max_ns),
         "period_ms": _ms(row.period_ns) if row.period_ns else "",
@@ -56,15 +68,25 @@ def table_row(row: Row) -> dict[str, Any]:
 @register(kind="components", title="Components", order=10)
 def build(ctx: ViewContext) -> None:
     assert ctx.robot is not None  # a per-robot kind: the shell binds every instance
-    model = ComponentsModel(ctx.hub, ctx.robot)
+    robot = ctx.robot
+    model = ComponentsModel(ctx.hub, robot)
     status = ui.label("waiting for the robot's statistics…").classes("text-caption").props(
-        f"data-testid=components-status-{ctx.robot.key}"
+        f"data-testid=components-status-{robot.key}"
     )
     table = ui.table(
         columns=COLUMNS, rows=[], row_key="id", pagination=0,
     ).props(
-        f"dense flat data-testid=components-{ctx.robot.key}"
-    ).classes("w-full")
+        f"dense flat virtual-scroll data-testid=components-{robot.key}"
+    ).classes("w-full").style("max-height: 32rem")
+    table.props["visible-columns"] = COMPACT
+
+    def all_columns(show: bool) -> None:
+        table.props["visible-columns"] = ALL if show else COMPACT
+        table.update()
+
+    ui.switch("all columns", on_change=lambda e: all_columns(bool(e.value))).props(
+        f"dense data-testid=components-columns-{robot.key}"
+    )
     table.add_slot("body-cell-flag", r"""
         <q-td :props="props">
           <q-badge v-if="props.value" color="negative" :label="props.value" />
@@ -76,7 +98,7 @@ def build(ctx: ViewContext) -> None:
         if not model.active:
             return
         rows = model.rows()
-        table.rows = [table_row(r) for r in rows]
+        table.rows = [table_row(r, robot) for r in rows]
         table.update()
         age = model.age_s()
         flagged = sum(r.over_period for r in rows)

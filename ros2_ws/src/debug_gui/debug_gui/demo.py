@@ -1,0 +1,162 @@
+"""Several simulated robots and the GUI watching them: ``python -m debug_gui.demo``.
+
+``--robots N`` starts N soccer robots, one ``python -m humanoid_sim.demo --duration 0
+--namespace /robotK`` process each: robot 1 alone in the first domain, the others together
+in the second domain under their own namespaces, so the GUI shows both ways robots are
+told apart. Then it serves the GUI (as ``debug_gui`` would) and prints its URL. Ctrl-C,
+SIGTERM or ``--duration`` stop the GUI and every robot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from efficient_comm import stop_on_sigterm
+
+from .errors import DebugGuiError, InvalidInput
+from .robots import check_domain
+from .server import Options, serve
+
+#: More robots than this make a two-core machine crawl (each simulates and renders).
+MAX_ROBOTS = 6
+STOP_TIMEOUT_S = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class DemoRobot:
+    domain: int
+    namespace: str
+
+
+def plan(count: int, domains: tuple[int, int]) -> list[DemoRobot]:
+    """Robot 1 in the first domain; robots 2..N share the second, apart by namespace."""
+    if not 1 <= count <= MAX_ROBOTS:
+        raise InvalidInput(f"--robots is 1..{MAX_ROBOTS}, not {count}")
+    return [DemoRobot(domains[0] if k == 1 else domains[1], f"/robot{k}")
+            for k in range(1, count + 1)]
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="debug_gui_demo", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robots", type=int, default=3, help="how many robots (default 3)")
+    parser.add_argument("--domains", default=None, metavar="A,B",
+                        help="the two DDS domains (default: $ROS_DOMAIN_ID or 0, and the next)")
+    parser.add_argument("--port", type=int, default=8080, help="HTTP port (0: any free one)")
+    parser.add_argument("--duration", type=float, default=0.0,
+                        help="seconds until everything stops (0: until Ctrl-C)")
+    parser.add_argument("--layout", type=Path, default=None, help="layout JSON file")
+    parser.add_argument("--log-dir", type=Path, default=None,
+                        help="where the robots' output goes (default: a temporary folder)")
+    return parser
+
+
+def _domains(text: str | None) -> tuple[int, int]:
+    if text is None:
+        first = check_domain(int(os.environ.get("ROS_DOMAIN_ID") or 0))
+        return first, check_domain(first + 1)
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2 or not all(p.isdigit() for p in parts) or parts[0] == parts[1]:
+        raise InvalidInput(f"--domains is two different domain ids A,B, not {text!r}")
+    return check_domain(int(parts[0])), check_domain(int(parts[1]))
+
+
+@contextlib.contextmanager
+def robots(planned: Sequence[DemoRobot], log_dir: Path) -> Iterator[list[subprocess.Popen[bytes]]]:
+    """The robots as processes in sessions of their own; stopped (Ctrl-C, then kill) on exit."""
+    procs: list[subprocess.Popen[bytes]] = []
+    try:
+        for robot in planned:
+            name = robot.namespace.strip("/")
+            env = dict(os.environ, ROS_DOMAIN_ID=str(robot.domain))
+            env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+            workdir = log_dir / name
+            workdir.mkdir(parents=True, exist_ok=True)
+            with open(log_dir / f"{name}.log", "wb") as log:
+                procs.append(subprocess.Popen(
+                    [sys.executable, "-m", "humanoid_sim.demo", "--duration", "0",
+                     "--namespace", robot.namespace],
+                    env=env, stdout=log, stderr=subprocess.STDOUT, cwd=workdir,
+                    start_new_session=True,
+                ))
+        yield procs
+    finally:
+        for proc in procs:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGINT)
+        for proc in procs:
+            try:
+                proc.wait(timeout=STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+
+
+def _watch(procs: Sequence[subprocess.Popen[bytes]], planned: Sequence[DemoRobot],
+           log_dir: Path, stop: threading.Event) -> None:
+    """Say so when a robot ends before the demo does (its log's last line tells why)."""
+    reported: set[int] = set()
+    while not stop.wait(1.0):
+        for i, proc in enumerate(procs):
+            if i not in reported and proc.poll() is not None:
+                reported.add(i)
+                name = planned[i].namespace.strip("/")
+                lines = (log_dir / f"{name}.log").read_text(errors="replace").splitlines()
+                print(f"debug_gui demo: {planned[i].namespace} exited ({proc.returncode}): "
+                      f"{lines[-1] if lines else 'no output'}", file=sys.stderr, flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        planned = plan(args.robots, _domains(args.domains))
+        domains = sorted({r.domain for r in planned})
+        gui_args = ["--port", str(args.port), "--domains", ",".join(map(str, domains))]
+        if args.layout is not None:
+            gui_args += ["--layout", str(args.layout)]
+        options = Options(gui_args)
+        if args.duration < 0:
+            raise InvalidInput(f"--duration is >= 0, not {args.duration}")
+    except DebugGuiError as exc:
+        print(f"debug_gui demo: error: {exc}", file=sys.stderr)
+        return 2
+    stop_on_sigterm()  # until the server takes over SIGTERM: robots are stopped either way
+    with contextlib.ExitStack() as stack:
+        log_dir = args.log_dir or Path(stack.enter_context(
+            tempfile.TemporaryDirectory(prefix="debug_gui_demo_")))
+        log_dir.mkdir(parents=True, exist_ok=True)
+        procs = stack.enter_context(robots(planned, log_dir))
+        for robot, proc in zip(planned, procs, strict=True):
+            print(f"debug_gui demo: {robot.namespace} in domain {robot.domain} "
+                  f"(pid {proc.pid}, log: {log_dir / robot.namespace.strip('/')}.log)",
+                  flush=True)
+        stop = threading.Event()
+        stack.callback(stop.set)
+        threading.Thread(target=_watch, args=(procs, planned, log_dir, stop),
+                         daemon=True).start()
+        if args.duration > 0:
+            timer = threading.Timer(args.duration, os.kill, (os.getpid(), signal.SIGINT))
+            timer.daemon = True
+            timer.start()
+            stack.callback(timer.cancel)
+        try:
+            return serve(options)
+        except DebugGuiError as exc:
+            print(f"debug_gui demo: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
