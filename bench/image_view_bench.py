@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import re
 import statistics
 import sys
 import time
@@ -29,8 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from efficient_comm.testing import isolated_domain_id  # noqa: E402
-from tests._gui import _started as started  # noqa: E402
-from tests._gui import gui, new_browser, robot, wait_for  # noqa: E402
+from tests._gui import gui, new_browser, robot, started, wait_for  # noqa: E402
 from tests.test_gui_image_browser import image_layout, image_state  # noqa: E402
 
 NAMESPACE = "/robot"
@@ -106,9 +106,14 @@ def measure(tmp: Path, *, source: str, seconds: float, warmup_s: float) -> dict[
         shown0, cam0, t0 = image_state(browser)[0], counter.count, time.monotonic()  # type: ignore[index]
         time.sleep(seconds)
         shown1, cam1, t1 = image_state(browser)[0], counter.count, time.monotonic()  # type: ignore[index]
+        status = browser.find_element("css selector", '[data-testid^="image-status-"]').text
     wall = t1 - t0
     shown_fps, camera_fps = (shown1 - shown0) / wall, (cam1 - cam0) / wall
+    received = re.search(r"([\d.]+) fps received", status)
     return {"shown_fps": shown_fps, "camera_fps": camera_fps,
+            # What the GUI server received (its status line): tells a slow link or server
+            # from a slow browser.
+            "received_fps": float(received.group(1)) if received else 0.0,
             "ratio": shown_fps / camera_fps if camera_fps else 0.0, "window_s": wall}
 
 
@@ -131,7 +136,8 @@ def main() -> int:
                           warmup_s=0.5 if args.quick else 2.0)
         records.append(rec)
         print(f"run {run + 1}: camera {rec['camera_fps']:.1f} fps, browser drew "
-              f"{rec['shown_fps']:.1f} fps (ratio {rec['ratio']:.2f})", flush=True)
+              f"{rec['shown_fps']:.1f} fps (ratio {rec['ratio']:.2f}; the GUI server received "
+              f"{rec['received_fps']:.1f} fps)", flush=True)
     med = {k: statistics.median(r[k] for r in records) for k in ("camera_fps", "shown_fps",
                                                                   "ratio")}
     print(f"median of {len(records)} ({args.source} camera, 320x240): camera "

@@ -22,7 +22,7 @@ import struct
 from typing import Any
 
 from fastapi import WebSocket, WebSocketDisconnect
-from nicegui import app, run, ui
+from nicegui import app, background_tasks, run, ui
 from nicegui.context import context
 
 from ..errors import DebugGuiError
@@ -248,7 +248,7 @@ def build(ctx: ViewContext) -> None:
         client.run_javascript(f"{_SCRIPT}; window.debugGuiImage.attach('{key}', "
                               f"'{ROUTE}/{key}');")
         if ctx.can_write:
-            asyncio.get_event_loop().create_task(read_quality())
+            background_tasks.create(read_quality(), name=f"image quality {key}")
 
     def hide() -> None:
         shown["yes"] = False
