@@ -2,7 +2,8 @@
 
 The frame rate the browser reaches is measured by bench/image_view_bench.py (a figure, not
 an assertion); here: frames keep coming, each overlay is its frame's (same stamp), layers
-switch off, pause holds the picture and step moves through older frames.
+switch off, pause holds the picture and step moves through older frames, and a collapsed
+view leaves no subscriber on the robot.
 """
 
 from __future__ import annotations
@@ -11,9 +12,13 @@ import json
 from pathlib import Path
 from typing import Any
 
+from selenium.webdriver.common.by import By
+
+from debug_gui import RobotId
 from efficient_comm.testing import isolated_domain_id
 
 from ._gui import by_testid, gui, robot, screenshot, wait_for
+from .test_gui_image_data import graph, view_readers
 
 #: What the image view's page script exposes: (frames drawn, frame stamp, overlay stamp,
 #: SVG elements, text elements) of the first image view on the page.
@@ -83,3 +88,14 @@ def test_image_view_shows_frames_with_their_own_overlays_layers_pause_and_step(
         still = image_state(browser)
         assert still is not None and still[0] == stepped[0]  # paused: nothing new drawn
         screenshot(browser, "image_view_paused")
+
+        # Live again; then collapsed (hidden): the view leaves no reader on the robot.
+        by_testid(browser, f"image-pause-{key}").click()
+        robot_id = RobotId(domain, "/robot")
+        with graph(domain) as node:
+            seen: list[int] = []
+            wait_for(lambda: seen.append(view_readers(node, robot_id)) or seen[-1] == 2,
+                     what="the view's readers", alive=alive)
+            by_testid(browser, "panel-0").find_element(By.CSS_SELECTOR, ".q-item").click()
+            wait_for(lambda: view_readers(node, robot_id) == 0, what="no reader when hidden",
+                     alive=alive)

@@ -176,22 +176,24 @@ def test_against_a_simulated_robot_frames_match_drawings_quality_applies_and_hid
             model.set_quality(0)
 
         # Hidden: the feeds close, and the robot has no reader left to encode or draw for.
-        with _graph(domain) as node:
-            def readers() -> int:
-                prefixes = tuple(f"{bot.resolve(t)}/_throttle_" for t in (IMAGE_TOPIC,
-                                                                           MARKERS_TOPIC))
-                return sum(node.count_subscribers(name)
-                           for name, _types in node.get_topic_names_and_types()
-                           if name.startswith(prefixes))
-
-            wait_for(lambda: readers() == 2, what="the view's two readers", alive=[proc])
+        with graph(domain) as node:
+            wait_for(lambda: view_readers(node, bot) == 2, what="the view's two readers",
+                     alive=[proc])
             model.deactivate()
-            wait_for(lambda: readers() == 0, what="no reader left", alive=[proc])
+            wait_for(lambda: view_readers(node, bot) == 0, what="no reader left", alive=[proc])
         assert not model.active
 
 
+def view_readers(node: Any, bot: RobotId) -> int:
+    """Readers of the image view's throttled replies (JPEG and drawings) on the robot."""
+    prefixes = tuple(f"{bot.resolve(t)}/_throttle_" for t in (IMAGE_TOPIC, MARKERS_TOPIC))
+    return sum(node.count_subscribers(name)
+               for name, _types in node.get_topic_names_and_types()
+               if name.startswith(prefixes))
+
+
 @contextmanager
-def _graph(domain: int) -> Iterator[Any]:
+def graph(domain: int) -> Iterator[Any]:
     """A plain rclpy node on ``domain``, to look at the DDS graph as an outsider."""
     import rclpy
     from rclpy.context import Context
