@@ -47,6 +47,7 @@ def test_demo_serves_three_robots_in_two_domains_and_stops_them_all(
                        what="the URL", alive=[demo]).group(1)
         pids = [int(p) for p in re.findall(r"pid (\d+)", demo.output())]
         assert len(pids) == 3
+        browser.set_window_size(2400, 1200)  # three robots' tables side by side (README)
         browser.get(url)
         robots = {f"{d1}:/robot1", f"{d2}:/robot2", f"{d2}:/robot3"}
         # Each robot's components view fills with its own soccer pipeline's callbacks.
@@ -55,7 +56,8 @@ def test_demo_serves_three_robots_in_two_domains_and_stops_them_all(
             table = f"components-{key}"
             wait_for(partial(_shows, browser, table, row),
                      timeout_s=90, what=f"{key}'s components", alive=[demo])
-            assert present(browser, f"robot-{key}")
+            wait_for(partial(present, browser, f"robot-{key}"), what=f"{key} in the header",
+                     alive=[demo])
         wait_for_text(browser, re.compile(r"robot3 @ domain \d+\n.*callbacks", re.S),
                       alive=[demo])
         screenshot(browser, "debug_gui_demo")

@@ -4,6 +4,7 @@ and restored across a restart, robots appearing and leaving live."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 from efficient_comm.testing import isolated_domain_id
@@ -83,3 +84,49 @@ def test_bind_clone_team_layout_save_and_restore(tmp_path: Path, browser) -> Non
                      and f"Components — {beta_label}" in text_of(browser, "panel-1")
                      and "Components — team" in text_of(browser, "panel-2"),
                      what="the restored layout", alive=[a, b, server])
+
+
+def _stats_readers(robot) -> int:
+    found = re.findall(r"stats readers (\d+)", robot.output())
+    return int(found[-1]) if found else -1
+
+
+def test_a_hidden_view_costs_the_robot_nothing(tmp_path: Path, browser) -> None:
+    """Collapsing, removing or leaving a view closes its feed on the robot; opening it again
+    subscribes again."""
+    domain = isolated_domain_id()
+    with fake_robot(tmp_path, domain_id=domain, namespace="/r") as robot, \
+            gui(tmp_path, domains=[domain]) as server:
+        alive = [robot, server]
+
+        def readers(n: int, what: str) -> None:
+            reports = robot.output().count("stats readers")
+            # two fresh reports, the last one with n readers
+            wait_for(lambda: robot.output().count("stats readers") >= reports + 2
+                     and _stats_readers(robot) == n, what=what, alive=alive)
+
+        readers(0, "no reader before anyone looks")
+        browser.get(server.url)
+        wait_for(lambda: present(browser, f"components-{domain}:/r"), what="the view",
+                 alive=alive)
+        readers(1, "the view reading the robot's statistics")
+        click_header(browser, "panel-0")  # collapse
+        readers(0, "the collapsed view letting go")
+        click_header(browser, "panel-0")  # open again
+        readers(1, "the reopened view reading again")
+        click(browser, "remove-0")
+        readers(0, "the removed view letting go")
+        click(browser, "team-layout")
+        readers(1, "a new team panel reading")
+        browser.get("about:blank")  # the tab goes
+        readers(0, "the closed tab letting go")
+
+
+def click_header(browser, testid: str) -> None:
+    """Toggle an expansion panel by its header."""
+    from selenium.webdriver.common.by import By
+
+    from ._gui import by_testid
+
+    header = ".q-expansion-item__container > .q-item"
+    by_testid(browser, testid).find_element(By.CSS_SELECTOR, header).click()

@@ -43,6 +43,9 @@ _log = logging.getLogger(__name__)
 
 #: How often each domain's graph is scanned for robots coming and going.
 DISCOVERY_PERIOD_S = 0.5
+#: A robot is gone once its statistics topic has had no publisher this long (a single scan
+#: can miss a publisher while DDS rediscovers a busy participant).
+GONE_AFTER_S = 1.5
 #: Longest wait of the executor, so close() and new entities are noticed soon.
 SPIN_TIMEOUT_S = 0.05
 _THROTTLE_REQUEST = "_throttle"
@@ -225,6 +228,7 @@ class _Domain:
             raise
         self.thread: threading.Thread | None = None
         self.robots: set[RobotId] = set()
+        self.last_seen: dict[RobotId, float] = {}
         self.clients: dict[tuple[str, type], Any] = {}
         self.clients_lock = threading.Lock()
 
@@ -329,11 +333,15 @@ class Hub:
                 _log.exception("domain %d: executor or discovery failed", dom.domain)
 
     def _discover(self, dom: _Domain) -> None:
-        found: set[RobotId] = set()
+        now = time.monotonic()
         for topic, _types in dom.node.get_topic_names_and_types():
             robot = RobotId.from_stats_topic(dom.domain, topic, via=dom.via)
             if robot is not None and dom.node.count_publishers(topic) > 0:
-                found.add(robot)
+                dom.last_seen[robot] = now
+        for robot, seen in list(dom.last_seen.items()):
+            if now - seen > GONE_AFTER_S:
+                del dom.last_seen[robot]
+        found = set(dom.last_seen)
         if found != dom.robots:
             dom.robots = found
             self._notify()

@@ -24,6 +24,10 @@ from .layout import Layout
 from .security import AccessPolicy, check_port, parse_domains
 
 DEFAULT_PORT = 8080
+#: How long a tab whose connection dropped keeps its page (NiceGUI's default, 3 s, makes a
+#: browser on a loaded machine reload and rebuild every view). Its feeds close at once on
+#: the drop and reopen on reconnection either way, so waiting costs the robots nothing.
+RECONNECT_TIMEOUT_S = 30.0
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -137,7 +141,7 @@ def serve(options: Options) -> int:
         ui.run(
             host=options.policy.host, port=options.port, title="debug_gui", reload=False,
             show=False, show_welcome_message=False, uvicorn_logging_level="warning",
-            favicon="🤖",
+            favicon="🤖", reconnect_timeout=RECONNECT_TIMEOUT_S,
         )
     finally:
         for close in reversed(closers):

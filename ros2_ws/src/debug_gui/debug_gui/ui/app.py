@@ -108,8 +108,11 @@ class _Tab:
         self._render_binding()
         self._render_panels()
         ui.timer(ROBOTS_POLL_S, self._poll_robots)
+        # A tab that goes (or loses its connection) stops its views' feeds; one that
+        # reconnects gets those of its open panels back.
         self.client.on_delete(self._hide_all)
         self.client.on_disconnect(self._hide_all)
+        self.client.on_connect(self._show_open)
 
     def _poll_robots(self) -> None:
         robots = self.shell.hub.robots()
@@ -321,6 +324,11 @@ class _Tab:
     def _hide(self, view: _PanelView) -> None:
         for inst in view.instances:
             inst.ctx.hide()
+
+    def _show_open(self) -> None:
+        for view in self.views:
+            if view.expansion.value:
+                self._toggle(view, True)
 
     def _hide_all(self) -> None:
         for view in self.views:

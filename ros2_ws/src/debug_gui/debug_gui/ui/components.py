@@ -16,10 +16,15 @@ from ..robots import RobotId
 from .registry import ViewContext, register
 
 POLL_S = 1.0
+#: Long names (services, parameter events) are cut with an ellipsis; the full name shows on
+#: hover. Otherwise one long name pushes the figures out of a team layout's narrow table.
+_NARROW = {"classes": "ellipsis", "style": "max-width: 12rem", "headerStyle": "max-width: 12rem"}
 COLUMNS: list[dict[str, Any]] = [
     {"name": "flag", "label": "", "field": "flag", "sortable": True, "align": "left"},
-    {"name": "node", "label": "component", "field": "node", "sortable": True, "align": "left"},
-    {"name": "name", "label": "callback", "field": "name", "sortable": True, "align": "left"},
+    {"name": "node", "label": "component", "field": "node", "sortable": True, "align": "left",
+     **_NARROW},
+    {"name": "name", "label": "callback", "field": "name", "sortable": True, "align": "left",
+     **_NARROW},
     {"name": "rate_hz", "label": "rate Hz", "field": "rate_hz", "sortable": True},
     {"name": "mean_ms", "label": "mean ms", "field": "mean_ms", "sortable": True},
     {"name": "p95_ms", "label": "p95 ms", "field": "p95_ms", "sortable": True},
@@ -76,7 +81,7 @@ def build(ctx: ViewContext) -> None:
     table = ui.table(
         columns=COLUMNS, rows=[], row_key="id", pagination=0,
     ).props(
-        f"dense flat virtual-scroll data-testid=components-{robot.key}"
+        f"dense flat data-testid=components-{robot.key}"
     ).classes("w-full").style("max-height: 32rem")
     table.props["visible-columns"] = COMPACT
 
@@ -91,6 +96,9 @@ def build(ctx: ViewContext) -> None:
         <q-td :props="props">
           <q-badge v-if="props.value" color="negative" :label="props.value" />
         </q-td>""")
+    for column in ("node", "name"):
+        table.add_slot(f"body-cell-{column}", r"""
+        <q-td :props="props" :title="props.value">{{ props.value }}</q-td>""")
     table.add_slot("body-cell-history", r"""
         <q-td :props="props" style="font-family: monospace">{{ props.value }}</q-td>""")
 

@@ -1,0 +1,34 @@
+"""The components view's model against a robot process, through the Hub (no browser)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from debug_gui import Hub, RobotId
+from debug_gui.models.components import ComponentsModel
+from efficient_comm.testing import isolated_domain_id
+
+from ._gui import fake_robot, wait_for
+
+
+def test_the_model_fills_while_active_and_lets_go_when_not(tmp_path: Path) -> None:
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/m") as proc:
+        robot = RobotId(domain, "/m")
+        wait_for(lambda: robot in hub.robots(), what="the robot", alive=[proc])
+        model = ComponentsModel(hub, robot)
+        model.activate()
+        rows = wait_for(lambda: len(model.rows()) == 3 and model.rows(), what="3 rows",
+                        alive=[proc])
+        assert rows[0].node == "/m/m_component2"  # slowest p95 first
+        assert [r.over_period for r in rows] == [True, False, False]
+        wait_for(lambda: len(model.rows()[0].history) >= 3, what="a history", alive=[proc])
+        model.deactivate()
+        heard = model.messages
+        counted = hub.counters()[(robot, "/m/efficient_comm/stats")].messages
+        # Closed: nothing more arrives (the stats are published every 0.5 s).
+        wait_for(lambda: proc.output().count("stats readers 0") >= 2, what="no reader",
+                 alive=[proc])
+        assert model.messages == heard
+        assert hub.counters()[(robot, "/m/efficient_comm/stats")].messages <= counted + 1
