@@ -93,9 +93,10 @@ def test_image_view_shows_frames_with_their_own_overlays_layers_pause_and_step(
         by_testid(browser, f"image-pause-{key}").click()
         robot_id = RobotId(domain, "/robot")
         with graph(domain) as node:
-            seen: list[int] = []
-            wait_for(lambda: seen.append(view_readers(node, robot_id)) or seen[-1] == 2,
-                     what="the view's readers", alive=alive)
+            # Exactly this page's view (the fixture's check that the page answers fetched
+            # one too, with no browser: that one must not subscribe).
+            wait_for(lambda: view_readers(node, robot_id) == 2, what="the view's readers",
+                     alive=alive)
             by_testid(browser, "panel-0").find_element(By.CSS_SELECTOR, ".q-item").click()
             wait_for(lambda: view_readers(node, robot_id) == 0, what="no reader when hidden",
                      alive=alive)

@@ -8,7 +8,9 @@ the robot compressed it, untouched. The browser asks for the next frame only aft
 drawn the last one, so a slow browser gets fewer frames, never a backlog. Image and overlay
 arrive in the same message, so the overlay drawn is always that frame's.
 
-Only while the view is shown does it subscribe; paused, it does not either.
+Only while the view is shown in a connected browser does it subscribe (a page fetched by
+something that never connects, such as a health check, subscribes to nothing); paused, it
+does not either.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ _log = logging.getLogger(__name__)
 ROUTE = "/_debug_gui/image"
 RATES_HZ = (5, 10, 15, 30)
 POLL_S = 0.5
+#: How long a view waits for its page's browser to connect before it gives up subscribing.
+CONNECT_TIMEOUT_S = 60.0
 #: Stream key -> the model a view instance streams from (while it is shown).
 _STREAMS: dict[str, ImageModel] = {}
 
@@ -239,8 +243,9 @@ def build(ctx: ViewContext) -> None:
     rate.on_value_change(lambda e: model.set_rate(float(e.value)))
     apply.on_click(set_quality)
 
-    def show() -> None:
-        shown["yes"] = True
+    def start() -> None:
+        if not shown["yes"] or client.is_deleted:
+            return
         _STREAMS[key] = model
         if not model.paused:
             model.activate()
@@ -249,6 +254,21 @@ def build(ctx: ViewContext) -> None:
                               f"'{ROUTE}/{key}');")
         if ctx.can_write:
             background_tasks.create(read_quality(), name=f"image quality {key}")
+
+    async def start_when_connected() -> None:
+        # A page fetched by something that is no browser (a health check, curl) never
+        # connects: it must not subscribe to the robot's camera meanwhile.
+        with contextlib.suppress(TimeoutError):
+            await client.connected(timeout=CONNECT_TIMEOUT_S)
+        if client.has_socket_connection:
+            start()
+
+    def show() -> None:
+        shown["yes"] = True
+        if client.has_socket_connection:
+            start()
+        else:
+            background_tasks.create(start_when_connected(), name=f"image view {key}")
 
     def hide() -> None:
         shown["yes"] = False
