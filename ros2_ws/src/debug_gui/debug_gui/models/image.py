@@ -72,7 +72,8 @@ class ImageModel:
         self.markers_topic = markers_topic
         self._rate_hz = rate_hz
         self._clock = clock
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # the data; feeds' callbacks take it
+        self._feeds_lock = threading.Lock()  # opening and closing the feeds
         self._frames: deque[Frame] = deque(maxlen=buffer)
         self._drawings: OrderedDict[int, Drawing] = OrderedDict()
         self._max_drawings = 2 * buffer
@@ -96,7 +97,9 @@ class ImageModel:
 
         from efficient_comm_interfaces.msg import ImageMarkerArray
 
-        with self._lock:
+        # Not under self._lock: a feed may deliver (on_image takes that lock on the Hub's
+        # thread) before the second one is made, and the Hub's thread must never wait for us.
+        with self._feeds_lock:
             if self._feeds or self._paused_at is not None:
                 return
             self._feeds = [
@@ -108,7 +111,7 @@ class ImageModel:
 
     def deactivate(self) -> None:
         """Close the feeds: the robot stops encoding and drawing for this view."""
-        with self._lock:
+        with self._feeds_lock:
             feeds, self._feeds = self._feeds, []
         for feed in feeds:
             feed.close()
@@ -129,7 +132,7 @@ class ImageModel:
         if checked is None:
             raise InvalidInput("the image view needs a rate")
         self._rate_hz = checked
-        with self._lock:
+        with self._feeds_lock:
             feeds = list(self._feeds)
         if feeds:
             feeds[0].set_rate(checked)
