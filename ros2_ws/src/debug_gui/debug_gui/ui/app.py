@@ -281,6 +281,10 @@ class _Tab:
         self._fill(view)
 
     def _toggle(self, view: _PanelView, shown: bool) -> None:
+        # A page only counts as seen once its browser is connected: a page fetched by
+        # something that never connects (a health check, curl) must not subscribe to
+        # anything. The connection's on_connect shows the open panels then.
+        shown = shown and self.client.has_socket_connection
         for inst in view.instances:
             if shown:
                 inst.ctx.show()
