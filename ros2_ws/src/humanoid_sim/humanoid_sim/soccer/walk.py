@@ -62,7 +62,7 @@ class GaitParameters:
     #: Gait cycles a second (each foot steps once a cycle).
     freq: float = 2.0
     #: Share of each half cycle with both feet on the ground.
-    double_support: float = 0.3
+    double_support: float = 0.1
     #: How high the swing foot is lifted (m).
     step_height: float = 0.035
     #: Foot origin below the hip yaw joint, standing (m): how deep the crouch is.
@@ -89,7 +89,7 @@ class GaitParameters:
     #: Trunk pitch added per m/s of forward speed (rad s/m).
     pitch_per_speed: float = 0.0
     #: Ankle pitch per rad/s of torso pitch rate; hip roll per rad/s of roll rate.
-    gyro_pitch_gain: float = 0.0
+    gyro_pitch_gain: float = 0.15
     gyro_roll_gain: float = 0.0
     #: Low-pass time constant of the gyro feedback (s).
     gyro_filter_s: float = 0.03

@@ -1,0 +1,150 @@
+"""A robot that only walks, and a measured walking trial: for the walking tests and bench.
+
+The rig is the simulator, the real servo driver on the emulated bus, the fall detector and
+the walk engine, whose whole-body commands go straight to ``joint_commands`` (the motion
+arbiter, which normally owns that topic, is not needed to test walking). A trial stands
+the robot for a moment, sends one velocity on ``cmd_vel``, walks for a while and measures
+against the simulator's ground truth: the velocity achieved, whether it fell, how far the
+walk engine's odometry drifted, and the peak torque and speed each joint's servo used.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from geometry_msgs.msg import Twist
+
+from efficient_comm import Container
+from efficient_comm.testing import TestHandle
+
+from ..driver import ServoDriver
+from ..mujoco_plant import JOINTS
+from ..simulator import Simulator
+from .compose import add_body
+from .fall import FallDetector
+from .walk import WalkEngine
+
+#: How often a trial samples ground truth and the servos (s of simulated time).
+SAMPLE_S = 0.01
+
+
+@dataclass(frozen=True)
+class WalkingRobot:
+    simulator: Simulator
+    driver: ServoDriver
+    fall_detector: FallDetector
+    walk: WalkEngine
+
+
+def compose_walker(container: Container, *, namespace: str = "/robot",
+                   simulator: Mapping[str, Any] | None = None,
+                   driver: Mapping[str, Any] | None = None,
+                   walk: Mapping[str, Any] | None = None) -> WalkingRobot:
+    """Add the walking robot to ``container``; the mappings override parameters.
+
+    The camera is off unless ``simulator`` turns it on: walking does not look.
+    """
+    sim, servo_driver = add_body(container, namespace=namespace,
+                                 simulator={"camera_hz": 0.0, **(simulator or {})},
+                                 driver=driver)
+    return WalkingRobot(
+        simulator=sim, driver=servo_driver,
+        fall_detector=container.add(FallDetector, name="fall_detector", namespace=namespace),
+        walk=container.add(WalkEngine, name="walk", namespace=namespace,
+                           parameters={"output_topic": "joint_commands", **(walk or {})}),
+    )
+
+
+def torso_pose(simulator: Simulator) -> tuple[float, float, float]:
+    """Ground truth: the torso's x, y (m) and heading (rad) on the field."""
+    data, torso = simulator.data, simulator.model.body("torso").id
+    w, x, y, z = (float(v) for v in data.xquat[torso])
+    return (float(data.xpos[torso][0]), float(data.xpos[torso][1]),
+            math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+@dataclass
+class WalkResult:
+    """What a trial measured; velocities in the robot's starting frame (x forward)."""
+
+    command: tuple[float, float, float]
+    seconds: float
+    vx: float = 0.0
+    vy: float = 0.0
+    wz: float = 0.0
+    #: Simulated seconds into the walk at which the fall detector saw a fall (None: stood).
+    fell_at_s: float | None = None
+    #: Odometry minus ground truth at the end: position (m) and heading (rad).
+    odom_drift_m: float = 0.0
+    odom_drift_rad: float = 0.0
+    #: Ground truth and odometry, (x, y, heading) at every sample, for plots.
+    path: list[tuple[float, float, float]] = field(default_factory=list)
+    #: Peak |torque| (N m) and |speed| (rad/s) by joint over the walk.
+    peak_torque: dict[str, float] = field(default_factory=dict)
+    peak_speed: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def fell(self) -> bool:
+        return self.fell_at_s is not None
+
+
+def walk_trial(container: Container, robot: WalkingRobot, command: tuple[float, float, float],
+               *, seconds: float, settle_s: float = 1.0, stop_on_fall: bool = True
+               ) -> WalkResult:
+    """Stand for ``settle_s``, walk at ``command`` (vx, vy, wz) for ``seconds``, measure.
+
+    Velocities are the displacement over the whole walk (start and acceleration included),
+    turned into the heading the robot had when the command was sent; the heading change is
+    summed over the samples, so turns of more than half a circle count in full.
+    """
+    container.advance(settle_s)
+    probe = TestHandle("walk_trial", container=container)
+    cmd_vel = probe.create_publisher(Twist, robot.walk.node.resolve_topic_name("cmd_vel"), qos=10)
+    twist = Twist()
+    twist.linear.x, twist.linear.y, twist.angular.z = command
+    x0, y0, yaw0 = torso_pose(robot.simulator)
+    odom0 = robot.walk.gait.odometry
+    falls0 = robot.fall_detector.falls + (robot.fall_detector.state != "standing")
+    result = WalkResult(command=command, seconds=seconds)
+    plant = robot.simulator.plant
+    heading, last_yaw = 0.0, yaw0
+    cmd_vel.publish(twist)
+    elapsed = 0.0
+    while elapsed < seconds - 1e-9:
+        container.advance(SAMPLE_S)
+        elapsed += SAMPLE_S
+        x, y, yaw = torso_pose(robot.simulator)
+        heading += _wrap(yaw - last_yaw)
+        last_yaw = yaw
+        result.path.append((x, y, heading))
+        for dxl_id, name in JOINTS.items():
+            state = plant.state(dxl_id)
+            result.peak_torque[name] = max(result.peak_torque.get(name, 0.0),
+                                           abs(plant.motor_torque(dxl_id)))
+            result.peak_speed[name] = max(result.peak_speed.get(name, 0.0),
+                                          abs(state.velocity_rad_s))
+        detector = robot.fall_detector
+        if result.fell_at_s is None and detector.falls + (detector.state != "standing") > falls0:
+            result.fell_at_s = elapsed
+            if stop_on_fall:
+                break
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    x, y, _ = torso_pose(robot.simulator)
+    dx, dy = x - x0, y - y0
+    result.seconds = elapsed
+    result.vx = (c * dx + s * dy) / elapsed
+    result.vy = (-s * dx + c * dy) / elapsed
+    result.wz = heading / elapsed
+    ox, oy, oyaw = (a - b for a, b in zip(robot.walk.gait.odometry, odom0, strict=True))
+    result.odom_drift_m = math.hypot(ox - (c * dx + s * dy), oy - (-s * dx + c * dy))
+    result.odom_drift_rad = abs(oyaw - heading)
+    cmd_vel.publish(Twist())
+    probe.destroy_publisher(cmd_vel)
+    return result
