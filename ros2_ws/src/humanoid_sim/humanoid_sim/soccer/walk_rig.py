@@ -96,13 +96,14 @@ class WalkResult:
 
 
 def walk_trial(container: Container, robot: WalkingRobot, command: tuple[float, float, float],
-               *, seconds: float, settle_s: float = 1.0, stop_on_fall: bool = True
-               ) -> WalkResult:
+               *, seconds: float, settle_s: float = 1.0, warmup_s: float = 0.0,
+               stop_on_fall: bool = True) -> WalkResult:
     """Stand for ``settle_s``, walk at ``command`` (vx, vy, wz) for ``seconds``, measure.
 
-    Velocities are the displacement over the whole walk (start and acceleration included),
-    turned into the heading the robot had when the command was sent; the heading change is
-    summed over the samples, so turns of more than half a circle count in full.
+    Velocities are the displacement from ``warmup_s`` into the walk to its end (0: start
+    and acceleration included), turned into the heading the robot had when the command was
+    sent; the heading change is summed over the samples, so turns of more than half a
+    circle count in full. Odometry drift is over the whole walk.
     """
     container.advance(settle_s)
     probe = TestHandle("walk_trial", container=container)
@@ -117,6 +118,7 @@ def walk_trial(container: Container, robot: WalkingRobot, command: tuple[float, 
     heading, last_yaw = 0.0, yaw0
     cmd_vel.publish(twist)
     elapsed = 0.0
+    warm: tuple[float, float, float, float] | None = None  # elapsed, x, y, heading
     while elapsed < seconds - 1e-9:
         container.advance(SAMPLE_S)
         elapsed += SAMPLE_S
@@ -124,6 +126,8 @@ def walk_trial(container: Container, robot: WalkingRobot, command: tuple[float, 
         heading += _wrap(yaw - last_yaw)
         last_yaw = yaw
         result.path.append((x, y, heading))
+        if warm is None and elapsed >= warmup_s - 1e-9:
+            warm = (elapsed, x, y, heading)
         for dxl_id, name in JOINTS.items():
             state = plant.state(dxl_id)
             result.peak_torque[name] = max(result.peak_torque.get(name, 0.0),
@@ -137,11 +141,13 @@ def walk_trial(container: Container, robot: WalkingRobot, command: tuple[float, 
                 break
     c, s = math.cos(yaw0), math.sin(yaw0)
     x, y, _ = torso_pose(robot.simulator)
-    dx, dy = x - x0, y - y0
     result.seconds = elapsed
-    result.vx = (c * dx + s * dy) / elapsed
-    result.vy = (-s * dx + c * dy) / elapsed
-    result.wz = heading / elapsed
+    if warm is not None and elapsed - warm[0] > 0:
+        span, wx, wy = elapsed - warm[0], x - warm[1], y - warm[2]
+        result.vx = (c * wx + s * wy) / span
+        result.vy = (-s * wx + c * wy) / span
+        result.wz = (heading - warm[3]) / span
+    dx, dy = x - x0, y - y0
     ox, oy, oyaw = (a - b for a, b in zip(robot.walk.gait.odometry, odom0, strict=True))
     result.odom_drift_m = math.hypot(ox - (c * dx + s * dy), oy - (-s * dx + c * dy))
     result.odom_drift_rad = abs(oyaw - heading)
