@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -60,7 +61,7 @@ def _start_walk_stop(command: tuple[float, float, float], dt: float
     gait.set_command(0.0, 0.0, 0.0)
     goals += [gait.update(dt) for _ in range(round(3.0 / dt))]
     assert not gait.walking
-    jumps = [max(abs(b[n] - a[n]) for n in a) for a, b in zip(goals, goals[1:], strict=False)]
+    jumps = [max(abs(b[n] - a[n]) for n in a) for a, b in itertools.pairwise(goals)]
     return stand, goals, max(jumps)
 
 
@@ -79,7 +80,7 @@ def test_start_and_stop_are_smooth_and_end_in_the_standing_pose(
     # The first quarter second only begins to lift and sway: far gentler than full steps.
     start = goals[: round(0.25 / DT) + 1]
     assert max(max(abs(b[n] - a[n]) for n in a)
-               for a, b in zip(start, start[1:], strict=False)) < 0.5 * jump
+               for a, b in itertools.pairwise(start)) < 0.5 * jump
 
 
 def test_odometry_integrates_the_commanded_steps() -> None:
