@@ -191,6 +191,8 @@ def main() -> int:
     parser.add_argument("--sweep-seconds", type=float, default=8.0)
     parser.add_argument("--line-noise", type=float, default=0.01)
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--direction", choices=list(DIRECTIONS), action="append",
+                        help="reliability: only these directions (default all)")
     parser.add_argument("--only", choices=["reliability", "sweep", "cost", "rtf"], action="append")
     parser.add_argument("--quick", action="store_true", help="2 seeds, 3 s: a smoke run")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
@@ -215,6 +217,7 @@ def main() -> int:
             for name, v in r["peak_speed"].items():
                 peaks_speed[name] = max(peaks_speed.get(name, 0.0), v)
 
+    directions = {d: c for d, c in DIRECTIONS.items() if d in (args.direction or DIRECTIONS)}
     pool = ThreadPoolExecutor(max_workers=max(1, args.jobs))
     if "cost" in parts:
         c = run_child({"kind": "cost", "cycles": 300 if args.quick else 2000})
@@ -235,7 +238,7 @@ def main() -> int:
     if "reliability" in parts:
         tasks = [{"kind": "trial", "command": list(cmd), "seconds": args.seconds, "seed": seed,
                   "line_noise": args.line_noise, "direction": direction}
-                 for seed in range(args.seeds) for direction, cmd in DIRECTIONS.items()]
+                 for seed in range(args.seeds) for direction, cmd in directions.items()]
         runs = list(pool.map(run_child, tasks))
         for task, r in zip(tasks, runs, strict=True):
             r["direction"] = task["direction"]
@@ -243,7 +246,7 @@ def main() -> int:
         collect(runs)
         print(f"\n{args.seconds:g} s of walking x {args.seeds} seeds per direction, "
               f"line noise {args.line_noise:g}:")
-        for direction, cmd in DIRECTIONS.items():
+        for direction, cmd in directions.items():
             mine = [r for r in runs if r["direction"] == direction]
             passed = sum(r["fell_at_s"] is None for r in mine) / len(mine)
             speed = statistics.median(achieved(r) for r in mine)
