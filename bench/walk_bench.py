@@ -4,7 +4,10 @@ Every trial runs the walking rig (``humanoid_sim.soccer.walk_rig``: simulator, t
 driver on the emulated bus, fall detector, walk engine) on a manual clock, each in a fresh
 child process (``--jobs`` at a time). A seed sets the bus's line noise pattern (``--line-noise``,
 default 1 %) and how long the robot stands before the command (1 to 1.5 s: the gait starts at
-another moment of the driver's cycle), so seeds give different runs.
+another moment of the driver's cycle), so seeds give different runs. ``--plant`` runs the
+trials without driver and bus (``walk_rig.plant_trial``: the gait straight on the MuJoCo
+plant, same physics and servo model, the seed only the standing time), about ten times
+cheaper: the 60 s x many seeds statistic on a loaded machine.
 
 * ``reliability``: ``--seconds`` (default 60) of walking in each direction (forward, sideways
   left, turning left) for each of ``--seeds`` seeds; prints per direction the pass rate (no
@@ -52,19 +55,23 @@ STALL_TORQUE_NM, NO_LOAD_RAD_S = 4.1, 4.817
 
 
 def trial(command: tuple[float, float, float], seconds: float, seed: int,
-          line_noise: float, warmup: float) -> dict[str, Any]:
+          line_noise: float, warmup: float, plant: bool) -> dict[str, Any]:
     """One trial in this process (the child's side)."""
     import random
 
     from efficient_comm.testing import test_container
-    from humanoid_sim.soccer.walk_rig import compose_walker, walk_trial
+    from humanoid_sim.soccer.walk_rig import compose_walker, plant_trial, walk_trial
 
-    settle = 1.0 + random.Random(seed).uniform(0.0, 0.5)
+    settle = round(1.0 + random.Random(seed).uniform(0.0, 0.5), 2)
     started = time.perf_counter()
-    with test_container() as container:
-        robot = compose_walker(container, simulator={"seed": seed, "line_noise": line_noise})
-        r = walk_trial(container, robot, command, seconds=seconds, settle_s=round(settle, 2),
-                       warmup_s=warmup)
+    if plant:
+        r = plant_trial(command, seconds=seconds, settle_s=settle, warmup_s=warmup)
+    else:
+        with test_container(guard_mutation=False) as container:
+            robot = compose_walker(container,
+                                   simulator={"seed": seed, "line_noise": line_noise})
+            r = walk_trial(container, robot, command, seconds=seconds, settle_s=settle,
+                           warmup_s=warmup)
     return {"command": command, "seed": seed, "seconds": r.seconds, "vx": r.vx, "vy": r.vy,
             "wz": r.wz, "fell_at_s": r.fell_at_s, "odom_drift_m": r.odom_drift_m,
             "odom_drift_rad": r.odom_drift_rad, "peak_torque": r.peak_torque,
@@ -87,7 +94,7 @@ def cost(cycles: int) -> dict[str, float]:
         for _ in range(cycles):
             gait.update(0.01)
         samples.append((time.perf_counter_ns() - t0) / cycles / 1e3)
-    with test_container() as container:
+    with test_container(guard_mutation=False) as container:
         robot = compose_walker(container)
         container.advance(1.0)
         timers = [s for s in container.stats() if s.kind == "timer"]
@@ -107,7 +114,7 @@ def rtf(seconds: float) -> dict[str, float]:
     from humanoid_sim.soccer.walk_rig import compose_walker
     from humanoid_sim.soccer.world_model import BallModel
 
-    with test_container() as container:
+    with test_container(guard_mutation=False) as container:
         robot = compose_walker(container, simulator={"camera_hz": 30.0})
         container.add(BallDetector, name="ball_detector", namespace="/robot")
         container.add(BallModel, name="ball_model", namespace="/robot")
@@ -131,7 +138,7 @@ def child(args: argparse.Namespace) -> None:
     result: dict[str, Any]
     if kind == "trial":
         result = trial(tuple(task["command"]), task["seconds"], task["seed"], task["line_noise"],
-                       task.get("warmup", 0.0))
+                       task.get("warmup", 0.0), task.get("plant", False))
     elif kind == "cost":
         result = cost(task["cycles"])
     else:
@@ -145,6 +152,12 @@ def run_child(task: dict[str, Any]) -> dict[str, Any]:
     if out.returncode != 0:
         raise SystemExit(f"walk_bench: a {task['kind']} run failed:\n{out.stderr[-2000:]}")
     result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    if task["kind"] == "trial":
+        fell = f"FELL at {result['fell_at_s']:.1f} s" if result["fell_at_s"] is not None else "ok"
+        print(f"  trial {task['command']} seed {task['seed']}: ({result['vx']:+.3f}, "
+              f"{result['vy']:+.3f}, {result['wz']:+.3f}) {fell}, odometry drift "
+              f"{result['odom_drift_m']:.2f} m {result['odom_drift_rad']:.2f} rad "
+              f"[{result['wall_s']:.0f} s wall]", flush=True)
     return result
 
 
@@ -190,6 +203,9 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--sweep-seconds", type=float, default=8.0)
     parser.add_argument("--line-noise", type=float, default=0.01)
+    parser.add_argument("--plant", action="store_true",
+                        help="trials without driver and bus: the gait on the MuJoCo plant "
+                             "(same physics and servo model, ten times cheaper)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--direction", choices=list(DIRECTIONS), action="append",
                         help="reliability: only these directions (default all)")
@@ -237,15 +253,16 @@ def main() -> int:
         summary["rtf"] = r["rtf"]
     if "reliability" in parts:
         tasks = [{"kind": "trial", "command": list(cmd), "seconds": args.seconds, "seed": seed,
-                  "line_noise": args.line_noise, "direction": direction}
+                  "line_noise": args.line_noise, "direction": direction, "plant": args.plant}
                  for seed in range(args.seeds) for direction, cmd in directions.items()]
         runs = list(pool.map(run_child, tasks))
         for task, r in zip(tasks, runs, strict=True):
             r["direction"] = task["direction"]
         results["reliability"] = runs
         collect(runs)
-        print(f"\n{args.seconds:g} s of walking x {args.seeds} seeds per direction, "
-              f"line noise {args.line_noise:g}:")
+        how = ("gait on the plant, no driver" if args.plant
+               else f"through the driver, line noise {args.line_noise:g}")
+        print(f"\n{args.seconds:g} s of walking x {args.seeds} seeds per direction, {how}:")
         for direction, cmd in directions.items():
             mine = [r for r in runs if r["direction"] == direction]
             passed = sum(r["fell_at_s"] is None for r in mine) / len(mine)
@@ -266,7 +283,7 @@ def main() -> int:
         tasks = [{"kind": "trial", "command": [v if a == axis else 0.0
                                                for a in ("vx", "vy", "wz")],
                   "seconds": args.sweep_seconds, "seed": 0, "line_noise": args.line_noise,
-                  "warmup": args.sweep_seconds / 3}
+                  "warmup": args.sweep_seconds / 3, "plant": args.plant}
                  for axis, values in SWEEP.items() for v in values]
         sweep = list(pool.map(run_child, tasks))
         results["sweep"] = sweep
