@@ -6,8 +6,9 @@ child process (``--jobs`` at a time). A seed sets the bus's line noise pattern (
 default 1 %) and how long the robot stands before the command (1 to 1.5 s: the gait starts at
 another moment of the driver's cycle), so seeds give different runs. ``--plant`` runs the
 trials without driver and bus (``walk_rig.plant_trial``: the gait straight on the MuJoCo
-plant, same physics and servo model, the seed only the standing time), about ten times
-cheaper: the 60 s x many seeds statistic on a loaded machine.
+plant, same physics and servo model), about ten times cheaper: the 60 s x many seeds
+statistic on a loaded machine; there the seed also draws shoves (up to ``--shove`` N, default
+6, for 0.1 s every 2 to 5 s, in random directions) that disturb the walk.
 
 * ``reliability``: ``--seconds`` (default 60) of walking in each direction (forward, sideways
   left, turning left) for each of ``--seeds`` seeds; prints per direction the pass rate (no
@@ -55,7 +56,7 @@ STALL_TORQUE_NM, NO_LOAD_RAD_S = 4.1, 4.817
 
 
 def trial(command: tuple[float, float, float], seconds: float, seed: int,
-          line_noise: float, warmup: float, plant: bool) -> dict[str, Any]:
+          line_noise: float, warmup: float, plant: bool, shove: float) -> dict[str, Any]:
     """One trial in this process (the child's side)."""
     import random
 
@@ -65,7 +66,8 @@ def trial(command: tuple[float, float, float], seconds: float, seed: int,
     settle = round(1.0 + random.Random(seed).uniform(0.0, 0.5), 2)
     started = time.perf_counter()
     if plant:
-        r = plant_trial(command, seconds=seconds, settle_s=settle, warmup_s=warmup)
+        r = plant_trial(command, seconds=seconds, settle_s=settle, warmup_s=warmup,
+                        shove_seed=seed, shove_newtons=shove)
     else:
         with test_container(guard_mutation=False) as container:
             robot = compose_walker(container,
@@ -138,7 +140,7 @@ def child(args: argparse.Namespace) -> None:
     result: dict[str, Any]
     if kind == "trial":
         result = trial(tuple(task["command"]), task["seconds"], task["seed"], task["line_noise"],
-                       task.get("warmup", 0.0), task.get("plant", False))
+                       task.get("warmup", 0.0), task.get("plant", False), task.get("shove", 6.0))
     elif kind == "cost":
         result = cost(task["cycles"])
     else:
@@ -203,6 +205,8 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--sweep-seconds", type=float, default=8.0)
     parser.add_argument("--line-noise", type=float, default=0.01)
+    parser.add_argument("--shove", type=float, default=6.0,
+                        help="--plant: seeded shoves of up to this many newtons every 2-5 s")
     parser.add_argument("--plant", action="store_true",
                         help="trials without driver and bus: the gait on the MuJoCo plant "
                              "(same physics and servo model, ten times cheaper)")
@@ -253,14 +257,15 @@ def main() -> int:
         summary["rtf"] = r["rtf"]
     if "reliability" in parts:
         tasks = [{"kind": "trial", "command": list(cmd), "seconds": args.seconds, "seed": seed,
-                  "line_noise": args.line_noise, "direction": direction, "plant": args.plant}
+                  "line_noise": args.line_noise, "direction": direction, "plant": args.plant,
+                  "shove": args.shove}
                  for seed in range(args.seeds) for direction, cmd in directions.items()]
         runs = list(pool.map(run_child, tasks))
         for task, r in zip(tasks, runs, strict=True):
             r["direction"] = task["direction"]
         results["reliability"] = runs
         collect(runs)
-        how = ("gait on the plant, no driver" if args.plant
+        how = (f"gait on the plant, no driver, shoves up to {args.shove:g} N" if args.plant
                else f"through the driver, line noise {args.line_noise:g}")
         print(f"\n{args.seconds:g} s of walking x {args.seeds} seeds per direction, {how}:")
         for direction, cmd in directions.items():

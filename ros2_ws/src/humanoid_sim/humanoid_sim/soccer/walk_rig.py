@@ -11,6 +11,7 @@ walk engine's odometry drifted, and the peak torque and speed each joint's servo
 from __future__ import annotations
 
 import math
+import random
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -127,7 +128,8 @@ def walk_trial(container: Container, robot: WalkingRobot, command: tuple[float, 
 
 def plant_trial(command: tuple[float, float, float], *, seconds: float, settle_s: float = 1.0,
                 warmup_s: float = 0.0, stop_on_fall: bool = True,
-                parameters: Mapping[str, float] | None = None) -> WalkResult:
+                parameters: Mapping[str, float] | None = None,
+                shove_seed: int | None = None, shove_newtons: float = 6.0) -> WalkResult:
     """:func:`walk_trial` without the bus: the gait drives the MuJoCo plant directly.
 
     Same physics, same servo model (goals slewed at the no-load speed, as the driver's
@@ -135,14 +137,24 @@ def plant_trial(command: tuple[float, float, float], *, seconds: float, settle_s
     missing is the driver and the emulated bus (a cycle's delay, the goals' rounding to
     encoder ticks, line noise). Ten times cheaper: for statistics over many long walks on a
     loaded machine, and for tuning. A fall is a tilt of 40° (the fall detector's).
+
+    With ``shove_seed``, the walk is disturbed as a real one is (uneven turf, a touch of
+    another robot): every 2 to 5 s a shove of up to ``shove_newtons`` in a random
+    horizontal direction for 0.1 s (a standing robot takes 10 N), all drawn from the seed.
     """
     plant = MujocoPlant()
     gait = Gait(GaitParameters(**(parameters or {})))
     model, data = plant.model, plant.data
     ids = {name: dxl_id for dxl_id, name in JOINTS.items()}
     torso = model.body("torso").id
+    rng = random.Random(shove_seed)
+    next_shove = [settle_s + rng.uniform(2.0, 5.0) if shove_seed is not None else math.inf]
 
     def cycle() -> None:
+        if data.time >= next_shove[0]:
+            angle, force = rng.uniform(-math.pi, math.pi), rng.uniform(0.0, shove_newtons)
+            plant.push((force * math.cos(angle), force * math.sin(angle), 0.0), duration_s=0.1)
+            next_shove[0] += rng.uniform(2.0, 5.0)
         gyro = data.sensor("imu_gyro").data
         gait.set_gyro(float(gyro[1]), float(gyro[0]), SAMPLE_S)
         for name, goal in gait.update(SAMPLE_S).items():
