@@ -96,9 +96,9 @@ class GaitParameters:
     #: Shoulder pitch per m of the opposite foot's forward offset (rad/m).
     arm_swing: float = 3.0
     #: Calibration of the commanded step to the velocity achieved (1: none).
-    vx_scale: float = 1.0
-    vy_scale: float = 1.0
-    wz_scale: float = 1.0
+    vx_scale: float = 0.87
+    vy_scale: float = 0.85
+    wz_scale: float = 0.87
 
     def check(self) -> None:
         """Raise :class:`SimConfigError` naming the first figure the gait cannot use."""
