@@ -50,7 +50,7 @@ DIRECTIONS = {"forward": (0.2, 0.0, 0.0), "sideways": (0.0, 0.12, 0.0),
 #: that walk the whole time without a fall.
 TARGETS = {"forward": 0.15, "sideways": 0.05, "turning": 0.5}
 TARGET_PASS = 0.95
-SWEEP = {"vx": [-0.2, -0.1, 0.1, 0.2, 0.3], "vy": [-0.12, -0.06, 0.06, 0.12],
+SWEEP = {"vx": [-0.2, -0.1, 0.1, 0.2, 0.25], "vy": [-0.12, -0.06, 0.06, 0.12],
          "wz": [-0.9, -0.45, 0.45, 0.9]}
 STALL_TORQUE_NM, NO_LOAD_RAD_S = 4.1, 4.817
 

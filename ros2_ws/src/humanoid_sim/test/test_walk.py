@@ -65,7 +65,7 @@ def _start_walk_stop(command: tuple[float, float, float], dt: float
     return stand, goals, max(jumps)
 
 
-@pytest.mark.parametrize("command", [(0.3, 0.0, 0.0), (0.0, 0.12, 0.0), (0.0, 0.0, 0.9),
+@pytest.mark.parametrize("command", [(0.25, 0.0, 0.0), (0.0, 0.12, 0.0), (0.0, 0.0, 0.9),
                                      (-0.2, -0.1, -0.5)])
 def test_start_and_stop_are_smooth_and_end_in_the_standing_pose(
         command: tuple[float, float, float]) -> None:

@@ -78,7 +78,7 @@ class GaitParameters:
     #: Phase lead of the sway over the steps (share of a cycle).
     sway_phase: float = 0.0
     #: Forward, sideways and turning speeds are capped at these (m/s, rad/s).
-    max_vx: float = 0.3
+    max_vx: float = 0.25
     max_vy: float = 0.12
     max_wz: float = 0.9
     #: Acceleration limits of the commanded velocity (m/s², rad/s²).
