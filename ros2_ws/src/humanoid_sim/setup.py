@@ -32,6 +32,7 @@ setup(
             "humanoid_sim::Motion = humanoid_sim.soccer.motion:Motion",
             "humanoid_sim::SoccerMonitor = humanoid_sim.soccer.monitor:SoccerMonitor",
             "humanoid_sim::FallDetector = humanoid_sim.soccer.fall:FallDetector",
+            "humanoid_sim::WalkEngine = humanoid_sim.soccer.walk:WalkEngine",
         ],
     },
 )

@@ -4,6 +4,9 @@
 the robot's frame; ``behaviour`` points the head at it (and searches when it is lost);
 ``motion`` turns stance and head goals into joint commands for the servo driver;
 ``fall`` tells from the IMU whether the robot stands, is falling or lies on the ground;
+``walk`` is the walk engine (``cmd_vel`` in, whole-body joint goals and odometry out), from
+foot splines (``spline``) and the legs' analytic inverse kinematics (``leg_ik``);
+``walk_rig`` is a robot that only walks, with a measured trial, for walking tests and bench;
 ``monitor`` measures what the pipeline achieves against the simulator's ground truth.
 ``compose`` wires them, the simulator and the driver into one container.
 
@@ -16,4 +19,6 @@ Messages between them (all standard types, passed by reference when composed):
   torso's forward axis (rad), z = distance (m); stamped with the image it came from.
 * ``head/goal`` (JointState): neck_yaw and neck_pitch, stamped with the image it came from.
 * ``fall/state`` (String, transient local): ``standing``, ``falling`` or ``fallen``.
+* ``cmd_vel`` (Twist): the wanted walking velocity; ``odom`` (Odometry): the walk engine's
+  odometry; ``motion/walk`` (JointState): the walk engine's whole-body goals.
 """

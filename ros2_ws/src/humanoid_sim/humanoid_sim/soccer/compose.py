@@ -43,14 +43,10 @@ class SoccerRobot:
     compressor: JpegCompressor
 
 
-def compose(container: Container, *, namespace: str = "/robot",
-            simulator: Mapping[str, Any] | None = None,
-            driver: Mapping[str, Any] | None = None) -> SoccerRobot:
-    """Add the robot to ``container``; ``simulator``/``driver`` override their parameters.
-
-    Order matters on a shared timer deadline: the simulator steps (and renders, and the
-    pipeline reacts to the image in the same pass) before the driver reads and writes the
-    servos, as on a robot whose camera and servo bus are sampled each cycle.
+def add_body(container: Container, *, namespace: str,
+             simulator: Mapping[str, Any] | None = None,
+             driver: Mapping[str, Any] | None = None) -> tuple[Simulator, ServoDriver]:
+    """Add the simulator and the servo driver on its pty: the robot without its software.
 
     On a manual clock (lockstep) the driver's reply timeouts, which dynamixel-sdk measures
     in wall time, are relaxed to :data:`LOCKSTEP_LATENCY_TIMER_MS`: a loaded machine must
@@ -63,10 +59,26 @@ def compose(container: Container, *, namespace: str = "/robot",
     if container.clock_kind == "manual":
         driver_parameters["latency_timer_ms"] = LOCKSTEP_LATENCY_TIMER_MS
     driver_parameters.update(driver or {})
+    servo_driver: ServoDriver = container.add(ServoDriver, name="servo_driver",
+                                              namespace=namespace, parameters=driver_parameters)
+    return sim, servo_driver
+
+
+def compose(container: Container, *, namespace: str = "/robot",
+            simulator: Mapping[str, Any] | None = None,
+            driver: Mapping[str, Any] | None = None) -> SoccerRobot:
+    """Add the robot to ``container``; ``simulator``/``driver`` override their parameters.
+
+    Order matters on a shared timer deadline: the simulator steps (and renders, and the
+    pipeline reacts to the image in the same pass) before the driver reads and writes the
+    servos, as on a robot whose camera and servo bus are sampled each cycle.
+    The simulator and driver come from :func:`add_body`.
+    """
+    sim, servo_driver = add_body(container, namespace=namespace, simulator=simulator,
+                                 driver=driver)
     robot = SoccerRobot(
         simulator=sim,
-        driver=container.add(ServoDriver, name="servo_driver", namespace=namespace,
-                             parameters=driver_parameters),
+        driver=servo_driver,
         detector=container.add(BallDetector, name="ball_detector", namespace=namespace),
         ball_model=container.add(BallModel, name="ball_model", namespace=namespace),
         fall_detector=container.add(FallDetector, name="fall_detector", namespace=namespace),
