@@ -155,10 +155,12 @@ def test_a_publish_from_another_thread_ends_the_executors_wait_for_dds() -> None
     """A DDS container's executor waits in rclpy's wait set; another thread's publish must
     end that wait. Before, it only made rclpy rebuild its wait set and wait again until the
     poll timeout (median 48 ms; here, with no timeout, for good), so at 1 kHz and depth 10
-    most messages were dropped (bench/comm_bench.py --only foreign measures both)."""
+    most messages were dropped (bench/comm_bench.py --only foreign measures both).
+    No statistics timer: its deadline would end the wait on its own."""
     topic = unique_topic("foreign")
     domain = isolated_domain_id()
-    with peer(domain) as p, Container("foreign", domain_id=domain, serve=False) as container:
+    with peer(domain) as p, Container("foreign", domain_id=domain, serve=False,
+                                      stats_period_s=0) as container:
         talker = container.add(lambda n: Talker(n, topic), name="talker")
         heard: list[String] = []
         container.add(
