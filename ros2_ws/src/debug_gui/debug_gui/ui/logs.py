@@ -79,15 +79,4 @@ def build(ctx: ViewContext) -> None:
         statuses.update()
         records.update()
 
-    timer = ui.timer(POLL_S, refresh, active=False)
-
-    def show() -> None:
-        model.activate()
-        timer.activate()
-
-    def hide() -> None:
-        timer.deactivate()
-        model.deactivate()
-
-    ctx.on_show(show)
-    ctx.on_hide(hide)
+    ctx.follow(model, ui.timer(POLL_S, refresh, active=False))

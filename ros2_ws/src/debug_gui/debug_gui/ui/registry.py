@@ -60,6 +60,23 @@ class ViewContext:
         """Run ``callback`` whenever the view stops being visible."""
         self._hide.append(callback)
 
+    def follow(self, model: Any, *timers: Any) -> None:
+        """Activate ``model`` and its polling ``timers`` while the view is shown, and stop
+        both when it is hidden: a hidden view costs the robot nothing."""
+
+        def show() -> None:
+            model.activate()
+            for timer in timers:
+                timer.activate()
+
+        def hide() -> None:
+            for timer in timers:
+                timer.deactivate()
+            model.deactivate()
+
+        self.on_show(show)
+        self.on_hide(hide)
+
     @property
     def can_write(self) -> bool:
         return self.policy.valid(self.token)

@@ -139,15 +139,4 @@ def build(ctx: ViewContext) -> None:
         drawing.content = world_svg(states, model.team_ball(states))
         caption.content = legend(states)
 
-    timer = ui.timer(POLL_S, refresh, active=False)
-
-    def show() -> None:
-        model.activate()
-        timer.activate()
-
-    def hide() -> None:
-        timer.deactivate()
-        model.deactivate()
-
-    ctx.on_show(show)
-    ctx.on_hide(hide)
+    ctx.follow(model, ui.timer(POLL_S, refresh, active=False))
