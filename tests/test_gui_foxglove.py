@@ -467,3 +467,32 @@ def test_writes_that_bypass_the_gate_are_refused(
         assert robot.last("threshold") is None
     finally:
         sneak.close()
+
+
+VIEWER_JS = Path(__file__).with_name("foxglove_viewer")
+
+
+def test_foxglove_and_lichtblicks_own_client_library_views_the_robot(
+        robot: Robot, endpoint: FoxgloveEndpoint) -> None:
+    """The client library the Foxglove and Lichtblick apps are built on, with their ROS 2
+    decoder: it decodes a topic from the advertised schema alone, reads and sets a
+    parameter, and calls a service, against the endpoint a user starts."""
+    if not (VIEWER_JS / "node_modules").is_dir():
+        pytest.fail(f"{VIEWER_JS}/node_modules missing: scripts/setup_browser.sh installs it")
+    name = f"{robot.namespace}/detector.threshold"
+    result = subprocess.run(
+        ["node", str(VIEWER_JS / "viewer.mjs"), endpoint.write_url,
+         f"{robot.namespace}/{robot.topic}", name, "2.5", f"{robot.namespace}/detector/check"],
+        capture_output=True, text=True, timeout=90, check=False)
+    steps: dict[str, dict[str, Any]] = {}
+    for line in result.stdout.splitlines():
+        record = json.loads(line)
+        steps.setdefault(record["step"], record)
+    assert result.returncode == 0, (result.stdout, result.stderr)
+    assert "parameters" in steps["serverInfo"]["capabilities"]
+    assert steps["message"]["decoded"]["data"].startswith("hello ")
+    assert steps["get"]["parameters"] == [{"name": name, "type": "float64", "value": 0.5}]
+    assert steps["set"]["parameters"][0]["value"] == 2.5
+    robot.expect("threshold 2.5")  # the robot itself took the viewer's value
+    assert steps["service"]["type"] == "efficient_comm_interfaces/srv/UnloadComponent"
+    assert steps["service"]["response"] == {"success": True, "error_message": "got 7"}
