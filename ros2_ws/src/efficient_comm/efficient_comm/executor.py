@@ -427,6 +427,18 @@ class ConsecutiveExecutor:
             self._wake_event.wait(timeout_s)
             self._wake_event.clear()
 
+    def _poll_dds(self) -> None:
+        """Take what DDS has for us without waiting, at most once per poll interval: a
+        busy executor (timers always due, or a manual clock advanced as fast as the
+        machine allows) must still hear remote peers, their throttle requests and
+        service calls, without paying a wait-set poll on every callback."""
+        if (
+            self._dds is not None
+            and time.monotonic_ns() - self._last_dds_poll > self._dds_poll_interval
+        ):
+            self._wait(0.0)
+            self._run_ready()
+
     def spin_once(self, timeout_s: float | None = None) -> None:
         """Run what is ready and due; if nothing was, wait up to ``timeout_s`` for work."""
         with self._owning():
@@ -439,12 +451,7 @@ class ConsecutiveExecutor:
         if not self._manual:
             did = self._run_due_timers(self.clock.now_ns()) or did
         if did:
-            if (
-                self._dds is not None
-                and time.monotonic_ns() - self._last_dds_poll > self._dds_poll_interval
-            ):
-                self._wait(0.0)
-                self._run_ready()
+            self._poll_dds()
             return
         wait = 3600.0 if timeout_s is None else timeout_s
         deadline = None if self._manual else self._next_deadline()
@@ -497,8 +504,12 @@ class ConsecutiveExecutor:
                 # timer's deadline) missed periods are skipped, not run one by one.
                 self._run_due_timers(clock.now_ns())
                 self._drain()
+                # With DDS, lockstep is exact only among the container's own components:
+                # what remote peers send arrives whenever the wall clock brings it.
+                self._poll_dds()
             clock.set_ns(target)
             self._drain()
+            self._poll_dds()
         self._raise_pending()
 
     def shutdown(self) -> None:
