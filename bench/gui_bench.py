@@ -23,6 +23,7 @@ cost of being watched (a mode's robot CPU minus the ``none`` CPU), ``gui / gener
 
     source scripts/env.sh && python bench/gui_bench.py            # 3 robots, 5 runs (~6 min)
     python bench/gui_bench.py --quick --out /tmp/gui.json        # smoke run: 1 robot, 1 run
+    python bench/gui_bench.py --lockstep --window 30             # robots on a manual clock
 """
 
 from __future__ import annotations
@@ -266,7 +267,7 @@ def cpu_s(pids: Sequence[int]) -> float:
 class Robots:
     """``n`` demo processes, one domain and namespace each, in their own sessions."""
 
-    def __init__(self, n: int, workdir: Path) -> None:
+    def __init__(self, n: int, workdir: Path, *, lockstep: bool = False) -> None:
         from efficient_comm.testing import isolated_domain_id, ros_env
 
         self.procs: list[subprocess.Popen[bytes]] = []
@@ -278,9 +279,12 @@ class Robots:
             with open(log, "wb") as out:
                 self.procs.append(subprocess.Popen(
                     [sys.executable, "-m", "humanoid_sim.demo", "--duration", "0",
-                     "--namespace", ns, "--stats-period", "5",
+                     "--namespace", ns,
+                     # In lockstep the period is simulated time, which passes slower.
+                     "--stats-period", "1" if lockstep else "5",
                      "--report", str(workdir / f"report{k}.md"),
-                     "--bag-dir", str(workdir / "bags")],
+                     "--bag-dir", str(workdir / "bags"),
+                     *(["--lockstep"] if lockstep else [])],
                     env=ros_env(domain), stdout=out, stderr=subprocess.STDOUT,
                     start_new_session=True, cwd=workdir,
                 ))
@@ -517,7 +521,8 @@ def _fmt(value: float | None, spec: str) -> str:
 def report(summary: dict[str, Any], args: argparse.Namespace) -> str:
     s = summary
     lines = [
-        f"{args.robots_n} robot(s), {args.repeat} run(s) of {args.window:g} s per mode, medians; "
+        f"{args.robots_n} robot(s){' in lockstep' if args.lockstep else ''}, {args.repeat} run(s) "
+        f"of {args.window:g} s per mode, medians; "
         f"GUI image: {s['gui_image']}",
         "",
         f"{'mode':<10} {'robot->watcher kB/s':>20} {'robot CPU (cores)':>18} "
@@ -551,6 +556,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--window", type=float, default=10.0, help="seconds measured per mode")
     ap.add_argument("--warmup", type=float, default=10.0, help="seconds before the first run")
     ap.add_argument("--quick", action="store_true", help="1 robot, 1 run, short windows")
+    ap.add_argument("--lockstep", action="store_true",
+                    help="robots on a manual clock, as fast as the machine allows: a camera "
+                         "frame is then a fixed amount of simulated work however loaded the "
+                         "machine, so CPU per frame is the figure to read")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help="JSON output")
     ap.add_argument("--role", choices=["gui", "generic"], help=argparse.SUPPRESS)
     ap.add_argument("--robots", help=argparse.SUPPRESS)  # the watcher's DOMAIN/NS,...
@@ -571,7 +580,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     import tempfile
 
     with tempfile.TemporaryDirectory(prefix="gui_bench_") as tmp:
-        robots = Robots(args.robots_n, Path(tmp))
+        robots = Robots(args.robots_n, Path(tmp), lockstep=args.lockstep)
         probe: Probe | None = None
         try:
             robots.wait_up(180)
