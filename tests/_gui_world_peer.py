@@ -5,7 +5,9 @@ namespace, ``odom`` (nav_msgs/Odometry, the robot at (x, -1) facing +y) and
 ``ground_truth/robot`` (the same pose 0.1 m further along x), ``ball/estimate``
 (PointStamped: straight ahead, 1 m away) and ``point`` (geometry_msgs/Point whose ``x``
 counts up, ``y`` = the given x), logs ``peer T says N`` at INFO every 0.2 s and a
-``<ns>/world_peer: battery`` WARN status on /diagnostics. Prints ``ready``; runs until SIGTERM.
+``<ns>/world_peer: battery`` WARN status on /diagnostics; once, latched (transient local),
+``motion/state`` (std_msgs/String ``--motion``, default ``walk``), as a motion arbiter says
+which motion owns the joints. Prints ``ready``; runs until SIGTERM.
 """
 
 from __future__ import annotations
@@ -24,11 +26,14 @@ def main() -> int:
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     from geometry_msgs.msg import Point, PointStamped, PoseStamped
     from nav_msgs.msg import Odometry
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from std_msgs.msg import String
 
     parser = argparse.ArgumentParser()
     parser.add_argument("--namespace", default="/robot")
     parser.add_argument("--x", type=float, default=0.0)
     parser.add_argument("--token", default="hello")
+    parser.add_argument("--motion", default="walk")
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt))
     context = Context()
@@ -39,6 +44,9 @@ def main() -> int:
     ball = node.create_publisher(PointStamped, "ball/estimate", 10)
     point = node.create_publisher(Point, "point", 10)
     diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+    motion = node.create_publisher(String, "motion/state", QoSProfile(
+        depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    motion.publish(String(data=args.motion))  # once: who looks later gets it all the same
     count = 0
     half = math.sqrt(0.5)
 

@@ -73,13 +73,15 @@ def test_world_model_places_each_robot_and_its_ball_from_odometry(tmp_path: Path
             states = wait_for(
                 lambda: (s := model.states()) and all(
                     x.pose is not None and x.ball is not None and x.true_pose is not None
-                    for x in s) and s,
-                what="poses and balls of both robots", alive=[*a, *b])
+                    and x.motion for x in s) and s,
+                what="poses, balls and motion states of both robots", alive=[*a, *b])
         finally:
             model.deactivate()
         alpha, beta = states
         assert alpha.colour != beta.colour
         assert alpha.pose_source == beta.pose_source == "odom"
+        # Published once before the view existed: latched, so the view learns it.
+        assert alpha.motion == beta.motion == "walk"
         # Odometry is anchored where it first met ground truth (0.1 m further along x).
         assert alpha.pose is not None and beta.pose is not None
         assert alpha.pose.x == pytest.approx(1.6, abs=1e-6)
@@ -179,8 +181,8 @@ def _add_view(browser, title: str, robot_option: str) -> None:
 def _robot_attrs(browser, key: str) -> dict[str, str] | None:
     return browser.execute_script(  # type: ignore[no-any-return]
         "const g = document.querySelector(`[data-testid='world-robot-${arguments[0]}']`);"
-        "return g ? {x: g.dataset.x, colour: g.dataset.colour, source: g.dataset.source}"
-        " : null;", key)
+        "return g && g.dataset.motion ? {x: g.dataset.x, colour: g.dataset.colour,"
+        " source: g.dataset.source, motion: g.dataset.motion} : null;", key)
 
 
 def test_world_view_shows_two_robots_in_two_colours(tmp_path: Path, browser) -> None:
@@ -200,6 +202,7 @@ def test_world_view_shows_two_robots_in_two_colours(tmp_path: Path, browser) -> 
         assert float(ra["x"]) == pytest.approx(1.1, abs=1e-3)
         assert float(rb["x"]) == pytest.approx(-2.9, abs=1e-3)
         assert ra["source"] == rb["source"] == "odom"
+        assert ra["motion"] == rb["motion"] == "walk"
         wait_for(lambda: present(browser, f"world-ball-{ka}") and present(
             browser, "world-team-ball") and present(browser, f"world-truth-{kb}"),
             what="balls, team ball and ground truth", alive=alive)

@@ -6,7 +6,10 @@ Per robot it follows (relative to the robot's namespace):
 * ``ball/estimate`` (geometry_msgs/PointStamped, frame ``torso``): the ball model's bearing
   (``x`` yaw, ``y`` pitch, radians) and line-of-sight distance (``z``, metres; 0 = unknown);
 * ``ground_truth/robot``, ``ground_truth/ball`` (PoseStamped, field frame): what a
-  simulation knows to be true, drawn apart from the beliefs so errors show.
+  simulation knows to be true, drawn apart from the beliefs so errors show;
+* ``motion/state`` (std_msgs/String, latched): which motion owns the joints (``stand``,
+  ``walk``, ``kick``, ``getup``, ``fallen``, as humanoid_sim's motion arbiter says), so a
+  robot that stopped, fell or is kicking says so on the field.
 
 Odometry starts where the robot started, not at the field's origin, so its frame is anchored
 where it agrees with ground truth the first time the view has both (a simulation: drift
@@ -29,6 +32,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from rclpy.qos import DurabilityPolicy, QoSProfile
+
 from ..hub import Feed, Hub
 from ..robots import RobotId
 
@@ -44,7 +49,9 @@ FIELD = {
 FRESH_S = 1.0
 #: Distinct colours, one per robot in the order robots are bound.
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
-TOPICS = ("odom", "ball/estimate", "ground_truth/robot", "ground_truth/ball")
+TOPICS = ("odom", "ball/estimate", "ground_truth/robot", "ground_truth/ball", "motion/state")
+#: Latched state topics: a view opened later still learns the current state at once.
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +76,8 @@ class RobotState:
     ball_age_s: float | None
     true_pose: Pose2D | None
     true_ball: tuple[float, float] | None
+    #: Which motion owns the joints ("" until the robot says).
+    motion: str = ""
 
 
 def yaw_of(q: Any) -> float:
@@ -110,6 +119,7 @@ class _Robot:
         self.ball_heard: float | None = None
         self.true_pose: Pose2D | None = None
         self.true_ball: tuple[float, float] | None = None
+        self.motion = ""
         self.feeds: list[Feed] = []
 
     def anchor_if_possible(self) -> None:
@@ -142,6 +152,7 @@ class WorldModel:
         """Subscribe to every robot's poses and ball at the view's rate (idempotent)."""
         from geometry_msgs.msg import PointStamped, PoseStamped
         from nav_msgs.msg import Odometry
+        from std_msgs.msg import String
 
         if self.active:
             return
@@ -157,6 +168,10 @@ class WorldModel:
                                           functools.partial(handler, r.robot),
                                           rate_hz=self.rate_hz)
                        for topic, msg_type, handler in handlers]
+            # Every change of state, not a rate: a kick lasts a second or two.
+            r.feeds.append(self.hub.subscribe(r.robot, "motion/state", String,
+                                              functools.partial(self.on_motion, r.robot),
+                                              qos=LATCHED))
 
     def deactivate(self) -> None:
         """Close every feed: the robots stop sending to this view."""
@@ -200,6 +215,10 @@ class WorldModel:
         with self._lock:
             self._get(robot).true_ball = (msg.pose.position.x, msg.pose.position.y)
 
+    def on_motion(self, robot: RobotId, msg: Any) -> None:
+        with self._lock:
+            self._get(robot).motion = msg.data
+
     # -- what the view reads -------------------------------------------------------------
 
     def states(self) -> list[RobotState]:
@@ -221,7 +240,7 @@ class WorldModel:
                     ball = (b.x, b.y)
                 age = None if r.ball_heard is None else now - r.ball_heard
                 out.append(RobotState(r.robot, r.colour, pose, source, ball, age,
-                                      r.true_pose, r.true_ball))
+                                      r.true_pose, r.true_ball, r.motion))
         return out
 
     def team_ball(self, states: list[RobotState] | None = None) -> tuple[float, float] | None:

@@ -74,11 +74,13 @@ def _robot_svg(s: RobotState) -> str:
         x, y = _pt(s.pose.x, s.pose.y)
         hx, hy = _pt(s.pose.x + 0.3 * math.cos(s.pose.yaw), s.pose.y + 0.3 * math.sin(s.pose.yaw))
         title = (f"{s.robot.label}: x {s.pose.x:.2f} m, y {s.pose.y:.2f} m, "
-                 f"heading {math.degrees(s.pose.yaw):.0f}° ({s.pose_source})")
+                 f"heading {math.degrees(s.pose.yaw):.0f}° ({s.pose_source})"
+                 + (f", {s.motion}" if s.motion else ""))
         out.append(
             f'<g data-testid="world-robot-{key}" data-x="{s.pose.x:.3f}" '
             f'data-y="{s.pose.y:.3f}" data-colour="{s.colour}" '
-            f'data-source="{escape(s.pose_source, quote=True)}">'
+            f'data-source="{escape(s.pose_source, quote=True)}" '
+            f'data-motion="{escape(s.motion, quote=True)}">'
             f'<title>{escape(title)}</title>'
             f'<circle cx="{x}" cy="{y}" r="8" fill="{s.colour}" stroke="white"/>'
             f'<line x1="{x}" y1="{y}" x2="{hx}" y2="{hy}" stroke="{s.colour}" '
@@ -119,8 +121,9 @@ def legend(states: list[RobotState]) -> str:
                  f"x {s.pose.x:.2f}, y {s.pose.y:.2f} ({s.pose_source})")
         ball = ("" if s.ball is None or s.ball_age_s is None else
                 f"; ball {s.ball[0]:.2f}, {s.ball[1]:.2f} ({s.ball_age_s:.1f} s ago)")
+        motion = f" [{s.motion}]" if s.motion else ""
         rows.append(f'<span style="color:{s.colour}">●</span> '
-                    f"{escape(s.robot.label)}: {escape(where)}{escape(ball)}")
+                    f"{escape(s.robot.label)}{escape(motion)}: {escape(where)}{escape(ball)}")
     return "<br>".join(rows) or "no robots"
 
 
