@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 from selenium.webdriver.common.by import By
+from selenium.webdriver.common.keys import Keys
 
 from efficient_comm.testing import isolated_domain_id
 from robot_recorder import read_messages
@@ -39,6 +40,21 @@ def _count(bag: Path) -> dict[str, int]:
     return counts
 
 
+def _press(browser, testid: str) -> None:
+    """Click ``testid`` in the middle of the screen (scrolled to the top edge, the page's
+    fixed header would be over it)."""
+    element = by_testid(browser, testid)
+    browser.execute_script("arguments[0].scrollIntoView({block: 'center'})", element)
+    element.click()
+
+
+def _ticked(browser, testid: str) -> bool:
+    try:
+        return by_testid(browser, testid).get_attribute("aria-checked") == "true"
+    except Exception:  # not rendered (yet)
+        return False
+
+
 def _add_recorder_view(browser, alive) -> None:
     """What the KLM scenario does: view select > Recorder, add (robot: the team)."""
     choose(browser, "add-kind", "Recorder")
@@ -67,7 +83,7 @@ def test_a_recording_started_in_the_browser_writes_a_bag(tmp_path: Path, browser
         if field.tag_name != "input":  # Quasar puts the attributes on the native input
             field = field.find_element(By.TAG_NAME, "input")
         field.send_keys(str(bag))
-        click(browser, f"recorder-start-{key}")
+        _press(browser, f"recorder-start-{key}")
         wait_for(lambda: "recording into" in text_of(browser, f"recorder-result-{key}"),
                  what="the start answer", alive=alive)
         wait_for(lambda: text_of(browser, f"recorder-state-{key}") == "recording",
@@ -80,7 +96,7 @@ def test_a_recording_started_in_the_browser_writes_a_bag(tmp_path: Path, browser
                  and "joint_states" in text_of(browser, f"recorder-topics-{key}"),
                  what="the recorded topics", alive=alive)
         screenshot(browser, "recorder_view_recording")
-        click(browser, f"recorder-stop-{key}")
+        _press(browser, f"recorder-stop-{key}")
         wait_for(lambda: "stopped, bag" in text_of(browser, f"recorder-result-{key}"),
                  what="the stop answer", alive=alive)
         wait_for(lambda: text_of(browser, f"recorder-state-{key}") == "idle",
@@ -90,14 +106,38 @@ def test_a_recording_started_in_the_browser_writes_a_bag(tmp_path: Path, browser
         assert counts.get("/rb/joint_states", 0) > 0, counts
         assert sum(counts.values()) > 0
 
+        # The topic selection editor: the robot's topics, ticked as recorded; a bad option
+        # is refused with robot_recorder's reason; a newly ticked topic is recorded.
+        _press(browser, f"recorder-editor-{key}")
+        wait_for(lambda: _ticked(browser, f"recorder-pick-{key}-joint_states"),
+                 what="joint_states ticked", alive=alive)
+        stats = f"recorder-pick-{key}-efficient_comm/stats"
+        assert not _ticked(browser, stats)
+        entries = by_testid(browser, f"recorder-entries-{key}")
+        if entries.tag_name != "textarea":
+            entries = entries.find_element(By.TAG_NAME, "textarea")
+        entries.send_keys("fall/state every_nth=2.5")
+        _press(browser, f"recorder-apply-{key}")
+        wait_for(lambda: "every_nth has an invalid value '2.5'"
+                 in text_of(browser, f"recorder-result-{key}"), what="the refusal",
+                 alive=alive)
+        entries.send_keys(Keys.CONTROL, "a")  # clear() would bypass the page's input event
+        entries.send_keys(Keys.DELETE)
+        _press(browser, stats)
+        _press(browser, f"recorder-apply-{key}")
+        wait_for(lambda: "topic selection applied" in text_of(browser, f"recorder-result-{key}"),
+                 what="the selection applied", alive=alive)
+        wait_for(lambda: "efficient_comm/stats" in text_of(
+            browser, f"recorder-topics-{key}").split(), what="the stats recorded", alive=alive)
+
         # The KLM scenario: one click records every robot of the team.
         before = set(bags.iterdir())
-        click(browser, "recorder-start-all")
+        _press(browser, "recorder-start-all")
         wait_for(lambda: "recording into" in text_of(browser, "recorder-all-result"),
                  what="start all robots", alive=alive)
         wait_for(lambda: text_of(browser, f"recorder-state-{key}") == "recording",
                  what="recording", alive=alive)
-        click(browser, "recorder-stop-all")
+        _press(browser, "recorder-stop-all")
         wait_for(lambda: "stopped, bag" in text_of(browser, "recorder-all-result"),
                  what="stop all robots", alive=alive)
         (team_bag,) = set(bags.iterdir()) - before

@@ -109,7 +109,7 @@ class _RecorderPanel:
                 f"data-testid=recorder-result-{key}")
             self.table = ui.table(columns=TOPIC_COLUMNS, rows=[], row_key="name",
                                   pagination=0).props(
-                f"dense flat data-testid=recorder-topics-{key}").classes("w-full")
+                f"dense flat hide-pagination data-testid=recorder-topics-{key}").classes("w-full")
             with ui.expansion("topic selection", on_value_change=self._opened).props(
                     f"dense data-testid=recorder-editor-{key}").classes("w-full"):
                 self.picks = ui.column().classes("gap-0").props(
@@ -146,9 +146,10 @@ class _RecorderPanel:
 
     def show(self, text: str, *, ok: bool) -> None:
         self.result.text = text
+        # Shown in place, under the recorder it concerns (a notification would cover
+        # the controls below it for seconds).
         self.result.classes(replace="text-caption " + ("text-positive" if ok
                                                        else "text-negative"))
-        ui.notify(text, type="positive" if ok else "negative")
 
     async def act(self, action: str) -> None:
         bag = str(self.bag_name.value or "")
@@ -279,17 +280,15 @@ def build(ctx: ViewContext) -> None:
                 ctx.policy.check_write(ctx.token)  # each model checks again
                 results = await run.io_bound(team.for_all, action) or []
             except DebugGuiError as exc:
-                results = []
-                ui.notify(str(exc), type="negative")
+                all_result.clear()
+                with all_result:
+                    ui.label(str(exc)).classes("text-negative")
+                return
             all_result.clear()
             with all_result:
                 for result in results:
                     ui.label(result.text).classes(
                         "text-positive" if result.success else "text-negative")
-            failed = sum(not r.success for r in results)
-            if results:
-                ui.notify(f"{action}: {len(results) - failed} of {len(results)} recorders "
-                          "did it", type="negative" if failed else "positive")
 
         start_all.on_click(lambda: for_all("start"))
         stop_all.on_click(lambda: for_all("stop"))
