@@ -225,13 +225,6 @@ class _Tab:
         self.layout = self.layout.adding(panel)
         self._render_binding()
         self._add_panel(panel)
-        # The new panel comes last, often below the fold: bring it into sight (below the
-        # fixed header) once the browser rendered it, so the next click is on it.
-        self.client.run_javascript(
-            f"(function f(n) {{ const e = getHtmlElement({self.views[-1].expansion.id}); "
-            "if (e) { e.style.scrollMarginTop = '5rem'; "
-            "e.scrollIntoView({behavior: 'smooth', block: 'start'}); } "
-            "else if (n) setTimeout(() => f(n - 1), 50); })(40);")
 
     def _clone(self, panel: Panel, key: str | None) -> None:
         if key:
