@@ -130,8 +130,9 @@ class _RecorderPanel:
                 button.tooltip(READ_ONLY)
 
     def update(self, state: RecorderState) -> None:
-        self.badge.text = state.state
-        self.badge.props(f"color={_STATE_COLOURS.get(state.state, 'grey-7')}")
+        if self.badge.text != state.state:  # props() would resend the badge every poll
+            self.badge.text = state.state
+            self.badge.props(f"color={_STATE_COLOURS.get(state.state, 'grey-7')}")
         if state.statuses:
             self.figures.text = figures(state)
         where = f"bag {state.bag}" if state.bag else "no bag yet"
