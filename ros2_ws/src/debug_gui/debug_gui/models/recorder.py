@@ -43,7 +43,6 @@ STATES = {0: "idle", 1: "recording", 2: "failed"}
 MAX_BAG_CHARS = 4096
 #: Most topic entries one selection may hold.
 MAX_ENTRIES = 512
-ACTIONS = ("start", "stop", "split", "snapshot", "set_topics")
 
 
 @dataclass(frozen=True, slots=True)
@@ -432,6 +431,6 @@ class RecorderTeam:
 
 
 __all__ = [
-    "ACTIONS", "ControlResult", "RecorderModel", "RecorderState", "RecorderTeam",
+    "ControlResult", "RecorderModel", "RecorderState", "RecorderTeam",
     "TopicFigures", "check_bag", "format_entry", "parse_entries", "relative",
 ]
