@@ -175,6 +175,8 @@ def parse(raw: object, kind: int) -> ParameterValue:
     InvalidInput, with a message saying what was expected, for anything else.
     """
     what = TYPE_NAMES.get(kind, str(kind))
+    if raw is None:
+        raise InvalidInput(f"expected a{_n(what)} {what}, got nothing")
     if kind == RosType.PARAMETER_STRING:
         if not isinstance(raw, str):
             raise InvalidInput(f"expected a string, got {_short(raw)}")
