@@ -153,6 +153,7 @@ def test_our_components_in_a_container(tmp_path: Path) -> None:
         model = _model(hub, robot)
         wait_for(lambda: {"/demo/tracker", "/demo/camera"} <= set(model.nodes()),
                  what="the components' parameter services", alive=alive)
+        assert "/debug_gui" not in model.nodes()  # the GUI's own node is no robot's
         model.activate()
 
         camera = {p.name: p for p in model.load("/demo/camera")}

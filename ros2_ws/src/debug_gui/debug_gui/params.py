@@ -314,12 +314,11 @@ class SetOutcome:
 
 
 def parameter_nodes(hub: Hub, robot: RobotId) -> list[str]:
-    """The robot's nodes that offer parameter services (fully qualified, sorted)."""
-    suffix = "/list_parameters"
-    return sorted(
-        name[: -len(suffix)] for name, types in hub.services(robot).items()
-        if name.endswith(suffix) and _LIST_SERVICE_TYPE in types
-    )
+    """The robot's nodes that offer parameter services (fully qualified, sorted; the GUI's
+    own node left out)."""
+    services = hub.services(robot)
+    return [node for node in hub.nodes(robot)
+            if _LIST_SERVICE_TYPE in services.get(f"{node}/list_parameters", [])]
 
 
 def list_names(hub: Hub, robot: RobotId, node: str, *,
