@@ -23,6 +23,7 @@ from efficient_comm.testing import isolated_domain_id, ros_env, unique_topic
 from ._cli import ros2
 from ._gui import Process, started, wait_for
 from ._ros import executable
+from ._ros import peer as peer_node
 from .test_gui_foxglove import Robot
 from .test_processes import DEMO_YAML
 
@@ -117,8 +118,15 @@ def test_a_plain_rclpy_node_listed_described_set_vetoed_and_followed(peer: Robot
         assert elsewhere is not None and not elsewhere.here
         assert elsewhere.message == "changed elsewhere to 9"
 
-        model.deactivate()
-        assert not model.active
+        # Hidden, the view holds no subscription: seen from another participant.
+        with peer_node(peer.domain) as other:
+            def readers() -> int:
+                return other.node.count_subscribers("/parameter_events")
+
+            assert other.wait_for(lambda: readers() == 1), readers()
+            model.deactivate()
+            assert not model.active
+            assert other.wait_for(lambda: readers() == 0), readers()
 
 
 def test_without_the_token_the_model_refuses_to_write(peer: Robot) -> None:
