@@ -39,7 +39,7 @@ def peer() -> Iterator[Robot]:
 
 def _read(hub: Hub, robot: RobotId, node: str, name: str) -> object:
     """The node's value, asked over its get_parameters service."""
-    return params.python_value(params.get(hub, robot, node, [name])[name])
+    return params.python_value(params.get(hub, robot, node, names=[name])[name])
 
 
 def _model(hub: Hub, robot: RobotId, *, token: bool = True) -> ParametersModel:

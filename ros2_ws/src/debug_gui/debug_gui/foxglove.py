@@ -303,7 +303,7 @@ class _Bridge(ServerListener):
 
     def _get(self, robot: RobotId, node: str, names: list[str] | None) -> list[Parameter]:
         """Named parameters of ``node``, or all of them (``names=None``, sooner given up)."""
-        return self._published(robot, node, params.get(self._hub, robot, node, names))
+        return self._published(robot, node, params.get(self._hub, robot, node, names=names))
 
     def _published(self, robot: RobotId, node: str,
                    values: dict[str, ParameterValue]) -> list[Parameter]:

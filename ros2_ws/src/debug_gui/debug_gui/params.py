@@ -339,7 +339,7 @@ def get_values(hub: Hub, robot: RobotId, node: str, names: list[str], *,
             if value.type != RosType.PARAMETER_NOT_SET}
 
 
-def get(hub: Hub, robot: RobotId, node: str, names: list[str] | None = None, *,
+def get(hub: Hub, robot: RobotId, node: str, *, names: list[str] | None = None,
         timeout_s: float | None = None) -> dict[str, ParameterValue]:
     """Named parameters of ``node``, or all of them (``names=None``, sooner given up)."""
     wait = timeout_s if timeout_s is not None else (
@@ -369,7 +369,7 @@ def get_many(hub: Hub, targets: Iterable[tuple[RobotId, str]]
         return list(pool.map(one, nodes))
 
 
-def describe(hub: Hub, robot: RobotId, node: str, names: list[str] | None = None, *,
+def describe(hub: Hub, robot: RobotId, node: str, *, names: list[str] | None = None,
              timeout_s: float = CALL_TIMEOUT_S) -> list[Described]:
     """The node's parameters (all, or the named ones) with values and descriptors, by name."""
     if names is None:

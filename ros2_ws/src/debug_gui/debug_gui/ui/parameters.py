@@ -109,6 +109,8 @@ def build(ctx: ViewContext) -> None:
             return
         raw = row.widget.value
         outcome = await run.io_bound(model.set, name, raw)
+        if rows.get(name) is not row:
+            return  # redrawn meanwhile (another node, a filter): the new row shows it
         _show_outcome(row, outcome)
         now = model.value(name)
         if now is not None:  # the node's value: the new one, or the old after a refusal
