@@ -1,4 +1,5 @@
-"""A plain rclpy robot (no efficient_comm) for the Foxglove endpoint's tests.
+"""A plain rclpy robot (no efficient_comm) for the Foxglove endpoint's and the parameters
+view's tests.
 
 ``python tests/_foxglove_peer.py NAMESPACE TOPIC [throttled]`` runs a node ``detector`` in
 NAMESPACE that publishes std_msgs/String ``hello N`` on TOPIC (relative: under the
@@ -7,9 +8,12 @@ wants it, printing ``wants True``/``wants False`` as that changes),
 publishes ``efficient_comm/stats`` (so the GUI's Hub sees a robot) and, once at the start,
 a transient-local (latched) String on TOPIC_latched, declares a double
 parameter ``threshold`` (0.5; negative values are vetoed), offers ``~/check``
-(efficient_comm_interfaces/srv/UnloadComponent: success when the id is 7) and prints, from
+(efficient_comm_interfaces/srv/UnloadComponent: success when the id is 7), declares
+parameters of other kinds with descriptors (``count``: integer 0..10; ``gain``: double
+0.0..2.0; ``label``: read-only string; ``enabled``: boolean; ``ids``: integer array;
+``mode``: string, ``fast`` or ``slow``, anything else vetoed) and prints, from
 the robot's side, what the tests check: ``subscribers N`` whenever the number of
-subscriptions to TOPIC changes and ``threshold X`` whenever the parameter changes. It
+subscriptions to TOPIC changes and ``NAME VALUE`` whenever a parameter changes. It
 prints ``ready`` once all of that exists.
 """
 
@@ -19,7 +23,12 @@ import contextlib
 import sys
 
 import rclpy
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -36,6 +45,15 @@ def main() -> None:
     rclpy.init()
     node = Node("detector", namespace=namespace)
     node.declare_parameter("threshold", 0.5)
+    node.declare_parameter("count", 3, ParameterDescriptor(
+        description="how many", integer_range=[IntegerRange(from_value=0, to_value=10, step=1)]))
+    node.declare_parameter("gain", 1.0, ParameterDescriptor(
+        floating_point_range=[FloatingPointRange(from_value=0.0, to_value=2.0, step=0.0)]))
+    node.declare_parameter("label", "peer", ParameterDescriptor(read_only=True))
+    node.declare_parameter("enabled", True)
+    node.declare_parameter("ids", [1, 2, 3])
+    node.declare_parameter("mode", "fast", ParameterDescriptor(
+        additional_constraints="fast or slow"))
     throttled = ThrottledPublisher(StandaloneHandle(node), String, topic) \
         if sys.argv[3:] == ["throttled"] else None
     plain = node.create_publisher(String, topic, 10) if throttled is None else None
@@ -52,6 +70,9 @@ def main() -> None:
             if param.name == "threshold" and float(param.value) < 0:
                 return SetParametersResult(successful=False,
                                            reason="threshold must not be negative")
+            if param.name == "mode" and param.value not in ("fast", "slow"):
+                return SetParametersResult(successful=False,
+                                           reason=f"mode {param.value!r} is neither fast nor slow")
         for param in params:
             print(f"{param.name} {param.value}", flush=True)
         return SetParametersResult(successful=True)

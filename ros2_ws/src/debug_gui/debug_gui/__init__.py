@@ -8,6 +8,8 @@ Where things live (ARCHITECTURE.md, "debug_gui", has the why):
 * ``models/``   one module per view kind, the view's data (tested without a browser);
 * ``ui/``       NiceGUI: the view kinds' registry, the shell (binding, clone, team layout,
                 layouts), one module per view kind;
+* ``params``    the rcl_interfaces parameter client (the parameters view and the Foxglove
+                endpoint share it);
 * ``security``  bind address, token, validation; ``server`` the ``debug_gui`` command;
   ``demo`` several simulated robots and the GUI.
 

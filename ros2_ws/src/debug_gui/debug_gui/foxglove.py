@@ -23,7 +23,6 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -42,10 +41,8 @@ from foxglove.websocket import (
     StatusLevel,
     WebSocketServer,
 )
-from rcl_interfaces.msg import Parameter as RosParameter
 from rcl_interfaces.msg import ParameterEvent, ParameterValue
 from rcl_interfaces.msg import ParameterType as RosType
-from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
 from rclpy.serialization import deserialize_message, serialize_message
 
 from efficient_comm import matching_qos
@@ -57,8 +54,9 @@ from rosbag2_layout import (
     service_definitions,
 )
 
+from . import params
 from ._foxglove_gate import Gate
-from .errors import AccessDenied, CallFailed, DebugGuiError, InvalidInput, RobotUnavailable
+from .errors import AccessDenied, DebugGuiError, InvalidInput, RobotUnavailable
 from .hub import Feed, Hub
 from .robots import RobotId
 from .security import AccessPolicy, check_port
@@ -70,13 +68,6 @@ DEFAULT_PORT = 8765  # the port Foxglove's "open connection" dialog proposes
 _CDR = "cdr"
 _ROS2MSG = "ros2msg"
 _PARAM_SEP = "."
-_PARAMETER_EVENTS = "/parameter_events"
-#: Per node when a viewer asks for every parameter: a node that hangs must not stall it all.
-_LIST_TIMEOUT_S = 3.0
-#: For the parameters a viewer names (and sets): a loaded robot answers late, not never.
-_CALL_TIMEOUT_S = 5.0
-#: Nodes asked at once for a get of every parameter.
-_PARALLEL_GETS = 16
 
 
 @dataclass
@@ -111,69 +102,23 @@ class _Naming:
 
 def _to_foxglove(name: str, value: ParameterValue) -> Parameter:
     """A ROS parameter value as the protocol carries it (type hints where JSON is ambiguous)."""
-    kind = value.type
-    if kind == RosType.PARAMETER_BOOL:
-        return Parameter(name, value=bool(value.bool_value))
-    if kind == RosType.PARAMETER_INTEGER:
-        return Parameter(name, value=int(value.integer_value))
+    kind, plain = value.type, params.python_value(value)
     if kind == RosType.PARAMETER_DOUBLE:
-        return Parameter(name, value=float(value.double_value), type=ParameterType.Float64)
-    if kind == RosType.PARAMETER_STRING:
-        return Parameter(name, value=str(value.string_value))
+        return Parameter(name, value=plain, type=ParameterType.Float64)
     if kind == RosType.PARAMETER_BYTE_ARRAY:
-        return Parameter(name, value=bytes(b[0] if isinstance(b, bytes) else b
-                                           for b in value.byte_array_value),
-                         type=ParameterType.ByteArray)
-    if kind == RosType.PARAMETER_BOOL_ARRAY:
-        return Parameter(name, value=[bool(v) for v in value.bool_array_value])
-    if kind == RosType.PARAMETER_INTEGER_ARRAY:
-        return Parameter(name, value=[int(v) for v in value.integer_array_value])
+        return Parameter(name, value=plain, type=ParameterType.ByteArray)
     if kind == RosType.PARAMETER_DOUBLE_ARRAY:
-        return Parameter(name, value=[float(v) for v in value.double_array_value],
-                         type=ParameterType.Float64Array)
-    if kind == RosType.PARAMETER_STRING_ARRAY:
-        return Parameter(name, value=list(value.string_array_value))
-    return Parameter(name)
+        return Parameter(name, value=plain, type=ParameterType.Float64Array)
+    if plain is None:
+        return Parameter(name)
+    return Parameter(name, value=plain)
 
 
 def _to_ros(value: object, hint: ParameterType | None, current: int) -> ParameterValue:
-    """A viewer's value as a ROS ParameterValue of the parameter's current type.
-
-    JSON cannot tell 2 from 2.0, so a whole number sent for a double parameter becomes a
-    double (as foxglove_bridge does with its Float64 hint); anything else that does not fit
-    the type is refused rather than changing the parameter's type behind the user's back.
-    """
-    out = ParameterValue()
-    wants_double = current == RosType.PARAMETER_DOUBLE or hint == ParameterType.Float64
-    wants_doubles = (current == RosType.PARAMETER_DOUBLE_ARRAY
-                     or hint == ParameterType.Float64Array)
-    if isinstance(value, bool):
-        out.type, out.bool_value = RosType.PARAMETER_BOOL, value
-    elif isinstance(value, int) and wants_double:
-        out.type, out.double_value = RosType.PARAMETER_DOUBLE, float(value)
-    elif isinstance(value, int):
-        out.type, out.integer_value = RosType.PARAMETER_INTEGER, value
-    elif isinstance(value, float):
-        out.type, out.double_value = RosType.PARAMETER_DOUBLE, value
-    elif isinstance(value, str):
-        out.type, out.string_value = RosType.PARAMETER_STRING, value
-    elif isinstance(value, bytes):
-        out.type, out.byte_array_value = RosType.PARAMETER_BYTE_ARRAY, [bytes([b]) for b in value]
-    elif isinstance(value, list) and all(isinstance(v, bool) for v in value):
-        out.type, out.bool_array_value = RosType.PARAMETER_BOOL_ARRAY, value
-    elif isinstance(value, list) and all(isinstance(v, (int, float)) for v in value):
-        if wants_doubles or any(isinstance(v, float) for v in value):
-            out.type = RosType.PARAMETER_DOUBLE_ARRAY
-            out.double_array_value = [float(v) for v in value]
-        else:
-            out.type, out.integer_array_value = RosType.PARAMETER_INTEGER_ARRAY, value
-    elif isinstance(value, list) and all(isinstance(v, str) for v in value):
-        out.type, out.string_array_value = RosType.PARAMETER_STRING_ARRAY, value
-    else:
-        raise InvalidInput(f"unsupported parameter value {value!r}")
-    if current not in (RosType.PARAMETER_NOT_SET, out.type):
-        raise InvalidInput(f"value {value!r} does not fit the parameter's type")
-    return out
+    """A viewer's value as a ROS ParameterValue of the parameter's current type (the
+    protocol's Float64 hints say a whole number is meant as a double)."""
+    return params.to_ros(value, current=current,
+                         doubles=hint in (ParameterType.Float64, ParameterType.Float64Array))
 
 
 class _Bridge(ServerListener):
@@ -358,37 +303,19 @@ class _Bridge(ServerListener):
 
     def _get(self, robot: RobotId, node: str, names: list[str] | None) -> list[Parameter]:
         """Named parameters of ``node``, or all of them (``names=None``, sooner given up)."""
-        timeout_s = _CALL_TIMEOUT_S if names is not None else _LIST_TIMEOUT_S
-        if names is None:
-            listed = self._hub.call(robot, f"{node}/list_parameters", ListParameters,
-                                    ListParameters.Request(), timeout_s=timeout_s)
-            names = list(listed.result.names)
-        if not names:
-            return []
-        got = self._hub.call(robot, f"{node}/get_parameters", GetParameters,
-                             GetParameters.Request(names=names), timeout_s=timeout_s)
+        return self._published(robot, node, params.get(self._hub, robot, node, names=names))
+
+    def _published(self, robot: RobotId, node: str,
+                   values: dict[str, ParameterValue]) -> list[Parameter]:
         prefix = self._naming.public(robot, node) + _PARAM_SEP
-        return [_to_foxglove(prefix + name, value)
-                for name, value in zip(names, got.values, strict=False)
-                if value.type != RosType.PARAMETER_NOT_SET]
+        return [_to_foxglove(prefix + name, value) for name, value in values.items()]
 
     def _get_all(self) -> list[Parameter]:
-        """Every node's parameters, the nodes asked in parallel (as foxglove_bridge does):
-        one after the other, each new service client's discovery adds up to seconds."""
+        """Every node's parameters, the nodes asked in parallel."""
         nodes = [(robot, node) for robot in self._hub.robots()
                  for node in self._hub.nodes(robot)]
-
-        def get(target: tuple[RobotId, str]) -> list[Parameter]:
-            try:
-                return self._get(*target, None)
-            except (RobotUnavailable, CallFailed):
-                return []  # a node without parameter services, or one that hangs
-
-        if not nodes:
-            return []
-        with ThreadPoolExecutor(max_workers=min(len(nodes), _PARALLEL_GETS),
-                                thread_name_prefix="foxglove-params") as pool:
-            return [p for params in pool.map(get, nodes) for p in params]
+        return [p for robot, node, values in params.get_many(self._hub, nodes)
+                for p in self._published(robot, node, values)]
 
     def introduce(self, nonce: str, may_write: bool) -> None:
         """The gate's next connection will ask for parameters with this request id."""
@@ -448,23 +375,19 @@ class _Bridge(ServerListener):
     def _set(self, robot: RobotId, node: str,
              items: list[tuple[str, Parameter]]) -> list[Parameter]:
         names = [name for name, _ in items]
-        current = self._hub.call(robot, f"{node}/get_parameters", GetParameters,
-                                 GetParameters.Request(names=names), timeout_s=_CALL_TIMEOUT_S)
-        request = SetParameters.Request()
-        for (name, parameter), now in zip(items, current.values, strict=False):
+        current = params.get_values(self._hub, robot, node, names)
+        values: dict[str, ParameterValue] = {}
+        for name, parameter in items:
+            now = current.get(name)
             try:
-                value = _to_ros(parameter.get_value(), parameter.type, now.type)
+                values[name] = _to_ros(parameter.get_value(), parameter.type,
+                                       now.type if now is not None else RosType.PARAMETER_NOT_SET)
             except InvalidInput as exc:
                 self._status(f"{parameter.name}: {exc}", StatusLevel.Error)
-                continue
-            request.parameters.append(RosParameter(name=name, value=value))
-        if request.parameters:
-            result = self._hub.call(robot, f"{node}/set_parameters", SetParameters, request,
-                                    timeout_s=_CALL_TIMEOUT_S)
-            for sent, outcome in zip(request.parameters, result.results, strict=False):
-                if not outcome.successful:  # a veto: say why, the value stays as it was
-                    self._status(f"{self._naming.public(robot, node)}{_PARAM_SEP}{sent.name} "
-                                 f"refused: {outcome.reason}", StatusLevel.Error)
+        for outcome in params.set_values(self._hub, robot, node, values):
+            if not outcome.successful:  # a veto: say why, the value stays as it was
+                self._status(f"{self._naming.public(robot, node)}{_PARAM_SEP}{outcome.name} "
+                             f"refused: {outcome.reason}", StatusLevel.Error)
         return self._get(robot, node, names)
 
     def on_parameters_subscribe(self, param_names: list[str]) -> None:
@@ -478,8 +401,8 @@ class _Bridge(ServerListener):
                 continue
         with self._lock:
             for robot in robots - set(self._param_feeds):
-                self._param_feeds[robot] = self._hub.subscribe(
-                    robot, _PARAMETER_EVENTS, ParameterEvent, self._events_of(robot))
+                self._param_feeds[robot] = params.watch(self._hub, robot,
+                                                        self._events_of(robot))
 
     def on_parameters_unsubscribe(self, param_names: list[str]) -> None:
         with self._lock:

@@ -7,6 +7,7 @@ or an undeclared name fails, and on-change callbacks can veto a change by raisin
 
 from __future__ import annotations
 
+import array
 import re
 from collections.abc import Mapping
 from typing import Any, cast
@@ -165,6 +166,13 @@ class LocalParameters:
         self._callbacks.append(callback)
 
 
+def _plain(value: Any) -> Any:
+    """rclpy hands arrays set over the parameter services (``ros2 param set``, a GUI) out as
+    ``array.array``; a component gets a list, as it declared it and as the local store
+    gives it (an ``isinstance(value, list)`` check must not veto a valid change)."""
+    return list(value) if isinstance(value, array.array) else value
+
+
 class RclpyParameters:
     """The same behaviour on a real rclpy node, so ``ros2 param`` sees and sets them."""
 
@@ -175,7 +183,7 @@ class RclpyParameters:
 
     def _on_set(self, params: list[Parameter]) -> SetParametersResult:
         try:
-            _run_callbacks(self._callbacks, {p.name: p.value for p in params})
+            _run_callbacks(self._callbacks, {p.name: _plain(p.value) for p in params})
         except ParameterError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
@@ -198,7 +206,7 @@ class RclpyParameters:
 
     def get(self, name: str) -> ParameterValue:
         try:
-            return cast(ParameterValue, self._node.get_parameter(name).value)
+            return cast(ParameterValue, _plain(self._node.get_parameter(name).value))
         except ParameterNotDeclaredException:
             raise ParameterError(f"parameter {name!r} is not declared") from None
 

@@ -8,6 +8,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import pytest
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32, String
 
@@ -220,6 +222,24 @@ def test_parameter_edge_cases_agree(backend: str) -> None:
         with pytest.raises(ParameterError):
             node.set_parameter("first", 13)  # the callback raised something else
         assert node.get_parameter("first") == 1 and node.get_parameter("ints") == [1, 2]
+
+
+@pytest.mark.parametrize("dds_backend", ["standalone", "composed"])
+def test_arrays_set_over_the_parameter_services_reach_the_component_as_lists(
+    dds_backend: str,
+) -> None:
+    """``ros2 param set`` (or a GUI) sets through the node's service: rclpy hands the array
+    out as ``array.array``, which compares unequal to the list the component declared."""
+    with harness(dds_backend, Fussy) as h:
+        client = h.client(SetParameters, "/dut/set_parameters")
+        assert h.wait_for(client.service_is_ready)
+        request = SetParameters.Request(
+            parameters=[Parameter("ints", value=[3, 4]).to_parameter_msg()])
+        future = client.call_async(request)
+        assert h.wait_for(future.done)
+        assert future.result().results[0].successful
+        assert h.component.seen[-1] == {"ints": [3, 4]}
+        assert h.handle.get_parameter("ints") == [3, 4]
 
 
 class Labeller:

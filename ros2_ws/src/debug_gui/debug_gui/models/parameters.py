@@ -1,0 +1,190 @@
+"""The parameters view's data: one node's parameters, edited, and kept live (seed Fig. 5.4).
+
+Generic: any node with the standard ``rcl_interfaces`` parameter services (ours, plain rclpy
+or rclcpp ones) through :mod:`debug_gui.params`. :meth:`ParametersModel.load` lists,
+describes and gets a node's parameters; :meth:`ParametersModel.set` validates what the user
+entered against the parameter's type and descriptor, needs the server's token, sends it, and
+records the outcome per parameter: the node's veto reason verbatim, or why it was refused
+before being sent. While active, the model follows ``/parameter_events``, so a change made
+elsewhere (``ros2 param set``, another browser, the node itself) shows up live.
+
+``load`` and ``set`` block on service calls: a UI calls them off its event loop.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+from .. import params
+from ..errors import DebugGuiError, InvalidInput
+from ..hub import Feed, Hub
+from ..robots import RobotId
+from ..security import AccessPolicy, check_name
+
+
+@dataclass(frozen=True, slots=True)
+class Outcome:
+    """The last thing that happened to one parameter, as the view shows it beside it."""
+
+    ok: bool
+    message: str
+    #: Set here (True) or seen changed elsewhere (False, ``ok`` is then True).
+    here: bool = True
+
+
+class ParametersModel:
+    """One robot's parameter nodes and the chosen node's parameters (activate to follow
+    changes made elsewhere, deactivate to stop)."""
+
+    def __init__(self, hub: Hub, robot: RobotId, *, policy: AccessPolicy,
+                 token: str | None) -> None:
+        self.hub = hub
+        self.robot = robot
+        self._policy = policy
+        self._token = token
+        self._lock = threading.Lock()
+        self._feed: Feed | None = None
+        self.node: str | None = None
+        self._params: dict[str, params.Described] = {}
+        self._outcomes: dict[str, Outcome] = {}
+        #: Bumped on every change of what :meth:`parameters` returns (the view redraws then).
+        self.version = 0
+        #: Bumped when parameters appear or go (the view rebuilds its widgets then).
+        self.shape = 0
+        #: A parameter appeared elsewhere: its descriptor needs a describe (:meth:`load`).
+        self.stale = False
+        self._loading = 0
+        self.events = 0
+
+    # -- feed --------------------------------------------------------------------------
+
+    def activate(self) -> None:
+        """Follow ``/parameter_events`` of the robot's domain (idempotent)."""
+        if self._feed is None:
+            self._feed = params.watch(self.hub, self.robot, self.on_event)
+
+    def deactivate(self) -> None:
+        feed, self._feed = self._feed, None
+        if feed is not None:
+            feed.close()
+
+    @property
+    def active(self) -> bool:
+        return self._feed is not None
+
+    def on_event(self, event: Any) -> None:
+        """One ParameterEvent (on the Hub's thread, or from tests): the chosen node's
+        changes update its values; new parameters make the model stale (they need a
+        describe, which cannot be called from here)."""
+        with self._lock:
+            if event.node != self.node:
+                return
+            self.events += 1
+            if self._loading:
+                self.stale = True  # a load in flight may have read the value before this
+            for p in [*event.new_parameters, *event.changed_parameters]:
+                known = self._params.get(p.name)
+                if known is None:
+                    self.stale = True
+                    continue
+                updated = known.with_value(p.value)
+                if updated.value != known.value or updated.type != known.type:
+                    self._params[p.name] = updated
+                    self._outcomes[p.name] = Outcome(
+                        True, f"changed elsewhere to {updated.text}", here=False)
+                    self.version += 1
+            for p in event.deleted_parameters:
+                if self._params.pop(p.name, None) is not None:
+                    self._outcomes.pop(p.name, None)
+                    self.version += 1
+                    self.shape += 1
+
+    # -- what the view reads ------------------------------------------------------------
+
+    def nodes(self, text: str = "") -> list[str]:
+        """The robot's nodes with parameter services, those containing ``text``."""
+        return [n for n in params.parameter_nodes(self.hub, self.robot) if text in n]
+
+    def parameters(self, text: str = "") -> list[params.Described]:
+        """The chosen node's parameters (those whose name contains ``text``), by name."""
+        with self._lock:
+            return [p for name, p in sorted(self._params.items()) if text in name]
+
+    def outcome(self, name: str) -> Outcome | None:
+        with self._lock:
+            return self._outcomes.get(name)
+
+    def value(self, name: str) -> params.Described | None:
+        with self._lock:
+            return self._params.get(name)
+
+    # -- calls (blocking) ---------------------------------------------------------------
+
+    def load(self, node: str) -> list[params.Described]:
+        """Choose ``node`` and read its parameters with their descriptors (blocking)."""
+        check_name(node, what="node name")
+        if not self.robot.contains(node):
+            raise InvalidInput(f"{node} is not a node of {self.robot.label}")
+        with self._lock:
+            if node != self.node:
+                self.node = node
+                self._params, self._outcomes = {}, {}
+                self.version += 1
+                self.shape += 1
+            self.stale = False
+            self._loading += 1
+        try:
+            got = params.describe(self.hub, self.robot, node)
+        finally:
+            with self._lock:
+                self._loading -= 1
+        with self._lock:
+            if node != self.node:
+                return got  # another node was chosen meanwhile
+            fresh = {p.name: p for p in got}
+            if set(fresh) != set(self._params) or any(
+                fresh[n] != self._params[n] for n in fresh
+            ):
+                if set(fresh) != set(self._params):
+                    self.shape += 1
+                self._params = fresh
+                self.version += 1
+        return got
+
+    def set(self, name: str, raw: object) -> Outcome:
+        """Set parameter ``name`` of the chosen node to what the user entered (blocking).
+
+        Never raises for the user's input or the node's answer: the outcome (also kept for
+        :meth:`outcome`) says what happened, a veto in the node's own words.
+        """
+        try:
+            outcome = self._set(name, raw)
+        except DebugGuiError as exc:
+            outcome = Outcome(False, str(exc))
+        with self._lock:
+            if name in self._params:
+                self._outcomes[name] = outcome
+                self.version += 1
+        return outcome
+
+    def _set(self, name: str, raw: object) -> Outcome:
+        self._policy.check_write(self._token)
+        with self._lock:
+            node, param = self.node, self._params.get(name)
+        if node is None or param is None:
+            raise InvalidInput(f"no parameter {name!r} on the chosen node")
+        value = params.parse(raw, param.type)
+        params.check(param, value)
+        (result,) = params.set_values(self.hub, self.robot, node, {name: value})
+        # What the node holds now: the value set, or the old one after a veto.
+        now = params.get_values(self.hub, self.robot, node, [name]).get(name)
+        if now is not None:
+            with self._lock:
+                known = self._params.get(name)
+                if known is not None and node == self.node:
+                    self._params[name] = known.with_value(now)
+        if not result.successful:
+            return Outcome(False, f"refused by {node}: {result.reason or 'no reason given'}")
+        return Outcome(True, f"set to {params.format_value(params.python_value(value))}")
