@@ -50,7 +50,7 @@ def _press(browser, testid: str) -> None:
 
 def _ticked(browser, testid: str) -> bool:
     try:
-        return by_testid(browser, testid).get_attribute("aria-checked") == "true"
+        return bool(by_testid(browser, testid).get_attribute("aria-checked") == "true")
     except Exception:  # not rendered (yet)
         return False
 
