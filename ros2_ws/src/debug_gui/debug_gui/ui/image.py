@@ -139,10 +139,12 @@ async def _stream(websocket: WebSocket, key: str) -> None:
                 with contextlib.suppress(TimeoutError):
                     await asyncio.wait_for(changed.wait(), timeout=GRACE_S)
     except WebSocketDisconnect:
-        pass
+        return  # the browser went (its tab closed, the view hidden): nothing to close
     finally:
         remove()
-    if _STREAMS.get(key) is not model:
+    # The view stopped streaming while the browser is still there: close the socket. The
+    # browser may go at the same moment, and then there is nothing to close either.
+    with contextlib.suppress(WebSocketDisconnect, RuntimeError):
         await websocket.close()
 
 
@@ -164,9 +166,15 @@ def build(ctx: ViewContext) -> None:
         nxt = ui.button("▶").props(f"dense data-testid=image-next-{robot.key}")
         rate = ui.select({r: f"{r} fps" for r in RATES_HZ}, value=int(model.rate_hz),
                          label="rate").props(f"dense data-testid=image-rate-{robot.key}")
+        # Wide enough for its label: a dense field as narrow as its number cuts it off.
         quality = ui.number("JPEG quality", value=80, min=1, max=100, step=5,
-                            precision=0).props(f"dense data-testid=image-quality-{robot.key}")
+                            precision=0).props(
+            f"dense data-testid=image-quality-{robot.key}").classes("min-w-[7.5rem]")
         apply = ui.button("set").props(f"dense data-testid=image-quality-set-{robot.key}")
+        # Why the quality cannot be set (no compressor, no token); text, since a tooltip
+        # would be a new element, which a background task cannot create.
+        quality_note = ui.label("").classes("text-caption").props(
+            f"data-testid=image-quality-note-{robot.key}")
         if not ctx.can_write:
             quality.disable()
             apply.disable()
@@ -232,10 +240,20 @@ def build(ctx: ViewContext) -> None:
             ui.notify(str(exc), type="negative")
 
     async def read_quality() -> None:
+        # A background task: no slot to create elements in, so only existing ones change.
         try:
-            quality.value = await run.io_bound(model.quality)
+            value = await run.io_bound(model.quality)
         except DebugGuiError as exc:  # no compressor on this robot: say so, keep the view
-            quality.tooltip(str(exc))
+            if not client.is_deleted:
+                quality.disable()
+                apply.disable()
+                quality_note.text = f"JPEG quality cannot be set: {exc}"
+            return
+        if not client.is_deleted:
+            quality.value = value
+            quality.enable()
+            apply.enable()
+            quality_note.text = ""
 
     pause.on_click(toggle_pause)
     prev.on_click(lambda: step(-1))
