@@ -16,7 +16,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from nicegui import Client, app, ui
 
@@ -90,6 +90,8 @@ class _Tab:
         self.layout = shell.layout
         self.views: list[_PanelView] = []
         self.robots: list[RobotId] = shell.hub.robots()
+        #: Whether this tab has seen a robot: "no robots yet" until then, "no robots" after.
+        self.seen_robots = bool(self.robots)
 
     # -- page --------------------------------------------------------------------------
 
@@ -119,6 +121,7 @@ class _Tab:
         if robots == self.robots:
             return
         self.robots = robots
+        self.seen_robots = self.seen_robots or bool(robots)
         self._render_robots()
         self._render_binding()
         for view in self.views:
@@ -132,11 +135,14 @@ class _Tab:
         self.robots_row.clear()
         with self.robots_row:
             if not self.robots:
-                ui.label("no robots yet").classes("italic")
+                ui.label(self._no_robots()).classes("italic")
             for robot in self.robots:
                 ui.chip(robot.label, icon="smart_toy").props(
                     f"dense data-testid=robot-{robot.key}"
                 )
+
+    def _no_robots(self) -> str:
+        return "no robots" if self.seen_robots else "no robots yet"
 
     # -- binding view ------------------------------------------------------------------
 
@@ -211,7 +217,14 @@ class _Tab:
         try:
             action()
         except DebugGuiError as exc:
-            ui.notify(str(exc), type="negative")
+            self._notify(str(exc), kind="negative")
+
+    def _notify(self, message: str, *, kind: Literal["positive", "negative"]) -> None:
+        """Notify this tab. Not in the handler's own slot: an action that re-renders the
+        binding view (restore, remove, rebind) has deleted the element that called it, and
+        ui.notify would find no client there."""
+        with self.client:
+            ui.notify(message, type=kind)
 
     # -- layout changes ----------------------------------------------------------------
 
@@ -248,11 +261,11 @@ class _Tab:
 
     def _save(self) -> None:
         path = self.shell.save(self.layout, self.token)
-        ui.notify(f"layout saved to {path}", type="positive")
+        self._notify(f"layout saved to {path}", kind="positive")
 
     def _restore(self) -> None:
         self._set_layout(self.shell.restore())
-        ui.notify("layout restored", type="positive")
+        self._notify("layout restored", kind="positive")
 
     # -- panels ------------------------------------------------------------------------
 
@@ -307,7 +320,8 @@ class _Tab:
         view.robots = tuple(self.robots)
         with view.body:
             if not robots:
-                ui.label("no robots yet: they appear here when found").classes("italic")
+                ui.label(f"{self._no_robots()}: they appear here when found").classes(
+                    "italic")
             for robot in robots:
                 with ui.column().classes("min-w-[24rem] flex-1") as container:
                     if view.panel.robot is None and robot is not None:
