@@ -252,4 +252,10 @@ def test_topic_echo_shows_a_field_of_a_plain_publisher(tmp_path: Path, browser) 
         cell.click()
         wait_for(lambda: "y: 7.25" in text_of(browser, f"topics-echo-{key}"),
                  what="the echoed field", alive=alive)
+        # A nested message opens expanded: a field two levels down is visible at once.
+        next(td for td in by_testid(browser, f"topics-{key}").find_elements(
+            By.CSS_SELECTOR, "td") if td.text == "/alpha/ball/estimate").click()
+        wait_for(lambda: "z: 1.0" in text_of(browser, f"topics-echo-{key}"),
+                 what="point.z of the ball estimate, shown expanded", alive=alive)
         screenshot(browser, "topics_echo")
+        assert "default-expand-all" not in server.output()

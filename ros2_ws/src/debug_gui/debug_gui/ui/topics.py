@@ -107,7 +107,9 @@ def build(ctx: ViewContext) -> None:
         if last is not None:
             tree_box.clear()
             with tree_box:
-                ui.tree(tree_nodes(last), label_key="label").props("default-expand-all dense")
+                # Every node open: Quasar's default-expand-all works only on the first
+                # render, so NiceGUI refuses it; expand() opens them all explicitly.
+                ui.tree(tree_nodes(last), label_key="label").props("dense").expand()
             options = model.fields()
             if options != field.options:
                 field.set_options(options, value=field.value if field.value in options else None)
