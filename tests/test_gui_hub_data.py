@@ -1,13 +1,17 @@
 """debug_gui's Hub against robots in other processes, without a browser.
 
 Robots are fake_robot processes (tests/_gui_fake_robot.py: plain rclpy, callback statistics,
-a plain and a throttle-aware topic) in isolated domains.
+a plain and a throttle-aware topic) in isolated domains; plain ROS 2 robots (no statistics)
+are tests/_gui_plain_robot.py processes.
 """
 
 from __future__ import annotations
 
 import re
+import sys
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -16,9 +20,17 @@ from std_msgs.msg import String
 
 from debug_gui import Hub, InvalidInput, RobotId, RobotUnavailable
 from debug_gui.errors import CallFailed
-from efficient_comm.testing import isolated_domain_id
+from debug_gui.models.components import ComponentsModel
+from debug_gui.models.parameters import ParametersModel
+from debug_gui.models.topics import TopicsModel
+from debug_gui.security import AccessPolicy
+from efficient_comm.testing import isolated_domain_id, ros_env
+from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
 
-from ._gui import RobotProcess, fake_robot, wait_for
+from ._gui import RobotProcess, fake_robot, started, wait_for
+from ._ros import Peer
+
+PLAIN_ROBOT = Path(__file__).with_name("_gui_plain_robot.py")
 
 
 def _robots(hub: Hub, expected: set[RobotId], procs: list[RobotProcess]) -> None:
@@ -49,6 +61,86 @@ def test_robots_in_several_domains_and_namespaces_appear_and_disappear_live(
             # Hidden topics (throttle requests and replies) are not listed.
             assert not any("_throttle" in t for t in hub.topics(c))
         _robots(hub, {a, b}, [ra, rb])  # c stopped: gone
+
+
+@contextmanager
+def plain_robot(tmp_path: Path, *, domain_id: int, namespace: str) -> Iterator[RobotProcess]:
+    """A plain rclpy node (no statistics, nothing of ours) in ``namespace``."""
+    log = tmp_path / f"plain_{domain_id}{namespace.replace('/', '_')}.log"
+    cmd: list[str | Path] = [sys.executable, PLAIN_ROBOT, "--namespace", namespace]
+    with started(cmd, env=ros_env(domain_id), log=log) as proc:
+        yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
+
+
+def test_plain_ros2_robots_appear_with_plain_robots_only(tmp_path: Path) -> None:
+    """A node in /plainbot, and one in the root namespace of another domain, are robots
+    under ``plain_robots`` (not the GUIs' own nodes); without it, neither is."""
+    d1, d2 = isolated_domain_id(), isolated_domain_id()
+    plainbot, root = RobotId(d1, "/plainbot"), RobotId(d2, "/")
+    with Hub(domains=[d1, d2], plain_robots=True) as hub, \
+            Hub(domains=[d1, d2], node_name="debug_gui_other") as other, \
+            plain_robot(tmp_path, domain_id=d2, namespace="/") as rr:
+        with plain_robot(tmp_path, domain_id=d1, namespace="/plainbot") as rp:
+            # Both GUIs see the nodes; only the one with plain_robots counts them as robots
+            # (and neither GUI's own node makes the root namespace of d1 a robot).
+            wait_for(lambda: other.nodes(plainbot) == ["/plainbot/plain_node"]
+                     and "/plain_node" in other.nodes(root), what="the plain nodes",
+                     alive=[rp, rr])
+            _robots(hub, {plainbot, root}, [rp, rr])
+            assert other.robots() == []
+            assert root.label == f"/ @ domain {d2}"
+            # Their parameters, through the parameters view's model.
+            policy = AccessPolicy.for_server()
+            for robot, node in ((plainbot, "/plainbot/plain_node"), (root, "/plain_node")):
+                model = ParametersModel(hub, robot, policy=policy, token=None)
+                wait_for(lambda m=model, n=node: n in m.nodes(),  # type: ignore[misc]
+                         what=f"{node}'s parameter services", alive=[rp, rr])
+                assert {p.name: p.value for p in model.load(node)}["speed"] == 1.5
+            # Their topics; and the components view has nothing to wait for.
+            wait_for(lambda: "/plainbot/chatter" in hub.topics(plainbot),
+                     what="the plain robot's topic", alive=[rp])
+            assert not hub.publishes_statistics(plainbot)
+            assert not ComponentsModel(hub, plainbot).statistics_published()
+        _robots(hub, {root}, [rr])  # /plainbot stopped: gone
+
+
+def test_topics_are_the_published_ones_without_hidden_or_the_guis_own(
+    tmp_path: Path,
+) -> None:
+    """As ``ros2 topic list``: no ``_`` topics (not even those the robot's statistics
+    name), and no topic only the GUI subscribes to."""
+    domain = isolated_domain_id()
+    peer = Peer(domain)
+    try:
+        with Hub(domains=[domain]) as hub, \
+                fake_robot(tmp_path, domain_id=domain, namespace="/r") as proc:
+            robot = RobotId(domain, "/r")
+            _robots(hub, {robot}, [proc])
+            # A view subscribing to what the robot does not publish (the world view to a
+            # plain robot's odom), and a throttled feed (its request topic is hidden).
+            lonely = hub.subscribe(robot, "odom", String, print)
+            counter = hub.subscribe(robot, "counter", String, lambda _m: None, rate_hz=5.0)
+            wait_for(lambda: {"/r/odom", "/r/counter/_throttle"}
+                     <= dict(peer.node.get_topic_names_and_types()).keys(),
+                     what="the GUI's subscriptions on the graph", alive=[proc])
+            topics = hub.topics(robot)
+            assert {"/r/chatter", "/r/counter"} <= topics.keys()
+            assert "/r/odom" not in topics
+            assert not any("/_" in name for name in topics), topics
+            # The robot's statistics name its throttle request subscription; still hidden.
+            model = TopicsModel(hub, robot)
+            stats = ExecutorStats(callbacks=[
+                CallbackStats(node="/r/camera", kind="subscription", name=name, rate_hz=2.0)
+                for name in ("/r/counter/_throttle", "/r/inproc")])
+            model.on_stats(stats)
+            listed = {t["name"] for t in model.topics()}
+            assert "/r/inproc" in listed  # an in-process topic only the statistics name
+            assert not any("/_" in name for name in listed), listed
+            assert "/r/odom" not in listed
+            lonely.close()
+            counter.close()
+    finally:
+        peer.close()
 
 
 def test_team_link_domains_mark_their_robots(tmp_path: Path) -> None:
@@ -144,6 +236,8 @@ def test_bad_input_is_refused_with_a_clear_error() -> None:
             hub.subscribe(RobotId(domain + 1, "/x"), "ok", String, print)
         with pytest.raises(InvalidInput, match="service name"):
             hub.call(robot, "a//b", ListParameters, ListParameters.Request())
+    with pytest.raises(InvalidInput, match="given both as a domain and as a team-link"):
+        Hub(domains=[domain], team_link_domains=[domain])
     with pytest.raises(InvalidInput, match="namespace"):
         RobotId(domain, "robot")
     with pytest.raises(InvalidInput, match="domain"):

@@ -35,6 +35,8 @@ def test_serving_beyond_loopback_without_a_token_refuses_to_start() -> None:
     (["--port", "70000"], "port is an integer 0..65535"),
     (["--token", "short"], "a token is 8 to 128 characters"),
     (["--foxglove-port", "-1"], "port is an integer"),
+    (["--domains", "0", "--team-link-domains", "0"],
+     "domain 0 is in both --domains and --team-link-domains: name each domain once"),
 ])
 def test_bad_options_end_in_one_line(args: list[str], error: str) -> None:
     result = _run(*args)
@@ -59,6 +61,27 @@ def test_a_bad_layout_file_and_a_busy_port_end_in_one_line(tmp_path: Path) -> No
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert "cannot serve on 127.0.0.1:" in result.stderr, result.stderr
+
+
+def test_a_layout_file_that_cannot_be_written_is_refused_at_start(tmp_path: Path) -> None:
+    """Not only at the first "save layout", and naming the layout, not a temporary file."""
+    missing = tmp_path / "nosuch" / "layout.json"
+    result = _run("--port", "0", "--layout", str(missing))
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert result.stderr.strip().splitlines() == [
+        f"debug_gui: error: --layout {missing}: directory {missing.parent} does not exist"
+    ], result.stderr
+    result = _run("--port", "0", "--layout", str(tmp_path))
+    assert result.stderr.strip().splitlines() == [
+        f"debug_gui: error: --layout {tmp_path} is a directory, not a file"
+    ], result.stderr
+
+
+def test_the_start_up_line_names_the_team_link_domains(tmp_path: Path) -> None:
+    domain, far = isolated_domain_id(), isolated_domain_id()
+    with gui(tmp_path, domains=[domain], args=["--team-link-domains", str(far)]) as server:
+        assert (f"debug_gui: serving robots of domain(s) {domain} and team-link domain(s) "
+                f"{far} at {server.url}") in server.output()
 
 
 def test_without_the_token_a_page_is_read_only_and_writes_are_refused(

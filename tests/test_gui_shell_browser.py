@@ -10,6 +10,7 @@ from pathlib import Path
 from efficient_comm.testing import isolated_domain_id
 
 from ._gui import (
+    by_testid,
     choose,
     click,
     fake_robot,
@@ -20,6 +21,7 @@ from ._gui import (
     wait_for,
     wait_for_text,
 )
+from .test_gui_hub_data import plain_robot
 
 
 def _tables(browser, panel: int, keys: list[str]) -> set[str]:
@@ -84,6 +86,69 @@ def test_bind_clone_team_layout_save_and_restore(tmp_path: Path, browser) -> Non
                      and f"Components — {beta_label}" in text_of(browser, "panel-1")
                      and "Components — team" in text_of(browser, "panel-2"),
                      what="the restored layout", alive=[a, b, server])
+
+
+def _label_cut_off(browser, testid: str) -> bool:
+    """Whether the label of the field ``testid`` is wider than the room it is given."""
+    return bool(browser.execute_script(
+        "const e = document.querySelector(`[data-testid='${arguments[0]}']`);"
+        "const l = e && e.closest('.q-field').querySelector('.q-field__label');"
+        "return !l || l.scrollWidth > l.clientWidth;", testid))
+
+
+def test_a_plain_robot_a_robot_without_camera_restore_and_robots_leaving(
+    tmp_path: Path, browser
+) -> None:
+    """With --plain-robots a plain ROS 2 robot is shown, and its components view says why
+    it is empty; an image view of a robot without a JPEG compressor says why the quality
+    cannot be set; removing that view and restoring a layout give their messages and no
+    server error."""
+    domain = isolated_domain_id()
+    key, plain = f"{domain}:/r", f"{domain}:/plainbot"
+    layout = tmp_path / "layout.json"
+    with fake_robot(tmp_path, domain_id=domain, namespace="/r") as r, \
+            plain_robot(tmp_path, domain_id=domain, namespace="/plainbot") as p, \
+            gui(tmp_path, domains=[domain],
+                args=["--layout", str(layout), "--plain-robots"]) as server:
+        alive = [r, p, server]
+        browser.get(server.url)
+        wait_for_text(browser, f"plainbot @ domain {domain}", alive=alive)
+        wait_for(lambda: "publishes no efficient_comm statistics"
+                 in text_of(browser, f"components-status-{plain}"),
+                 what="the plain robot's components view saying why it is empty", alive=alive)
+        # An image view of a robot without a compressor: the reason, no traceback.
+        choose(browser, "add-kind", "Image")
+        choose(browser, "add-robot", f"r @ domain {domain}")
+        click(browser, "add-view")
+        wait_for(lambda: "no service /r/jpeg_compressor/get_parameters"
+                 in text_of(browser, f"image-quality-note-{key}"),
+                 what="why the quality cannot be set", alive=alive)
+        assert not by_testid(browser, f"image-quality-set-{key}").is_enabled()
+        assert not _label_cut_off(browser, f"image-quality-{key}")
+        screenshot(browser, "image_without_compressor")
+        click(browser, "remove-1")  # its frame socket closes
+        wait_for(lambda: not present(browser, f"image-{key}"), what="the image view gone",
+                 alive=alive)
+        click(browser, "save-layout")
+        wait_for_text(browser, "layout saved", alive=alive)
+        click(browser, "restore-layout")  # re-renders the button that was clicked
+        wait_for_text(browser, "layout restored", alive=alive)
+    output = server.output()
+    for error in ("Traceback", "Exception in ASGI", "slot", "default-expand-all"):
+        assert error not in output, output
+
+
+def test_the_header_says_no_robots_once_the_last_one_left(tmp_path: Path, browser) -> None:
+    domain = isolated_domain_id()
+    with gui(tmp_path, domains=[domain]) as server:
+        browser.get(server.url)
+        wait_for(lambda: text_of(browser, "robots") == "no robots yet",
+                 what="no robots yet", alive=[server])
+        with fake_robot(tmp_path, domain_id=domain, namespace="/r") as r:
+            wait_for(lambda: present(browser, f"robot-{domain}:/r"), what="the robot",
+                     alive=[r, server])
+        wait_for(lambda: text_of(browser, "robots") == "no robots",
+                 what="the header saying no robots", alive=[server])
 
 
 def _stats_readers(robot) -> int:

@@ -55,6 +55,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=float, default=0.0,
                         help="seconds until everything stops (0: until Ctrl-C)")
     parser.add_argument("--layout", type=Path, default=None, help="layout JSON file")
+    parser.add_argument("--plain-robots", action="store_true",
+                        help="also show plain ROS 2 robots (as debug_gui --plain-robots)")
     parser.add_argument("--log-dir", type=Path, default=None,
                         help="where the robots' output goes (default: a temporary folder)")
     return parser
@@ -124,6 +126,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         gui_args = ["--port", str(args.port), "--domains", ",".join(map(str, domains))]
         if args.layout is not None:
             gui_args += ["--layout", str(args.layout)]
+        if args.plain_robots:
+            gui_args.append("--plain-robots")
         options = Options(gui_args)
         if args.duration < 0:
             raise InvalidInput(f"--duration is >= 0, not {args.duration}")

@@ -2,9 +2,11 @@
 
 One rclpy Context, node and executor thread per DDS domain (a participant can join only
 one domain). Robots are discovered by their ``<namespace>/efficient_comm/stats`` topic and
-appear and disappear live. Feeds go through throttle_publisher whenever the publisher
-understands it, so the robot sends (and computes) only the rate a view displays; for other
-publishers the Hub drops what the view would not show, which saves the GUI but not the link.
+appear and disappear live; with ``plain_robots`` every top-level namespace with running
+nodes is a robot too (plain rclpy or rclcpp robots publish no statistics). Feeds go
+through throttle_publisher whenever the publisher understands it, so the robot sends (and
+computes) only the rate a view displays; for other publishers the Hub drops what the view
+would not show, which saves the GUI but not the link.
 
 Nothing here imports a UI toolkit: the Hub is tested without a browser, and the foxglove
 endpoint serves the same Hub.
@@ -49,6 +51,13 @@ GONE_AFTER_S = 1.5
 #: Longest wait of the executor, so close() and new entities are noticed soon.
 SPIN_TIMEOUT_S = 0.05
 _THROTTLE_REQUEST = "_throttle"
+#: Nodes named so are debug_gui instances (this one's or another's), never a robot's.
+_OWN_NODE_PREFIX = "debug_gui"
+
+
+def hidden(name: str) -> bool:
+    """True for a name ROS 2 hides (``ros2 topic list`` does): a token starting with ``_``."""
+    return any(token.startswith("_") for token in name.split("/"))
 
 
 @dataclass(slots=True)
@@ -214,6 +223,7 @@ class _Domain:
     def __init__(self, domain: int, *, node_name: str, via: Via) -> None:
         self.domain = domain
         self.via = via
+        self.node_name = node_name
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain)
         try:
@@ -245,7 +255,14 @@ class Hub:
     """Connections to the robots of one or more DDS domains (a context manager).
 
     ``team_link_domains`` are domains whose robots are reached through rf_bridge's team
-    link (a bridge republishes them locally); their robots say so in ``RobotId.via``.
+    link (a bridge republishes them locally); their robots say so in ``RobotId.via``. A
+    domain given in both is refused: it would be one participant with two meanings.
+
+    ``plain_robots``: also count every top-level namespace that has running nodes as a
+    robot (the root namespace is the robot ``/`` of its domain), so plain ROS 2 robots,
+    which publish no efficient_comm statistics, can be reached too. Off by default, since
+    any helper node in a root namespace (a tool, a test's peer) would then be a robot.
+    Debug_gui's own nodes (named ``debug_gui...``) and hidden nodes (``_...``) never are.
     """
 
     def __init__(
@@ -254,13 +271,19 @@ class Hub:
         domains: Iterable[int] = (0,),
         team_link_domains: Iterable[int] = (),
         node_name: str = "debug_gui",
+        plain_robots: bool = False,
     ) -> None:
         check_name(node_name, what="node name")
         self._team = {check_domain(d) for d in team_link_domains}
         self._domain_ids = [check_domain(d) for d in domains]
-        for d in self._team:
-            if d not in self._domain_ids:
-                self._domain_ids.append(d)
+        both = sorted(self._team & set(self._domain_ids))
+        if both:
+            raise InvalidInput(
+                f"domain {', '.join(map(str, both))} given both as a domain and as a "
+                "team-link domain: name each domain once"
+            )
+        self._domain_ids.extend(sorted(self._team))
+        self._plain_robots = bool(plain_robots)
         if not self._domain_ids:
             raise InvalidInput("the Hub needs at least one domain")
         self._node_name = node_name
@@ -338,6 +361,9 @@ class Hub:
             robot = RobotId.from_stats_topic(dom.domain, topic, via=dom.via)
             if robot is not None and dom.node.count_publishers(topic) > 0:
                 dom.last_seen[robot] = now
+        if self._plain_robots:
+            for robot in self._plain_robots_of(dom):
+                dom.last_seen[robot] = now
         for robot, seen in list(dom.last_seen.items()):
             if now - seen > GONE_AFTER_S:
                 del dom.last_seen[robot]
@@ -349,6 +375,19 @@ class Hub:
             plain = [f for f in self._feeds if not f.throttled and f.robot.domain == dom.domain]
         for feed in plain:
             feed.upgrade()
+
+    def _plain_robots_of(self, dom: _Domain) -> set[RobotId]:
+        """One robot per top-level namespace with nodes other than debug_gui's or hidden ones."""
+        out = set()
+        for name, namespace in dom.node.get_node_names_and_namespaces():
+            if name.startswith(("_", _OWN_NODE_PREFIX)) or name == dom.node_name:
+                continue
+            top = namespace.strip("/").split("/", 1)[0]
+            if top.startswith("_"):
+                continue
+            with contextlib.suppress(InvalidInput):
+                out.add(RobotId(dom.domain, f"/{top}" if top else "/", via=dom.via))
+        return out
 
     def _notify(self) -> None:
         with self._lock:
@@ -415,13 +454,27 @@ class Hub:
         return self._domain(robot).handle
 
     def topics(self, robot: RobotId) -> dict[str, list[str]]:
-        """Topic names and types under the robot's namespace (hidden ``_`` topics left out)."""
+        """Topic names and types under the robot's namespace that someone publishes.
+
+        As ``ros2 topic list`` shows them: hidden ``_`` topics are left out, and so are
+        topics only the GUI itself takes part in (a view's subscription to a topic the
+        robot does not publish makes it appear in the graph, but it is no robot's topic).
+        """
         dom = self._domain(robot)
-        return {
-            name: list(types)
-            for name, types in sorted(dom.node.get_topic_names_and_types())
-            if robot.contains(name) and not any(t.startswith("_") for t in name.split("/"))
-        }
+        own = (dom.node.get_name(), dom.node.get_namespace())
+        out = {}
+        for name, types in sorted(dom.node.get_topic_names_and_types()):
+            if not robot.contains(name) or hidden(name):
+                continue
+            publishers = dom.node.get_publishers_info_by_topic(name)
+            if any((p.node_name, p.node_namespace) != own for p in publishers):
+                out[name] = list(types)
+        return out
+
+    def publishes_statistics(self, robot: RobotId) -> bool:
+        """True if the robot publishes efficient_comm statistics now (a plain ROS 2 robot,
+        found with ``plain_robots``, does not)."""
+        return self._domain(robot).node.count_publishers(robot.stats_topic) > 0
 
     def nodes(self, robot: RobotId) -> list[str]:
         """Fully qualified names of the nodes under the robot's namespace (not the GUI's)."""
@@ -440,7 +493,7 @@ class Hub:
         return {
             name: list(types)
             for name, types in sorted(dom.node.get_service_names_and_types())
-            if robot.contains(name) and not any(t.startswith("_") for t in name.split("/"))
+            if robot.contains(name) and not hidden(name)
         }
 
     # -- data --------------------------------------------------------------------------
@@ -520,4 +573,4 @@ class Hub:
         return future.result()
 
 
-__all__ = ["STATS_SUFFIX", "Feed", "Hub", "TopicCounter"]
+__all__ = ["STATS_SUFFIX", "Feed", "Hub", "TopicCounter", "hidden"]

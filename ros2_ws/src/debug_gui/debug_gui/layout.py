@@ -17,6 +17,7 @@ types and malformed robots raise InvalidInput naming the entry.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import tempfile
@@ -73,6 +74,25 @@ class Panel:
             raise InvalidInput(f"{where}: {exc}") from None
 
 
+def check_layout_path(path: Path) -> Path:
+    """``path`` if a layout can be written there, else InvalidInput saying why.
+
+    Checked when the server starts, so a typo in ``--layout`` is found at once rather than
+    at the first "save layout".
+    """
+    path = Path(path)
+    parent = path.parent
+    if path.is_dir():
+        raise InvalidInput(f"--layout {path} is a directory, not a file")
+    if not parent.is_dir():
+        raise InvalidInput(f"--layout {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InvalidInput(f"--layout {path}: directory {parent} is not writable")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise InvalidInput(f"--layout {path} is not writable")
+    return path
+
+
 @dataclass(frozen=True, slots=True)
 class Layout:
     panels: tuple[Panel, ...] = ()
@@ -122,14 +142,21 @@ class Layout:
 
     def save(self, path: Path) -> None:
         """Write atomically: a crash mid-save leaves the old layout, not half a file."""
-        path = Path(path)
+        path = check_layout_path(Path(path))
+        tmp: str | None = None
         try:
-            fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), prefix=f".{path.name}.")
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
             with os.fdopen(fd, "w", encoding="utf-8") as out:
                 out.write(self.to_json() + "\n")
             os.replace(tmp, path)
         except OSError as exc:
-            raise InvalidInput(f"cannot write layout {path}: {exc}") from None
+            if tmp is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+            # The message names the layout, not the temporary file the error was about.
+            raise InvalidInput(
+                f"cannot write layout {path}: {exc.strerror or exc}"
+            ) from None
 
     def adding(self, panel: Panel) -> Layout:
         if len(self.panels) >= MAX_PANELS:

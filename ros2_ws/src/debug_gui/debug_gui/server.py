@@ -1,8 +1,9 @@
 """The ``debug_gui`` command: join the robots' domains and serve the GUI to a browser.
 
 ``debug_gui [--port P] [--host H] [--token T] [--domains 0,5] [--team-link-domains 7]
-[--layout FILE] [--foxglove-port P]`` prints the URL to open (with the token that gives
-write access) once it serves. Bad options end in one ``debug_gui: error: ...`` line.
+[--layout FILE] [--foxglove-port P] [--plain-robots]`` prints the URL to open (with the
+token that gives write access) once it serves. Bad options end in one
+``debug_gui: error: ...`` line.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from rclpy.utilities import remove_ros_args
 
 from .errors import DebugGuiError, InvalidInput
 from .hub import Hub
-from .layout import Layout
+from .layout import Layout, check_layout_path
 from .security import AccessPolicy, check_port, parse_domains
 
 DEFAULT_PORT = 8080
@@ -52,6 +53,10 @@ def _parser() -> argparse.ArgumentParser:
                              "written by 'save layout'")
     parser.add_argument("--foxglove-port", type=int, default=None,
                         help="also serve the robots on a Foxglove WebSocket endpoint")
+    parser.add_argument("--plain-robots", action="store_true",
+                        help="also show plain ROS 2 robots (no efficient_comm statistics): "
+                             "every top-level namespace with running nodes, the root "
+                             "namespace included")
     return parser
 
 
@@ -87,11 +92,32 @@ class Options:
         self.team_link_domains = (
             parse_domains(ns.team_link_domains) if ns.team_link_domains else []
         )
-        self.layout_path: Path | None = ns.layout
+        both = sorted(set(self.domains) & set(self.team_link_domains))
+        if both:
+            raise InvalidInput(
+                f"domain {', '.join(map(str, both))} is in both --domains and "
+                "--team-link-domains: name each domain once"
+            )
+        self.plain_robots = bool(ns.plain_robots)
+        self.layout_path: Path | None = (
+            None if ns.layout is None else check_layout_path(ns.layout)
+        )
         self.foxglove_port = None if ns.foxglove_port is None else check_port(ns.foxglove_port)
         if port:
             _check_bindable(self.policy.host, port)
         self.port = port or free_port(self.policy.host)
+
+
+def serving(options: Options) -> str:
+    """Whose robots the start-up line names: ``robots of domain(s) 0, 5 and team-link
+    domain(s) 40`` (a team-link domain alone: ``robots of team-link domain(s) 40``)."""
+    parts = []
+    if options.domains:
+        parts.append(f"domain(s) {', '.join(map(str, options.domains))}")
+    if options.team_link_domains:
+        parts.append(f"team-link domain(s) {', '.join(map(str, options.team_link_domains))}")
+    plain = " (plain ROS 2 robots too)" if options.plain_robots else ""
+    return f"robots of {' and '.join(parts)}{plain}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -121,7 +147,8 @@ def serve(options: Options) -> int:
     layout: Layout | None = None
     if options.layout_path is not None and options.layout_path.exists():
         layout = Layout.load(options.layout_path, known_kinds=known)
-    hub = Hub(domains=options.domains, team_link_domains=options.team_link_domains)
+    hub = Hub(domains=options.domains, team_link_domains=options.team_link_domains,
+              plain_robots=options.plain_robots)
     hub.start()
     closers: list[Any] = [hub.close]
     try:
@@ -134,8 +161,7 @@ def serve(options: Options) -> int:
         address = url(options.policy, options.port)
 
         def announce() -> None:
-            domains = ", ".join(map(str, options.domains))
-            print(f"debug_gui: serving robots of domain(s) {domains} at {address}", flush=True)
+            print(f"debug_gui: serving {serving(options)} at {address}", flush=True)
 
         app.on_startup(announce)
         ui.run(

@@ -19,7 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..errors import InvalidInput
+from ..errors import DebugGuiError, InvalidInput
 from ..hub import Feed, Hub
 from ..robots import STATS_SUFFIX, RobotId
 
@@ -164,6 +164,16 @@ class ComponentsModel:
     def age_s(self) -> float | None:
         """Seconds since the last stats message (None: none yet)."""
         return None if self.last_heard is None else self._clock() - self.last_heard
+
+    def statistics_published(self) -> bool:
+        """False for a robot that publishes no statistics at all (a plain ROS 2 robot, found
+        with the Hub's ``plain_robots``), so the view can say so instead of waiting."""
+        if self.last_heard is not None:
+            return True
+        try:
+            return self.hub.publishes_statistics(self.robot)
+        except DebugGuiError:  # the GUI is closing: nothing to tell
+            return True
 
 
 _BARS = "▁▂▃▄▅▆▇█"

@@ -26,7 +26,7 @@ from typing import Any
 from ros2_pip_cli import CliError, import_interface, to_plain
 
 from ..errors import InvalidInput
-from ..hub import Feed, Hub
+from ..hub import Feed, Hub, hidden
 from ..robots import STATS_SUFFIX, RobotId
 
 ECHO_HZ = 5.0
@@ -132,8 +132,10 @@ class TopicsModel:
         graph = self.hub.topics(self.robot)
         # Topics only the statistics name: in-process topics of a container (no DDS
         # reader or writer, so the graph does not see them); their types are unknown here.
+        # Hidden ones (a ThrottledPublisher's ``_throttle`` request subscriptions) are left
+        # out here as the Hub leaves them out of the graph's.
         known = graph | {name: [] for name in rates if name not in graph
-                         and self.robot.contains(name)}
+                         and self.robot.contains(name) and not hidden(name)}
         out = []
         for name, types in sorted(known.items()):
             rate, source = rates.get(name), "robot"

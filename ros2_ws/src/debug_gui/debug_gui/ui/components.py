@@ -16,6 +16,8 @@ from ..robots import RobotId
 from .registry import ViewContext, register
 
 POLL_S = 1.0
+NO_STATISTICS = ("this robot publishes no efficient_comm statistics (a plain ROS 2 robot): "
+                 "nothing to show here; its parameters and topics are in those views")
 #: Long names (services, parameter events) are cut with an ellipsis; the full name shows on
 #: hover. Otherwise one long name pushes the figures out of a team layout's narrow table.
 _NARROW = {"classes": "ellipsis", "style": "max-width: 12rem", "headerStyle": "max-width: 12rem"}
@@ -110,7 +112,9 @@ def build(ctx: ViewContext) -> None:
         table.update()
         age = model.age_s()
         flagged = sum(r.over_period for r in rows)
-        if age is not None:
+        if age is None and not model.statistics_published():
+            status.text = NO_STATISTICS
+        elif age is not None:
             status.text = (
                 f"{len(rows)} callbacks, {flagged} over their period; "
                 f"updated {age:.0f} s ago"
