@@ -112,7 +112,9 @@ def test_a_plain_robot_a_robot_without_camera_restore_and_robots_leaving(
                 args=["--layout", str(layout), "--plain-robots"]) as server:
         alive = [r, p, server]
         browser.get(server.url)
-        wait_for_text(browser, f"plainbot @ domain {domain}", alive=alive)
+        # Both robots first: one found later re-renders the binding view (and its menus).
+        wait_for(lambda: present(browser, f"robot-{plain}") and present(browser, f"robot-{key}"),
+                 what="both robots in the header", alive=alive)
         wait_for(lambda: "publishes no efficient_comm statistics"
                  in text_of(browser, f"components-status-{plain}"),
                  what="the plain robot's components view saying why it is empty", alive=alive)
