@@ -21,7 +21,7 @@ import json
 import logging
 import secrets
 import struct
-from typing import Any
+from typing import Any, Literal
 
 from fastapi import WebSocket, WebSocketDisconnect
 from nicegui import app, background_tasks, run, ui
@@ -231,13 +231,18 @@ def build(ctx: ViewContext) -> None:
         model.step(delta)
 
     async def set_quality() -> None:
+        kind: Literal["positive", "negative"]
         try:
             ctx.policy.check_write(ctx.token)
             value = int(quality.value or 0)
             await run.io_bound(model.set_quality, value)
-            ui.notify(f"{robot.label}: JPEG quality {value}", type="positive")
+            message, kind = f"{robot.label}: JPEG quality {value}", "positive"
         except (DebugGuiError, ValueError) as exc:
-            ui.notify(str(exc), type="negative")
+            message, kind = str(exc), "negative"
+        # To the tab, not the button's slot: the panel may have been removed meanwhile.
+        if not client.is_deleted:
+            with client:
+                ui.notify(message, type=kind)
 
     async def read_quality() -> None:
         # A background task: no slot to create elements in, so only existing ones change.
