@@ -20,6 +20,10 @@ only while someone wants a frame: a throttled publisher),
 frame: origin at the centre spot, x toward the opponent goal, z up; the camera pose uses
 MuJoCo's camera frame, which looks along -z with y up).
 
+``robot_pose`` places the robot (x, y, heading on the field) before the first step; the
+``place_ball`` topic (geometry_msgs/Point: x, y on the field) puts the ball there at rest,
+as a referee does after a goal.
+
 Pushes, for push-recovery and fall tests: :meth:`Simulator.push` shoves the torso with a
 force for a while; the ``push`` topic (geometry_msgs/Vector3, an impulse in N s in the field
 frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`.
@@ -82,6 +86,7 @@ class Simulator:
         seed = node.declare_parameter("seed", 0)
         ball_position = node.declare_parameter("ball_position", [1.5, 0.0])
         ball_velocity = node.declare_parameter("ball_velocity", [0.0, 0.0])
+        robot_pose = node.declare_parameter("robot_pose", [0.0, 0.0, 0.0])
         self.kick_period_s = node.declare_parameter("ball_kick_period", 0.0)
         self._push_at_s = node.declare_parameter("push_at", 0.0)
         push_force = node.declare_parameter("push_force", [40.0, 0.0, 0.0])
@@ -92,6 +97,8 @@ class Simulator:
             )
         if len(ball_position) != 2 or len(ball_velocity) != 2:
             raise SimConfigError("ball_position and ball_velocity are [x, y] in metres (per s)")
+        if len(robot_pose) != 3 or not all(map(math.isfinite, robot_pose)):
+            raise SimConfigError(f"robot_pose is [x, y, heading] in m and rad, got {robot_pose}")
         if (len(push_force) != 3 or not all(map(math.isfinite, push_force))
                 or not self._push_at_s >= 0):
             raise SimConfigError(f"push_force is [x, y, z] in newtons and push_at >= 0 s, got "
@@ -120,6 +127,7 @@ class Simulator:
                 opened.callback(self._remove_link)
                 self.port = port_link
             self._ball = self.model.joint("ball")
+            self.place_robot(x=robot_pose[0], y=robot_pose[1], heading=robot_pose[2])
             self.roll_ball(position=(ball_position[0], ball_position[1]),
                            velocity=(ball_velocity[0], ball_velocity[1]))
 
@@ -136,6 +144,7 @@ class Simulator:
                 for what in ("robot", "ball", "camera")
             }
             node.create_subscription(Vector3, "push", self._on_push, qos=10)
+            node.create_subscription(Point, "place_ball", self._on_place_ball, qos=10)
             self.pushes = 0
             self.frames = 0
             self.frames_skipped = 0
@@ -195,6 +204,20 @@ class Simulator:
                 self.data.qpos[q : q + 7] = [position[0], position[1], BALL_RADIUS_M, 1, 0, 0, 0]
             self.data.qvel[v : v + 6] = [velocity[0], velocity[1], 0, 0, 0, 0]
             mujoco.mj_forward(self.model, self.data)
+
+    def place_robot(self, *, x: float, y: float, heading: float) -> None:
+        """Put the robot's torso above (x, y) on the field, facing ``heading`` (rad)."""
+        with self.pty.lock:
+            q = self.model.joint("root").qposadr[0]
+            self.data.qpos[q : q + 2] = [x, y]
+            self.data.qpos[q + 3 : q + 7] = [math.cos(heading / 2), 0, 0, math.sin(heading / 2)]
+            mujoco.mj_forward(self.model, self.data)
+
+    def _on_place_ball(self, point: Point) -> None:
+        if not (math.isfinite(point.x) and math.isfinite(point.y)):
+            self.node.logger.error(f"place_ball ignored: ({point.x}, {point.y}) is not finite")
+            return
+        self.roll_ball(position=(point.x, point.y))
 
     def push(self, force_n: tuple[float, float, float], *, duration_s: float = PUSH_SECONDS,
              body: str = "torso") -> None:

@@ -21,6 +21,8 @@ from .behaviour import HeadBehaviour
 from .fall import FallDetector
 from .monitor import SoccerMonitor
 from .motion import Motion
+from .referee import Referee
+from .striker import Striker
 from .vision import BallDetector
 from .world_model import BallModel
 
@@ -39,6 +41,10 @@ class SoccerRobot:
     behaviour: HeadBehaviour
     motion: Motion
     monitor: SoccerMonitor
+    #: The body's behaviour: walk to the ball and kick it towards the opponent goal.
+    striker: Striker
+    #: Goals and balls out of play, from ground truth; puts the ball back (not the robot's).
+    referee: Referee
     #: ``camera/image_raw/compressed`` for viewers off the robot (encodes only on demand).
     compressor: JpegCompressor
 
@@ -66,8 +72,11 @@ def add_body(container: Container, *, namespace: str,
 
 def compose(container: Container, *, namespace: str = "/robot",
             simulator: Mapping[str, Any] | None = None,
-            driver: Mapping[str, Any] | None = None) -> SoccerRobot:
-    """Add the robot to ``container``; ``simulator``/``driver`` override their parameters.
+            driver: Mapping[str, Any] | None = None,
+            striker: Mapping[str, Any] | None = None) -> SoccerRobot:
+    """Add the robot to ``container``; ``simulator``/``driver``/``striker`` override their
+    parameters. The striker's ``start_pose`` is the simulator's ``robot_pose`` unless given:
+    where the robot was placed is what it knows at kick-off.
 
     Order matters on a shared timer deadline: the simulator steps (and renders, and the
     pipeline reacts to the image in the same pass) before the driver reads and writes the
@@ -76,6 +85,8 @@ def compose(container: Container, *, namespace: str = "/robot",
     """
     sim, servo_driver = add_body(container, namespace=namespace, simulator=simulator,
                                  driver=driver)
+    striker = {"start_pose": list((simulator or {}).get("robot_pose", [0.0, 0.0, 0.0])),
+               **(striker or {})}
     robot = SoccerRobot(
         simulator=sim,
         driver=servo_driver,
@@ -85,6 +96,9 @@ def compose(container: Container, *, namespace: str = "/robot",
         behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
         motion=container.add(Motion, name="motion", namespace=namespace),
         monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),
+        striker=container.add(Striker, name="striker", namespace=namespace,
+                              parameters=dict(striker or {})),
+        referee=container.add(Referee, name="referee", namespace=namespace),
         compressor=container.add(JpegCompressor, name="jpeg_compressor", namespace=namespace),
     )
     return robot

@@ -5,8 +5,13 @@ ball at each camera frame: what "the head keeps the ball centred" means, indepen
 the pipeline believes. Latency runs from an image's capture stamp to the joint command it
 caused. Rates count what each stage produced. Frames taken while the fall detector says the
 robot is down (``fall/state``) are counted but not scored: a head on the ground tracks
-nothing. :meth:`SoccerMonitor.window` returns the figures since its last call (live
-statistics); :meth:`SoccerMonitor.totals` those of the run.
+nothing. What the robot did as a player is counted over the run: kicks and get-ups (the
+motion arbiter's ``motion/state`` entering ``kick``, and leaving ``getup`` for a standing
+motion), the time to the first kick, and the distance walked (ground truth: the torso's
+path on the ground, sampled once a gait cycle, :data:`PATH_SAMPLE_S`, so the sway from
+foot to foot does not count, and only while standing). :meth:`SoccerMonitor.window`
+returns the figures since its last call (live statistics); :meth:`SoccerMonitor.totals`
+those of the run.
 """
 
 from __future__ import annotations
@@ -25,6 +30,13 @@ from efficient_comm import from_msg
 from efficient_comm.handle import NodeHandle
 
 from .fall import LATCHED, STANDING
+
+#: The walked path is sampled this often (s): one cycle of the walk engine's gait.
+PATH_SAMPLE_S = 0.5
+#: Moves shorter than this (m) are the body swaying on the spot, not walking.
+PATH_MIN_STEP_M = 0.02
+#: ``motion/state`` values in which the robot is on its feet.
+STANDING_MOTIONS = ("stand", "walk", "kick")
 
 
 def _rotation(pose: PoseStamped) -> np.ndarray:
@@ -102,6 +114,14 @@ class SoccerMonitor:
         self._window = Figures()
         self._total = Figures()
         self._window_start = self._total_start = node.clock.now_ns()
+        self.motion = ""
+        self.kicks = 0
+        self.getups = 0
+        #: Simulated time (ns since the monitor started) of the first kick.
+        self.first_kick_ns: int | None = None
+        self.walked_m = 0.0
+        self._path_point: tuple[float, float] | None = None
+        self._path_next_ns = 0
         node.create_subscription(PoseStamped, "ground_truth/camera", self._on_camera, qos=10)
         node.create_subscription(PoseStamped, "ground_truth/ball", self._on_ball, qos=10)
         node.create_subscription(Image, "camera/image_raw", self._on_image, qos=10)
@@ -109,6 +129,32 @@ class SoccerMonitor:
         node.create_subscription(JointState, "joint_states", self._on_state, qos=10)
         node.create_subscription(JointState, "joint_commands", self._on_command, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
+        node.create_subscription(String, "motion/state", self._on_motion, qos=LATCHED)
+        node.create_subscription(PoseStamped, "ground_truth/robot", self._on_robot, qos=10)
+
+    def _on_motion(self, state: String) -> None:
+        previous, self.motion = self.motion, state.data
+        if state.data == "kick" and previous != "kick":
+            self.kicks += 1
+            if self.first_kick_ns is None:
+                self.first_kick_ns = self.node.clock.now_ns() - self._total_start
+        if previous == "getup" and state.data in STANDING_MOTIONS:
+            self.getups += 1
+
+    def _on_robot(self, pose: PoseStamped) -> None:
+        now = self.node.clock.now_ns()
+        if now < self._path_next_ns:
+            return
+        self._path_next_ns = now + round(PATH_SAMPLE_S * 1e9)
+        point = (pose.pose.position.x, pose.pose.position.y)
+        if self.posture != STANDING:
+            self._path_point = None  # a fall and a get-up are not walking
+            return
+        if self._path_point is None:
+            self._path_point = point
+        elif (step := math.dist(point, self._path_point)) >= PATH_MIN_STEP_M:
+            self.walked_m += step  # smaller steps add up until they are one: no jitter
+            self._path_point = point
 
     def _both(self) -> tuple[Figures, Figures]:
         return self._window, self._total

@@ -1,0 +1,233 @@
+"""The striker's decisions and the ball's place on the ground, each alone on a TestHandle."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from geometry_msgs.msg import PointStamped, Quaternion, Twist
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
+
+from efficient_comm.testing import TestHandle
+from humanoid_sim.errors import SimConfigError
+from humanoid_sim.mujoco_plant import MujocoPlant
+from humanoid_sim.soccer.striker import (
+    APPROACH,
+    FALLEN,
+    KICK,
+    SEARCH,
+    STOP,
+    Pose,
+    Striker,
+    kick_pose,
+)
+from humanoid_sim.soccer.world_model import ground_position
+
+KICK_DISTANCE, FOOT_OFFSET = 0.17, 0.055
+
+
+def _quaternion(*, roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0) -> Quaternion:
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return Quaternion(w=cr * cp * cy + sr * sp * sy, x=sr * cp * cy - cr * sp * sy,
+                      y=cr * sp * cy + sr * cp * sy, z=cr * cp * sy - sr * sp * cy)
+
+
+@pytest.mark.parametrize(("neck_yaw", "neck_pitch", "roll", "pitch", "yaw"), [
+    (0.0, 0.45, 0.0, 0.0, 0.0), (0.6, 0.9, 0.05, 0.08, 1.0), (-0.8, 1.2, -0.04, 0.12, -2.5)])
+def test_the_ball_on_the_ground_from_its_bearing_matches_the_robots_kinematics(
+        neck_yaw: float, neck_pitch: float, roll: float, pitch: float, yaw: float) -> None:
+    # MuJoCo's forward kinematics of robot.xml place the camera; the bearing of a ball on
+    # the ground seen from there, in the torso's frame, must lead back to where it lies.
+    plant = MujocoPlant()
+    model, data = plant.model, plant.data
+    torso_height = 0.37
+    q = _quaternion(roll=roll, pitch=pitch, yaw=yaw)
+    data.qpos[0:7] = [0.3, -0.2, torso_height, q.w, q.x, q.y, q.z]
+    data.qpos[model.joint("neck_yaw").qposadr[0]] = neck_yaw
+    data.qpos[model.joint("neck_pitch").qposadr[0]] = neck_pitch
+    mujoco.mj_forward(model, data)
+    torso = data.xmat[model.body("torso").id].reshape(3, 3)
+    camera = data.cam_xpos[model.camera("head_camera").id]
+    heading = math.atan2(torso[1, 0], torso[0, 0])
+    local = (0.9, 0.35)  # the ball in the level frame under the torso (x forward, y left)
+    c, s = math.cos(heading), math.sin(heading)
+    ball = np.array([0.3 + c * local[0] - s * local[1], -0.2 + s * local[0] + c * local[1],
+                     0.07])
+    x, y, z = torso.T @ (ball - camera)
+    found = ground_position(math.atan2(y, x), math.atan2(-z, math.hypot(x, y)),
+                            neck_yaw=neck_yaw, neck_pitch=neck_pitch, orientation=q,
+                            torso_height=torso_height)
+    assert found == pytest.approx(local, abs=1e-6)
+
+
+def test_a_ray_at_or_above_the_horizon_has_no_place_on_the_ground() -> None:
+    assert ground_position(0.0, -0.1, neck_yaw=0.0, neck_pitch=0.0) is None
+    assert ground_position(0.0, 0.5, neck_yaw=0.0, neck_pitch=0.5) is not None
+
+
+def _striker(**parameters: object) -> tuple[TestHandle, Striker]:
+    node = TestHandle("striker", parameters={"kick_distance": KICK_DISTANCE,
+                                             "foot_offset": FOOT_OFFSET, **parameters})
+    return node, Striker(node)
+
+
+def _ball(node: TestHandle, x: float, y: float) -> None:
+    position = PointStamped()
+    position.point.x, position.point.y = x, y
+    node.inject("ball/position", position)
+
+
+def _imu(node: TestHandle, yaw: float) -> None:
+    node.inject("imu/data", Imu(orientation=_quaternion(yaw=yaw)))
+
+
+def _odom(node: TestHandle, x: float, y: float, yaw: float) -> None:
+    odom = Odometry()
+    odom.pose.pose.position.x, odom.pose.pose.position.y = x, y
+    odom.pose.pose.orientation = _quaternion(yaw=yaw)
+    node.inject("odom", odom)
+
+
+def _last_cmd(node: TestHandle) -> tuple[float, float, float]:
+    twist: Twist = node.published("cmd_vel")[-1]
+    return twist.linear.x, twist.linear.y, twist.angular.z
+
+
+def _states(node: TestHandle) -> list[str]:
+    return [m.data for m in node.published("behaviour/state")]
+
+
+def test_kick_pose_is_behind_the_ball_facing_the_goal_with_the_foot_in_line() -> None:
+    pose = kick_pose((2.0, 1.0), (4.5, 1.0), foot="left", kick_distance=0.2, foot_offset=0.05)
+    assert (pose.x, pose.y, pose.heading) == pytest.approx((1.8, 0.95, 0.0))
+    pose = kick_pose((0.0, 0.0), (0.0, -3.0), foot="right", kick_distance=0.2, foot_offset=0.05)
+    # Facing -y its left is +x: the torso stands there, the right foot behind the ball.
+    assert (pose.x, pose.y, pose.heading) == pytest.approx((0.05, 0.2, -math.pi / 2))
+
+
+def test_without_the_ball_it_looks_first_then_turns_in_place() -> None:
+    node, striker = _striker(search_wait_s=3.0)
+    assert _states(node) == [SEARCH]
+    node.advance(2.5)
+    assert node.published("cmd_vel") == []  # the head's sweep looks first
+    node.advance(1.0)
+    vx, vy, wz = _last_cmd(node)
+    assert (vx, vy) == (0.0, 0.0)
+    assert wz == pytest.approx(striker.p["search_turn"])
+    assert striker.kicks == 0
+
+
+def test_it_walks_to_a_ball_ahead_then_stops_lines_up_and_kicks() -> None:
+    node, striker = _striker()
+    _imu(node, 0.0)
+    _ball(node, 1.0, 0.1)  # 1 m ahead, a little left: the left foot kicks
+    node.advance(0.1)
+    assert striker.state == APPROACH
+    vx, vy, wz = _last_cmd(node)
+    assert vx == pytest.approx(striker.p["max_vx"])  # far: full speed ahead
+    assert abs(vy) < 0.02 and abs(wz) < 0.2
+    assert striker.foot == "left"
+    # Walked there (odometry says so): the ball now lies at the kick distance, in line
+    # with the left foot.
+    _odom(node, 0.0, 0.0, 0.0)
+    _odom(node, 1.0 - KICK_DISTANCE, 0.1 - FOOT_OFFSET, 0.0)
+    _ball(node, KICK_DISTANCE, FOOT_OFFSET)
+    node.inject("motion/state", String(data="walk"))
+    node.advance(0.1)
+    assert striker.state == STOP
+    assert _last_cmd(node) == (0.0, 0.0, 0.0)
+    assert node.published("motion/kick/request") == []  # not while still walking
+    node.inject("motion/state", String(data="stand"))
+    assert [m.data for m in node.published("motion/kick/request")] == ["left"]
+    assert striker.state == KICK
+    node.inject("motion/state", String(data="kick"))
+    node.advance(0.2)
+    assert striker.state == KICK  # until the kick is over
+    node.inject("motion/state", String(data="stand"))
+    node.advance(0.1)
+    assert striker.kicks == 1
+    # The ball did not move (no simulator here): it lines up for the next kick at once.
+    assert _states(node)[:5] == [SEARCH, APPROACH, STOP, KICK, APPROACH]
+
+
+def test_a_ball_on_the_right_is_kicked_with_the_right_foot() -> None:
+    node, _ = _striker()
+    _imu(node, 0.0)
+    _ball(node, KICK_DISTANCE, -FOOT_OFFSET)
+    node.inject("motion/state", String(data="stand"))
+    node.advance(0.1)
+    node.inject("motion/state", String(data="stand"))
+    assert [m.data for m in node.published("motion/kick/request")] == ["right"]
+
+
+def test_the_goal_direction_comes_from_its_own_pose_estimate() -> None:
+    # Started at the centre facing +y (left of the goal direction), the IMU's heading
+    # counted from its first reading: a ball 1 m ahead is to be kicked towards +x, so the
+    # robot's kick position is behind it and to the left, and it walks there.
+    node, striker = _striker(start_pose=[0.0, 0.0, math.pi / 2])
+    _imu(node, 0.7)  # whatever the IMU's own zero is
+    _ball(node, 1.0, 0.0)
+    node.advance(0.1)
+    assert striker.ball == pytest.approx((0.0, 1.0))
+    target = striker.target()
+    assert target.heading == pytest.approx(math.atan2(-1.0, 4.5))  # ball to goal
+    assert target.x < -0.1 and target.y < 1.0
+    _imu(node, 0.7 - 0.5)  # turned right by 0.5 rad
+    assert striker.pose.heading == pytest.approx(math.pi / 2 - 0.5)
+    # Odometry's steps are turned into the field by the heading: 1 m forward now is along
+    # the heading, whatever the odometry's own frame.
+    _odom(node, 5.0, 5.0, 2.0)
+    _odom(node, 5.0 + math.cos(2.0), 5.0 + math.sin(2.0), 2.0)
+    assert (striker.pose.x, striker.pose.y) == pytest.approx(
+        (math.cos(math.pi / 2 - 0.5), math.sin(math.pi / 2 - 0.5)))
+
+
+def test_in_front_of_the_ball_it_walks_around_it_not_through_it() -> None:
+    # Facing its own goal, the ball 1 m ahead: the kick position is on the far side.
+    node, striker = _striker(start_pose=[2.0, 0.0, math.pi])
+    _imu(node, 0.0)
+    _ball(node, 1.0, 0.0)
+    node.advance(0.1)
+    vx, vy, wz = _last_cmd(node)
+    ball = striker.pose.to_local(*striker.ball) if striker.ball else (0.0, 0.0)
+    direction = math.atan2(vy, vx) if (vx or vy) else math.atan2(0.0, 1.0) + wz
+    assert abs(direction - math.atan2(ball[1], ball[0])) > 0.2 or abs(wz) > 0.3
+
+
+def test_it_stands_still_while_down_and_searches_once_up() -> None:
+    node, striker = _striker()
+    _imu(node, 0.0)
+    _ball(node, 1.0, 0.0)
+    node.advance(0.1)
+    assert striker.state == APPROACH
+    node.inject("fall/state", String(data="fallen"))
+    assert striker.state == FALLEN
+    assert _last_cmd(node) == (0.0, 0.0, 0.0)
+    node.clear_published()
+    _ball(node, KICK_DISTANCE, FOOT_OFFSET)  # what it sees lying down is not believed
+    node.inject("motion/state", String(data="getup"))
+    node.inject("fall/state", String(data="standing"))
+    node.advance(1.0)
+    assert striker.state == FALLEN  # the get-up is not over
+    assert node.published("cmd_vel") == []
+    assert node.published("motion/kick/request") == []
+    node.inject("motion/state", String(data="stand"))
+    assert striker.state == SEARCH
+
+
+def test_bad_parameters_are_refused_with_their_names() -> None:
+    with pytest.raises(SimConfigError, match="max_vx"):
+        _striker(max_vx=-0.1)
+    with pytest.raises(SimConfigError, match="start_pose"):
+        _striker(start_pose=[0.0, 0.0])
+
+
+def test_pose_frames_round_trip() -> None:
+    pose = Pose(1.0, -2.0, 0.7)
+    assert pose.to_local(*pose.to_field(0.3, -0.4)) == pytest.approx((0.3, -0.4))
