@@ -188,6 +188,21 @@ def test_the_goal_direction_comes_from_its_own_pose_estimate() -> None:
         (math.cos(math.pi / 2 - 0.5), math.sin(math.pi / 2 - 0.5)))
 
 
+def test_a_kick_that_does_not_begin_is_given_up_and_tried_again() -> None:
+    node, striker = _striker(kick_start_s=1.0)
+    _imu(node, 0.0)
+    _ball(node, KICK_DISTANCE, FOOT_OFFSET)
+    node.inject("motion/state", String(data="stand"))
+    node.advance(0.1)
+    assert striker.state == KICK
+    node.advance(0.8)
+    assert striker.state == KICK
+    node.advance(0.4)  # refused: motion/state never said kick
+    assert striker.kicks == 0
+    assert len(node.published("motion/kick/request")) == 2  # lined up still: asked again
+    assert any("did not happen" in text for _, text in node.records)
+
+
 def test_in_front_of_the_ball_it_walks_around_it_not_through_it() -> None:
     # Facing its own goal, the ball 1 m ahead: the kick position is on the far side.
     node, striker = _striker(start_pose=[2.0, 0.0, math.pi])

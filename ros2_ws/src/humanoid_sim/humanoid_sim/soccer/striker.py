@@ -19,8 +19,9 @@ States (published on ``behaviour/state``, std_msgs/String, latched, on every cha
 * ``stop``: there, within ``position_tolerance`` and ``heading_tolerance``: the walk is
   stopped (zero ``cmd_vel``) and the striker waits for ``motion/state`` ``stand``;
 * ``kick``: still lined up, it requested the kick (``motion/kick/request``, ``left`` or
-  ``right``) and waits for ``motion/state`` to go through ``kick`` and back to ``stand``
-  (or ``kick_timeout_s``), then starts over;
+  ``right``) and waits for ``motion/state`` to go through ``kick`` and back to ``stand``,
+  then starts over; a kick not begun within ``kick_start_s`` (refused) or not over within
+  ``kick_timeout_s`` starts over too;
 * ``fallen``: ``fall/state`` is not ``standing`` or ``motion/state`` is ``getup`` or
   ``fallen``: it does nothing (the get-up runs by itself) and searches when up again.
 
@@ -64,6 +65,7 @@ PARAMETERS: dict[str, float | list[float]] = {
     "ball_lost_s": 2.0,
     "search_wait_s": 3.0,
     "search_turn": 0.45,
+    "kick_start_s": 1.0,  # a kick not begun by then was refused: line up again
     "kick_timeout_s": 6.0,
 }
 
@@ -295,7 +297,9 @@ class Striker:
 
     def _kicking(self) -> None:
         done = self._kick_seen and self.motion == "stand"
-        if done or self._seconds_in_state() > self.p["kick_timeout_s"]:
+        waited = self._seconds_in_state()
+        if done or waited > self.p["kick_timeout_s"] or (
+                not self._kick_seen and waited > self.p["kick_start_s"]):
             if done:
                 self.kicks += 1
             else:
