@@ -197,7 +197,7 @@ def test_a_kick_that_does_not_begin_is_given_up_and_tried_again() -> None:
     assert striker.state == KICK
     node.advance(0.8)
     assert striker.state == KICK
-    node.advance(0.4)  # refused: motion/state never said kick
+    node.advance(0.6)  # refused: motion/state never said kick
     assert striker.kicks == 0
     assert len(node.published("motion/kick/request")) == 2  # lined up still: asked again
     assert any("did not happen" in text for _, text in node.records)
