@@ -71,7 +71,7 @@ def live_line(robot: SoccerRobot, window: Figures) -> str:
             f"{_f(s['tracking_error_p95_deg'], '8.2f'):>8} "
             f"{_f(s['latency_median_ms'], '6.1f'):>6} {robot.monitor.walked_m:>8.2f} "
             f"{robot.monitor.kicks:>5} {robot.referee.goals:>5} {robot.fall_detector.falls:>5} "
-            f"{robot.striker.state:<8} {robot.behaviour.state:<9} "
+            f"{robot.striker.state if robot.striker else '-':<8} {robot.behaviour.state:<9} "
             f"{robot.driver.comm_errors:>7}")
 
 
@@ -89,7 +89,7 @@ def posture(robot: SoccerRobot, frames_down: int) -> str:
 
 def play(robot: SoccerRobot) -> list[str]:
     """The report's rows on the game: goals, kicks, falls and get-ups, walking."""
-    monitor, referee = robot.monitor, robot.referee
+    monitor, referee, striker = robot.monitor, robot.referee, robot.striker
     goals = ", ".join(f"{t / 1e9:.1f} s" for t in referee.goal_at_ns)
     first = (f"{monitor.first_kick_ns / 1e9:.1f} s" if monitor.first_kick_ns is not None
              else "no kick")
@@ -97,11 +97,12 @@ def play(robot: SoccerRobot) -> list[str]:
         f"| goals (ball over the opponent goal line between the posts) | {referee.goals}"
         f"{f' (at {goals})' if goals else ''}; own goals {referee.own_goals}, "
         f"balls out {referee.outs} |",
-        f"| kicks | {monitor.kicks} ({robot.striker.kicks} finished as the striker asked) |",
+        f"| kicks | {monitor.kicks} ({striker.kicks if striker else 0} finished as the striker "
+        f"asked) |",
         f"| time to the first kick | {first} |",
         f"| falls and get-ups | {robot.fall_detector.falls} falls, {monitor.getups} get-ups |",
         f"| distance walked (ground truth) | {monitor.walked_m:.2f} m |",
-        f"| striker | {robot.striker.state} |",
+        f"| striker | {striker.state if striker else 'none'} |",
     ]
 
 

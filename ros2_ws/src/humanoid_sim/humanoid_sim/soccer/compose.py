@@ -41,8 +41,9 @@ class SoccerRobot:
     behaviour: HeadBehaviour
     motion: Motion
     monitor: SoccerMonitor
-    #: The body's behaviour: walk to the ball and kick it towards the opponent goal.
-    striker: Striker
+    #: The body's behaviour: walk to the ball and kick it towards the opponent goal (None:
+    #: a robot that only stands and tracks, ``compose(play=False)``).
+    striker: Striker | None
     #: Goals and balls out of play, from ground truth; puts the ball back (not the robot's).
     referee: Referee
     #: ``camera/image_raw/compressed`` for viewers off the robot (encodes only on demand).
@@ -73,10 +74,11 @@ def add_body(container: Container, *, namespace: str,
 def compose(container: Container, *, namespace: str = "/robot",
             simulator: Mapping[str, Any] | None = None,
             driver: Mapping[str, Any] | None = None,
-            striker: Mapping[str, Any] | None = None) -> SoccerRobot:
+            striker: Mapping[str, Any] | None = None, play: bool = True) -> SoccerRobot:
     """Add the robot to ``container``; ``simulator``/``driver``/``striker`` override their
     parameters. The striker's ``start_pose`` is the simulator's ``robot_pose`` unless given:
-    where the robot was placed is what it knows at kick-off.
+    where the robot was placed is what it knows at kick-off. ``play=False`` leaves the
+    striker out: the robot stands and its head tracks (the tracking tests' robot).
 
     Order matters on a shared timer deadline: the simulator steps (and renders, and the
     pipeline reacts to the image in the same pass) before the driver reads and writes the
@@ -97,7 +99,7 @@ def compose(container: Container, *, namespace: str = "/robot",
         motion=container.add(Motion, name="motion", namespace=namespace),
         monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),
         striker=container.add(Striker, name="striker", namespace=namespace,
-                              parameters=dict(striker or {})),
+                              parameters=striker) if play else None,
         referee=container.add(Referee, name="referee", namespace=namespace),
         compressor=container.add(JpegCompressor, name="jpeg_compressor", namespace=namespace),
     )
