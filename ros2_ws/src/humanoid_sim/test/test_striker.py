@@ -27,7 +27,7 @@ from humanoid_sim.soccer.striker import (
 )
 from humanoid_sim.soccer.world_model import ground_position
 
-KICK_DISTANCE, FOOT_OFFSET = 0.17, 0.055
+KICK_DISTANCE, FOOT_OFFSET = 0.16, 0.045
 
 
 def _quaternion(*, roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0) -> Quaternion:

@@ -52,8 +52,8 @@ PARAMETERS: dict[str, float | list[float]] = {
     "rate_hz": 10.0,
     "start_pose": [0.0, 0.0, 0.0],  # x, y, heading on the field at the start
     "goal": [4.5, 0.0],  # the opponent goal's centre on the field
-    "kick_distance": 0.17,  # torso origin behind the ball's centre, along the kick
-    "foot_offset": 0.055,  # the kicking foot's centre beside the torso origin
+    "kick_distance": 0.16,  # torso origin behind the ball's centre, along the kick
+    "foot_offset": 0.045,  # the kicking foot (its hip) beside the torso origin
     "position_tolerance": 0.05,
     "heading_tolerance": 0.15,
     "max_vx": 0.175,  # forward; what the walk holds against shoves
