@@ -1,5 +1,8 @@
 """The simulated soccer robot in one container: simulator, driver and the soccer pipeline.
 
+The pipeline's motions (walk engine, kick) publish on their own topics; the motion arbiter
+(:mod:`.arbiter`) is the one writer of ``joint_commands``.
+
 The same wiring serves the demo, the software-in-the-loop tests and the benchmarks, on a
 wall clock (real time) or a manual one (lockstep). The driver is given the simulator's pty
 path as its port; everything else it does is what it would do on the robot.
@@ -17,13 +20,15 @@ from efficient_comm import Container
 from ..driver import ServoDriver
 from ..mujoco_plant import JOINTS
 from ..simulator import Simulator
+from .arbiter import MotionArbiter
 from .behaviour import HeadBehaviour
 from .fall import FallDetector
+from .kick import Kick
 from .monitor import SoccerMonitor
-from .motion import Motion
 from .referee import Referee
 from .striker import Striker
 from .vision import BallDetector
+from .walk import WalkEngine
 from .world_model import BallModel
 
 LOCKSTEP_LATENCY_TIMER_MS = 250.0
@@ -39,7 +44,11 @@ class SoccerRobot:
     ball_model: BallModel
     fall_detector: FallDetector
     behaviour: HeadBehaviour
-    motion: Motion
+    #: The motions (``motion/walk``, ``motion/kick``) and the arbiter that owns
+    #: ``joint_commands`` (``motion/state``).
+    walk: WalkEngine
+    kick: Kick
+    arbiter: MotionArbiter
     monitor: SoccerMonitor
     #: The body's behaviour: walk to the ball and kick it towards the opponent goal (None:
     #: a robot that only stands and tracks, ``compose(play=False)``).
@@ -96,7 +105,9 @@ def compose(container: Container, *, namespace: str = "/robot",
         ball_model=container.add(BallModel, name="ball_model", namespace=namespace),
         fall_detector=container.add(FallDetector, name="fall_detector", namespace=namespace),
         behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
-        motion=container.add(Motion, name="motion", namespace=namespace),
+        walk=container.add(WalkEngine, name="walk", namespace=namespace),
+        kick=container.add(Kick, name="kick", namespace=namespace),
+        arbiter=container.add(MotionArbiter, name="motion", namespace=namespace),
         monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),
         striker=container.add(Striker, name="striker", namespace=namespace,
                               parameters=striker) if play else None,
