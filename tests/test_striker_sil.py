@@ -24,14 +24,15 @@ BALL = [1.0, 0.5]
 CLOSER_M = 1.5
 DIRECTION_DEG = 20.0
 #: Time for walking there and kicking (simulated s); the run stops earlier once the ball
-#: kicked has come to rest.
-LIMIT_S = 45.0
+#: kicked has come to rest or left the field (a goal: the referee would put it back).
+LIMIT_S = 40.0
 
 
 @dataclass(frozen=True)
 class Outcome:
     kicked_at_s: float
     ball_end: tuple[float, float]
+    goals: int
     robot_end: tuple[float, float]
     falls: int
     kicks: int
@@ -54,6 +55,8 @@ def play(seed: int) -> Outcome:
             if kicked_at is not None:
                 ball = robot.simulator.ball_position()
                 rest.append((float(ball[0]), float(ball[1])))
+                if robot.referee.goals or robot.referee.outs:
+                    break  # over a line: where it is now is where it ends
                 # At rest: moved less than 1 mm in the last 0.5 s, 1 s after the kick at least.
                 if (robot.simulator.sim_time_s > kicked_at + 1.0 and len(rest) > 5
                         and math.dist(rest[-1], rest[-6]) < 1e-3):
@@ -61,7 +64,7 @@ def play(seed: int) -> Outcome:
         body = robot.simulator.data.xpos[robot.simulator.model.body("torso").id]
         return Outcome(
             kicked_at_s=kicked_at if kicked_at is not None else math.nan,
-            ball_end=rest[-1] if rest else (math.nan, math.nan),
+            ball_end=rest[-1] if rest else (math.nan, math.nan), goals=robot.referee.goals,
             robot_end=(float(body[0]), float(body[1])),
             falls=robot.fall_detector.falls, kicks=robot.monitor.kicks,
             striker_states=tuple(states))
