@@ -92,6 +92,8 @@ class KickResult:
     #: The kick ran to its end (not refused, not aborted).
     completed: bool = False
     seconds: float = 0.0
+    #: The ball's (x, y) on the field at every sample, for comparisons and plots.
+    path: list[tuple[float, float]] = field(default_factory=list)
     peak_torque: dict[str, float] = field(default_factory=dict)
     peak_speed: dict[str, float] = field(default_factory=dict)
 
@@ -107,8 +109,9 @@ class KickResult:
 
 def _follow(result: KickResult, plant: MujocoPlant, advance: Callable[[], None],
             fallen: Callable[[], bool], kicking: Callable[[], bool], *,
-            seconds: float) -> KickResult:
-    """Advance in steps of :data:`SAMPLE_S` until the kick is over and the ball at rest."""
+            seconds: float, until_m: float | None = None) -> KickResult:
+    """Advance in steps of :data:`SAMPLE_S` until the kick is over and the ball at rest
+    (or, with ``until_m``, has gone that far), for at most ``seconds``."""
     ball = plant.model.body("ball").id
     velocity = plant.model.joint("ball").dofadr[0]
     start = [float(v) for v in plant.data.xpos[ball][:2]]
@@ -119,6 +122,8 @@ def _follow(result: KickResult, plant: MujocoPlant, advance: Callable[[], None],
         elapsed += SAMPLE_S
         speed = math.hypot(float(plant.data.qvel[velocity]), float(plant.data.qvel[velocity + 1]))
         result.ball_speed = max(result.ball_speed, speed)
+        bx, by = float(plant.data.xpos[ball][0]), float(plant.data.xpos[ball][1])
+        result.path.append((bx, by))
         for dxl_id, name in JOINTS.items():
             result.peak_torque[name] = max(result.peak_torque.get(name, 0.0),
                                            abs(plant.motor_torque(dxl_id)))
@@ -126,7 +131,8 @@ def _follow(result: KickResult, plant: MujocoPlant, advance: Callable[[], None],
                                           abs(plant.state(dxl_id).velocity_rad_s))
         if result.fell_at_s is None and fallen():
             result.fell_at_s = elapsed
-        if not kicking() and speed < REST_SPEED and elapsed > 1.0:
+        if not kicking() and (speed < REST_SPEED and elapsed > 1.0 or until_m is not None
+                              and math.hypot(bx - start[0], by - start[1]) >= until_m):
             break
     result.seconds = elapsed
     dx = float(plant.data.xpos[ball][0]) - start[0]
@@ -139,8 +145,10 @@ def _follow(result: KickResult, plant: MujocoPlant, advance: Callable[[], None],
 
 
 def kick_trial(container: Container, robot: KickingRobot, side: str, *,
-               settle_s: float = 1.5, seconds: float = 12.0) -> KickResult:
-    """Stand for ``settle_s``, ask for a ``side`` kick, follow the ball for up to ``seconds``."""
+               settle_s: float = 1.5, seconds: float = 12.0,
+               until_m: float | None = None) -> KickResult:
+    """Stand for ``settle_s``, ask for a ``side`` kick, follow the ball for up to ``seconds``
+    (or until the kick is over and the ball ``until_m`` away)."""
     container.advance(settle_s)
     probe = TestHandle("kick_trial", container=container)
     request = probe.create_publisher(
@@ -152,7 +160,7 @@ def kick_trial(container: Container, robot: KickingRobot, side: str, *,
     request.publish(String(data=side))
     result = _follow(result, robot.simulator.plant, lambda: container.advance(SAMPLE_S),
                      lambda: detector.falls + (detector.state != "standing") > falls0,
-                     lambda: kick.active, seconds=seconds)
+                     lambda: kick.active, seconds=seconds, until_m=until_m)
     result.completed = kick.kicks > kicks0
     probe.destroy_publisher(request)
     return result
@@ -160,7 +168,7 @@ def kick_trial(container: Container, robot: KickingRobot, side: str, *,
 
 def plant_kick_trial(side: str, *, ball: tuple[float, float] | None = None,
                      parameters: Mapping[str, float] | None = None, settle_s: float = 1.0,
-                     seconds: float = 12.0) -> KickResult:
+                     seconds: float = 12.0, until_m: float | None = None) -> KickResult:
     """:func:`kick_trial` on the MuJoCo plant alone: the kick's goals straight to the joints.
 
     Same physics and servo model (goals slewed at the no-load speed), the IMU's rates fed
@@ -206,6 +214,6 @@ def plant_kick_trial(side: str, *, ball: tuple[float, float] | None = None,
     started[0] = True
     result = _follow(KickResult(side=side), plant, cycle,
                      lambda: float(data.xmat[torso][8]) < FALL_COS,
-                     lambda: clock[0] < motion.duration, seconds=seconds)
+                     lambda: clock[0] < motion.duration, seconds=seconds, until_m=until_m)
     result.completed = clock[0] >= motion.duration and not result.fell
     return result
