@@ -130,6 +130,8 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         f"| ball detections | {totals.detections} ({s['detection_rate_hz']:.1f} Hz) |",
         f"| servo bus cycles (joint states) | {totals.joint_states} "
         f"({s['joint_state_rate_hz']:.1f} Hz) |",
+        f"| ball outside the image (searching, not scored) | {totals.frames_out_of_view} "
+        f"frames |",
         f"| tracking error (ball from image centre) | mean "
         f"{_f(s['tracking_error_mean_deg'], '.2f')}°, p95 "
         f"{_f(s['tracking_error_p95_deg'], '.2f')}°, max "

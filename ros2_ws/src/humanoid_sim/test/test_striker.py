@@ -1,4 +1,5 @@
-"""The striker's decisions and the ball's place on the ground, each alone on a TestHandle."""
+"""The striker's decisions, the ball's place on the ground, and the game's figures (referee
+and monitor), each alone on a TestHandle."""
 
 from __future__ import annotations
 
@@ -7,14 +8,16 @@ import math
 import mujoco
 import numpy as np
 import pytest
-from geometry_msgs.msg import PointStamped, Quaternion, Twist
+from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion, Twist
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Image, Imu
 from std_msgs.msg import String
 
 from efficient_comm.testing import TestHandle
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.mujoco_plant import MujocoPlant
+from humanoid_sim.soccer.monitor import SoccerMonitor
+from humanoid_sim.soccer.referee import Referee
 from humanoid_sim.soccer.striker import (
     APPROACH,
     FALLEN,
@@ -246,3 +249,76 @@ def test_bad_parameters_are_refused_with_their_names() -> None:
 def test_pose_frames_round_trip() -> None:
     pose = Pose(1.0, -2.0, 0.7)
     assert pose.to_local(*pose.to_field(0.3, -0.4)) == pytest.approx((0.3, -0.4))
+
+
+def _pose(x: float, y: float, z: float = 0.07, q: Quaternion | None = None) -> PoseStamped:
+    pose = PoseStamped()
+    pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = x, y, z
+    if q is not None:
+        pose.pose.orientation = q
+    return pose
+
+
+def test_the_referee_counts_a_goal_only_between_the_posts_and_puts_the_ball_back() -> None:
+    node = TestHandle("referee", parameters={"restart_s": 1.0})
+    referee = Referee(node)
+    node.inject("ground_truth/ball", _pose(4.5, 0.0))  # on the line: not yet over it
+    node.inject("ground_truth/ball", _pose(4.6, 1.2))  # wholly over, inside the post
+    assert (referee.goals, referee.outs) == (1, 0)
+    node.inject("ground_truth/ball", _pose(4.9, 1.2))  # still in the goal: counted once
+    assert referee.goals == 1
+    assert node.published("place_ball") == []  # a moment for everyone to see it
+    node.advance(1.0)
+    node.inject("ground_truth/ball", _pose(5.0, 1.2))
+    (centre,) = node.published("place_ball")
+    assert (centre.x, centre.y) == (0.0, 0.0)
+    node.inject("ground_truth/ball", _pose(0.0, 0.0))
+    node.inject("ground_truth/ball", _pose(4.6, 1.5))  # wide of the post: out
+    node.inject("ground_truth/ball", _pose(-1.0, -3.2))  # (not judged while waiting)
+    assert (referee.goals, referee.outs) == (1, 1)
+    node.advance(1.0)
+    node.inject("ground_truth/ball", _pose(4.6, 1.5))
+    back = node.published("place_ball")[-1]
+    assert (back.x, back.y) == pytest.approx((4.2, 1.5))
+    node.inject("ground_truth/ball", _pose(-4.6, 0.0))
+    assert referee.own_goals == 1 and referee.goal_at_ns == [0]
+
+
+def test_the_monitor_counts_kicks_get_ups_the_first_kick_and_the_way_walked() -> None:
+    node = TestHandle("monitor")
+    monitor = SoccerMonitor(node)
+    for x in (0.0, 0.01, 0.1, 0.2):  # 1 cm of sway is not walking; the rest is
+        node.inject("ground_truth/robot", _pose(x, 0.0, 0.37))
+        node.advance(0.5)
+    assert monitor.walked_m == pytest.approx(0.2)
+    node.inject("motion/state", String(data="walk"))
+    node.inject("motion/state", String(data="stand"))
+    node.advance(1.0)
+    node.inject("motion/state", String(data="kick"))
+    node.inject("motion/state", String(data="stand"))
+    node.inject("motion/state", String(data="kick"))
+    node.inject("motion/state", String(data="fallen"))
+    node.inject("fall/state", String(data="fallen"))
+    node.inject("ground_truth/robot", _pose(5.0, 0.0, 0.1))  # lying down: not walking
+    node.inject("motion/state", String(data="getup"))
+    node.inject("motion/state", String(data="stand"))
+    assert (monitor.kicks, monitor.getups) == (2, 1)
+    assert monitor.first_kick_ns == 3_000_000_000
+    assert monitor.walked_m == pytest.approx(0.2)
+
+
+def test_the_monitor_does_not_score_frames_without_the_ball_in_the_image() -> None:
+    node = TestHandle("monitor")
+    monitor = SoccerMonitor(node)
+    # MuJoCo's camera frame looks along -z; this one looks along +x (the field's).
+    looking_ahead = Quaternion(w=0.5, x=0.5, y=-0.5, z=-0.5)
+    node.inject("ground_truth/camera", _pose(0.0, 0.0, 0.5, looking_ahead))
+    image = Image(height=240, width=320, encoding="rgb8", step=960)
+    for ball in ((2.0, 0.1), (-2.0, 0.0), (0.5, 2.0)):  # ahead; behind; far to the side
+        node.inject("ground_truth/ball", _pose(*ball))
+        node.inject("camera/image_raw", image)
+    totals = monitor.totals()
+    assert (totals.frames, totals.frames_out_of_view) == (3, 2)
+    assert len(totals.tracking_error_deg) == 1
+    assert totals.tracking_error_deg[0] == pytest.approx(
+        math.degrees(math.atan2(math.hypot(0.1, 0.43), 2.0)), abs=0.01)
