@@ -2,7 +2,9 @@
 
 ``vision`` finds the ball in camera images (OpenCV); ``world_model`` filters its bearing in
 the robot's frame; ``behaviour`` points the head at it (and searches when it is lost);
-``motion`` turns stance and head goals into joint commands for the servo driver;
+``motion`` holds the standing pose; ``arbiter`` is the one writer of the servo driver's
+joint commands, choosing among the motions (get-up > kick > walk > standing pose) with the
+head goal on the neck; ``kick`` kicks the ball from standing (``kick_rig``: measured kicks);
 ``fall`` tells from the IMU whether the robot stands, is falling or lies on the ground;
 ``walk`` is the walk engine (``cmd_vel`` in, whole-body joint goals and odometry out), from
 foot splines (``spline``) and the legs' analytic inverse kinematics (``leg_ik``);
@@ -21,4 +23,8 @@ Messages between them (all standard types, passed by reference when composed):
 * ``fall/state`` (String, transient local): ``standing``, ``falling`` or ``fallen``.
 * ``cmd_vel`` (Twist): the wanted walking velocity; ``odom`` (Odometry): the walk engine's
   odometry; ``motion/walk`` (JointState): the walk engine's whole-body goals.
+* ``motion/<name>`` (JointState) and ``motion/<name>/active`` (Bool, transient local) for
+  each motion (walk, kick, getup); ``motion/state`` (String, transient local): ``stand``,
+  ``walk``, ``kick``, ``getup`` or ``fallen``; ``motion/kick/request`` (String): ``left`` or
+  ``right``.
 """

@@ -131,8 +131,8 @@ def _follow(result: KickResult, plant: MujocoPlant, advance: Callable[[], None],
                                           abs(plant.state(dxl_id).velocity_rad_s))
         if result.fell_at_s is None and fallen():
             result.fell_at_s = elapsed
-        if not kicking() and (speed < REST_SPEED and elapsed > 1.0 or until_m is not None
-                              and math.hypot(bx - start[0], by - start[1]) >= until_m):
+        if not kicking() and ((speed < REST_SPEED and elapsed > 1.0) or (until_m is not None
+                              and math.hypot(bx - start[0], by - start[1]) >= until_m)):
             break
     result.seconds = elapsed
     dx = float(plant.data.xpos[ball][0]) - start[0]
