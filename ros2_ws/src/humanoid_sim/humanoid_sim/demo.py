@@ -82,7 +82,7 @@ def posture(robot: SoccerRobot, frames_down: int) -> str:
     pushed = f"; pushed {pushes} time{'s' * (pushes != 1)}" if pushes else ""
     if not fall.falls:
         return f"stood throughout, now {fall.state}{pushed}"
-    when = ", ".join(f"{t / 1e9:.1f} s" for t in fall.fell_at_ns)
+    when = ", ".join(f"{(t - robot.monitor.started_ns) / 1e9:.1f} s" for t in fall.fell_at_ns)
     return (f"**FELL** {fall.falls} time{'s' * (fall.falls != 1)} (at {when}), now "
             f"{fall.state}; {frames_down} frames while down, not scored{pushed}")
 

@@ -117,7 +117,9 @@ class SoccerMonitor:
         self._command_times: dict[int, int] = {}
         self._window = Figures()
         self._total = Figures()
-        self._window_start = self._total_start = node.clock.now_ns()
+        #: When the monitor started (the clock's ns): times in the report count from here.
+        self.started_ns = node.clock.now_ns()
+        self._window_start = self._total_start = self.started_ns
         self.motion = ""
         self.kicks = 0
         self.getups = 0

@@ -35,8 +35,9 @@ class Referee:
         self.goals = 0
         self.own_goals = 0
         self.outs = 0
-        #: Simulated times (ns) of the goals scored in the opponent goal.
+        #: When the goals in the opponent goal were scored (ns since the referee started).
         self.goal_at_ns: list[int] = []
+        self._start_ns = node.clock.now_ns()
         self._restart: tuple[int, Point] | None = None  # when and where the ball goes back
         self.place_pub = node.create_publisher(Point, "place_ball", qos=10)
         node.create_subscription(PoseStamped, "ground_truth/ball", self._on_ball, qos=10)
@@ -56,11 +57,11 @@ class Referee:
         if over_goal_line and abs(y) < GOAL_HALF_WIDTH and z < CROSSBAR:
             if x > 0:
                 self.goals += 1
-                self.goal_at_ns.append(now)
-                self.node.logger.info(f"GOAL at {now / 1e9:.1f} s ({self.goals})")
+                self.goal_at_ns.append(now - self._start_ns)
+                self.node.logger.info(f"GOAL ({self.goals})")
             else:
                 self.own_goals += 1
-                self.node.logger.info(f"own goal at {now / 1e9:.1f} s")
+                self.node.logger.info("own goal")
             where = Point()
         else:
             self.outs += 1
