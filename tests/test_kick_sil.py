@@ -11,8 +11,11 @@ TestHandle (ros2_ws/src/humanoid_sim/test/test_motion_arbiter.py).
 from __future__ import annotations
 
 import pytest
+from geometry_msgs.msg import Twist
+from std_msgs.msg import String
 
-from efficient_comm.testing import test_container
+from efficient_comm.testing import TestHandle, test_container
+from humanoid_sim.soccer.arbiter import LATCHED
 from humanoid_sim.soccer.kick_rig import KickResult, ball_spot, compose_kicker, kick_trial
 
 #: Issue 13's target for a kick: this far, within this angle of straight ahead.
@@ -55,3 +58,44 @@ def test_same_seed_same_kick_another_seed_another() -> None:
     assert first.path == again.path and first.peak_torque == again.peak_torque
     assert first.ball_speed > 0.3  # the ball was kicked within the window compared
     assert other.path != first.path or other.peak_torque != first.peak_torque
+
+
+@pytest.mark.timeout(180)
+def test_a_kick_asked_for_while_walking_is_refused_and_after_the_stop_it_runs() -> None:
+    with test_container(guard_mutation="raise") as container:
+        robot = compose_kicker(container, simulator={"ball_position": [3.0, 2.0]})
+        probe = TestHandle("probe", container=container)
+        states: list[str] = []
+        probe.create_subscription(String, "/robot/motion/state",
+                                  lambda m: states.append(m.data), qos=LATCHED)
+        cmd_vel = probe.create_publisher(Twist, "/robot/cmd_vel", qos=10)
+        request = probe.create_publisher(String, "/robot/motion/kick/request", qos=10)
+
+        def kicking() -> bool:  # a call: mypy does not narrow it between the steps
+            return robot.kick.active
+
+        container.advance(1.0)
+        walk = Twist()
+        walk.linear.x = 0.15
+        cmd_vel.publish(walk)
+        container.advance(1.5)
+        assert robot.arbiter.state == "walk"
+        request.publish(String(data="left"))
+        container.advance(0.05)
+        assert robot.kick.refused == 1 and not kicking()
+        cmd_vel.publish(Twist())
+        for _ in range(300):  # the walk slows down and lowers its steps: at most 3 s
+            if robot.arbiter.state == "stand":
+                break
+            container.advance(0.01)
+        assert robot.arbiter.state == "stand"
+        container.advance(0.5)  # the blend into the stance
+        request.publish(String(data="left"))
+        container.advance(0.05)
+        assert kicking()
+        while kicking():
+            container.advance(0.1)
+        container.advance(0.5)
+        assert robot.kick.kicks == 1 and robot.fall_detector.falls == 0
+        assert states == ["stand", "walk", "stand", "kick", "stand"]
+        assert sum(s.exceptions for s in container.stats()) == 0

@@ -6,7 +6,7 @@ import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import to_msg
+from efficient_comm import ParameterError, to_msg
 from efficient_comm.testing import TestHandle
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.arbiter import MotionArbiter
@@ -161,3 +161,16 @@ def test_kick_swings_the_kicking_foot_only() -> None:
         KickParameters(reach=1.0).check()
     with pytest.raises(SimConfigError, match="side"):
         KickMotion("middle")
+
+
+def test_kick_parameters_out_of_range_or_reach_are_refused() -> None:
+    node, kick = _kick_node()
+    node.set_parameter("swing_s", 0.25)
+    assert kick.p.swing_s == 0.25
+    with pytest.raises(ParameterError, match="reach"):
+        node.set_parameter("reach", 0.19)  # in range, but no leg reaches that far
+    with pytest.raises(ParameterError, match="shift_y"):
+        node.set_parameter("shift_y", 0.5)
+    assert kick.p.reach == KickParameters().reach and kick.p.shift_y == KickParameters().shift_y
+    with pytest.raises(SimConfigError, match="reach"):
+        Kick(TestHandle("kick", parameters={"reach": 0.19}))
