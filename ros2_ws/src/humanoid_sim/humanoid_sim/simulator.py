@@ -230,6 +230,36 @@ class Simulator:
             self.plant.push(force_n, duration_s=duration_s, body=body)
         self.pushes += 1
 
+    def lay_down(self, side: str, *, heading: float | None = None, height_m: float = 0.12
+                 ) -> None:
+        """Lay the robot on its ``"front"`` (face down) or ``"back"``, where it stands now,
+        facing ``heading`` (rad, field frame; default: its present heading), its torso
+        ``height_m`` above the ground and at rest: a fallen robot for get-up trials.
+
+        The joints keep their angles; the robot drops the last few centimetres onto the
+        ground with the next physics steps.
+        """
+        if side not in ("front", "back"):
+            raise SimConfigError(f"lay_down: side is 'front' or 'back', got {side!r}")
+        with self.pty.lock:
+            torso = self.model.body("torso").id
+            w, x, y, z = (float(v) for v in self.data.xquat[torso])
+            if heading is None:
+                heading = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+            pitch = math.pi / 2 if side == "front" else -math.pi / 2
+            yaw_q = np.array([math.cos(heading / 2), 0.0, 0.0, math.sin(heading / 2)])
+            pitch_q = np.array([math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0])
+            quat = np.zeros(4)
+            mujoco.mju_mulQuat(quat, yaw_q, pitch_q)
+            root = self.model.joint("root")
+            q, v = root.qposadr[0], root.dofadr[0]
+            self.data.qpos[q + 2] = height_m
+            self.data.qpos[q + 3 : q + 7] = quat
+            self.data.qvel[v : v + 6] = 0.0
+            for name in JOINTS.values():
+                self.data.qvel[self.model.joint(name).dofadr[0]] = 0.0
+            mujoco.mj_forward(self.model, self.data)
+
     def _on_push(self, impulse: Vector3) -> None:
         force = (impulse.x / PUSH_SECONDS, impulse.y / PUSH_SECONDS, impulse.z / PUSH_SECONDS)
         if not all(map(math.isfinite, force)):
