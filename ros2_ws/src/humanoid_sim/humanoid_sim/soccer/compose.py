@@ -23,6 +23,7 @@ from ..simulator import Simulator
 from .arbiter import MotionArbiter
 from .behaviour import HeadBehaviour
 from .fall import FallDetector
+from .getup import GetUp
 from .kick import Kick
 from .monitor import SoccerMonitor
 from .referee import Referee
@@ -44,10 +45,11 @@ class SoccerRobot:
     ball_model: BallModel
     fall_detector: FallDetector
     behaviour: HeadBehaviour
-    #: The motions (``motion/walk``, ``motion/kick``) and the arbiter that owns
-    #: ``joint_commands`` (``motion/state``).
+    #: The motions (``motion/walk``, ``motion/kick``, ``motion/getup``) and the arbiter
+    #: that owns ``joint_commands`` (``motion/state``).
     walk: WalkEngine
     kick: Kick
+    getup: GetUp
     arbiter: MotionArbiter
     monitor: SoccerMonitor
     #: The body's behaviour: walk to the ball and kick it towards the opponent goal (None:
@@ -107,6 +109,7 @@ def compose(container: Container, *, namespace: str = "/robot",
         behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
         walk=container.add(WalkEngine, name="walk", namespace=namespace),
         kick=container.add(Kick, name="kick", namespace=namespace),
+        getup=container.add(GetUp, name="getup", namespace=namespace),
         arbiter=container.add(MotionArbiter, name="motion", namespace=namespace),
         monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),
         striker=container.add(Striker, name="striker", namespace=namespace,
