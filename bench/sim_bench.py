@@ -266,7 +266,8 @@ def demo_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
     return {"rtf": figure(r"\| real-time factor \| ([\d.]+)"),
             "walked_m": figure(r"\| distance walked \(ground truth\) \| ([\d.]+) m"),
             "kicks": figure(r"\| kicks \| (\d+)"),
-            "falls": figure(r"\| falls and get-ups \| (\d+) falls")}
+            "falls": figure(r"\| falls and get-ups \| (\d+) falls"),
+            "bus_hz": figure(r"\| servo bus cycles \(joint states\) \| \d+ \(([\d.]+) Hz\)")}
 
 
 def child(kind: str, args: argparse.Namespace) -> dict[str, Any]:
@@ -325,14 +326,17 @@ def main() -> int:
     summary = _summary(runs, med) if set(kinds) >= set(KINDS[:6]) else {}
     for kind in ("demo_lockstep", "demo_realtime"):
         if kind in runs:
-            for key in ("rtf", "walked_m", "kicks", "falls"):
+            for key in ("rtf", "walked_m", "kicks", "falls", "bus_hz"):
                 summary[f"{kind}_{key}"] = med(kind, key)
             each = ", ".join(f"{r['rtf']:.2f}" for r in runs[kind])
+            falls = ", ".join(f"{r['falls']:.0f}" for r in runs[kind])
             print(f"the demo, robot playing (walking, kicking), {kind.split('_')[1]}: RTF "
                   f"{med(kind, 'rtf'):.2f} = {med(kind, 'rtf') / TARGET_RTF:.2f}x the 1.0 "
                   f"target (runs: {each}); "
                   f"walked {med(kind, 'walked_m'):.2f} m, {med(kind, 'kicks'):.0f} kicks, "
-                  f"{med(kind, 'falls'):.0f} falls in {args.seconds:g} s")
+                  f"{med(kind, 'falls'):.0f} falls in {args.seconds:g} s; servo bus "
+                  f"{med(kind, 'bus_hz'):.0f} Hz of 100 (each run's falls: "
+                  f"{falls})")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"summary": summary, "runs": runs}, indent=1))
     print(f"written {args.out}")
