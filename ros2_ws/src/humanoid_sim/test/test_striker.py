@@ -76,7 +76,8 @@ def test_a_ray_at_or_above_the_horizon_has_no_place_on_the_ground() -> None:
 
 def _striker(**parameters: object) -> tuple[TestHandle, Striker]:
     node = TestHandle("striker", parameters={"kick_distance": KICK_DISTANCE,
-                                             "foot_offset": FOOT_OFFSET, **parameters})
+                                             "foot_offset": FOOT_OFFSET, "settle_s": 0.0,
+                                             **parameters})
     return node, Striker(node)
 
 
@@ -157,6 +158,18 @@ def test_it_walks_to_a_ball_ahead_then_stops_lines_up_and_kicks() -> None:
     assert striker.kicks == 1
     # The ball did not move (no simulator here): it lines up for the next kick at once.
     assert _states(node)[:5] == [SEARCH, APPROACH, STOP, KICK, APPROACH]
+
+
+def test_at_the_start_it_stands_still_for_a_while() -> None:
+    node, striker = _striker(settle_s=2.0)
+    _imu(node, 0.0)
+    _ball(node, 1.0, 0.0)
+    node.advance(1.9)
+    assert node.published("cmd_vel") == []
+    assert striker.state == SEARCH
+    _ball(node, 1.0, 0.0)  # the head kept it in view
+    node.advance(0.2)
+    assert striker.state == APPROACH and _last_cmd(node)[0] > 0
 
 
 def test_a_ball_on_the_right_is_kicked_with_the_right_foot() -> None:

@@ -8,7 +8,9 @@ lies relative to it (``ball/position``, from the ball model), where it started (
 orientation, relative to the heading it had at the start). From these it keeps its own pose
 and the ball's on the field, and so the direction to the opponent goal (``goal``).
 
-States (published on ``behaviour/state``, std_msgs/String, latched, on every change):
+At the start it stands for ``settle_s`` before it moves at all (the servos settle into the
+stance; the head already looks). States (published on ``behaviour/state``, std_msgs/String,
+latched, on every change):
 
 * ``search``: the ball has not been seen for ``ball_lost_s``; the head sweeps, and after
   ``search_wait_s`` more the body turns in place (towards where the ball was last seen);
@@ -50,6 +52,7 @@ DOWN_MOTIONS = ("getup", "fallen")
 #: The striker's parameters and their defaults (lengths in m, angles in rad, times in s).
 PARAMETERS: dict[str, float | list[float]] = {
     "rate_hz": 10.0,
+    "settle_s": 2.0,  # standing still at the start: the servos settle into the stance
     "start_pose": [0.0, 0.0, 0.0],  # x, y, heading on the field at the start
     "goal": [4.5, 0.0],  # the opponent goal's centre on the field
     "kick_distance": 0.16,  # torso origin behind the ball's centre, along the kick
@@ -140,7 +143,7 @@ class Striker:
         self.motion = "stand"
         self.foot = "left"
         self.kicks = 0
-        self._since_ns = node.clock.now_ns()
+        self._since_ns = self._start_ns = node.clock.now_ns()
         self._imu_yaw0: float | None = None
         self._imu_heading: float | None = None
         self._odom: tuple[float, float, float] | None = None
@@ -254,6 +257,8 @@ class Striker:
         if self.state == KICK:
             self._kicking()
             return
+        if (self.node.clock.now_ns() - self._start_ns) / 1e9 < self.p["settle_s"]:
+            return  # standing at the start: nothing moves yet
         if not self.ball_known():
             self._search()
             return
