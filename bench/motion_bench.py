@@ -13,8 +13,9 @@ plant without driver and bus (``kick_rig.plant_kick_trial``), for tuning.
   robot standing) against the 80 % target, the median distance, angle and ball speed, and
   the servos' peak torque and speed against the XM430-W350's;
 * ``cost``: µs per callback of the kick's timer and of the arbiter's callbacks while the
-  robot kicks, from the container's callback statistics, against the driver's cycle in the
-  same run.
+  robot kicks (the one that forwards the kick's goals alone, all of them, and all of them
+  per 10 ms control cycle), from the container's callback statistics, against the driver's
+  cycle in the same run.
 
 Run: ``source scripts/env.sh && python bench/motion_bench.py`` (``--quick`` for a smoke run).
 """
@@ -89,17 +90,25 @@ def cost() -> dict[str, float]:
             container.advance(0.1)
         after = list(container.stats())
 
-    def per_call(node: str, kinds: tuple[str, ...]) -> float:
+    def delta(node: str, kinds: tuple[str, ...], name: str = "") -> tuple[int, int]:
         calls = total = 0
         for s in after:
-            if s.node.endswith(node) and s.kind in kinds:
+            if s.node.endswith(node) and s.kind in kinds and s.name.endswith(name):
                 c0, t0 = before.get((s.node, s.kind, s.name), (0, 0))
                 calls += s.calls - c0
                 total += s.total_ns - t0
+        return calls, total
+
+    def per_call(node: str, kinds: tuple[str, ...], name: str = "") -> float:
+        calls, total = delta(node, kinds, name)
         return total / calls / 1e3 if calls else 0.0
 
+    kick_calls, _ = delta("/kick", ("timer",))
+    _, arbiter_total = delta("/motion", ("timer", "subscription"))
     return {"kick_callback_us": per_call("/kick", ("timer",)),
+            "arbiter_forward_us": per_call("/motion", ("subscription",), "motion/kick"),
             "arbiter_callback_us": per_call("/motion", ("timer", "subscription")),
+            "arbiter_cycle_us": arbiter_total / kick_calls / 1e3 if kick_calls else 0.0,
             "driver_cycle_us": per_call("/servo_driver", ("timer",))}
 
 
@@ -158,8 +167,10 @@ def main() -> int:
     if "cost" in parts:
         c = run_child({"kind": "cost"})
         results["cost"] = c
-        print(f"cost per callback while kicking: kick timer {c['kick_callback_us']:.0f} µs, "
-              f"arbiter {c['arbiter_callback_us']:.0f} µs; the driver's cycle in the same "
+        print(f"cost while kicking: kick timer {c['kick_callback_us']:.0f} µs per callback; "
+              f"arbiter {c['arbiter_forward_us']:.0f} µs per forwarded kick command, "
+              f"{c['arbiter_callback_us']:.0f} µs per callback (all its callbacks), "
+              f"{c['arbiter_cycle_us']:.0f} µs per 10 ms cycle; the driver's cycle in the same "
               f"run {c['driver_cycle_us']:.0f} µs: kick/driver "
               f"{c['kick_callback_us'] / c['driver_cycle_us']:.3f}, arbiter/driver "
               f"{c['arbiter_callback_us'] / c['driver_cycle_us']:.3f}; kick "
