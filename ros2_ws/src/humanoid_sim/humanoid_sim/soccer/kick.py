@@ -105,7 +105,7 @@ class KickParameters:
     pitch_gain: float = 0.0
     gyro_pitch_gain: float = 0.15
     roll_gain: float = 1.0
-    gyro_roll_gain: float = 0.0
+    gyro_roll_gain: float = 0.4
     #: Low-pass time constant of the gyro feedback (s).
     gyro_filter_s: float = 0.03
 
