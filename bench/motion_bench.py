@@ -6,15 +6,18 @@ clock, each in a fresh child process (``--jobs`` at a time). A seed chooses the 
 (even seeds right, odd left), where the ball lies (up to ``--jitter`` m off its spot in x and
 y, as an approach leaves it), how long the robot stands first (1 to 1.5 s) and the bus's
 line noise pattern (``--line-noise``, default 1 %). ``--plant`` runs the kick on the MuJoCo
-plant without driver and bus (``kick_rig.plant_kick_trial``), for tuning.
+plant without driver and bus (``kick_rig.plant_kick_trial``), for tuning; there ``--shove``
+shoves the torso sideways for 0.1 s while the robot stands on one foot (the seed draws when,
+1.0 to 2.0 s into the kick, and which way).
 
 * ``kick``: ``--seeds`` trials, the ball followed until it rests (at most ``--seconds``);
   prints each trial and the share that succeeded (ball >= 2 m within ±15° of straight ahead,
   robot standing) against the 80 % target, the median distance, angle and ball speed, and
   the servos' peak torque and speed against the XM430-W350's;
 * ``cost``: µs per callback of the kick's timer and of the arbiter's callbacks while the
-  robot kicks, from the container's callback statistics, against the driver's cycle in the
-  same run.
+  robot kicks (the one that forwards the kick's goals alone, all of them, and all of them
+  per 10 ms control cycle), from the container's callback statistics, against the driver's
+  cycle in the same run.
 
 Run: ``source scripts/env.sh && python bench/motion_bench.py`` (``--quick`` for a smoke run).
 """
@@ -39,24 +42,29 @@ DISTANCE_M, ANGLE_DEG = 2.0, 15.0
 STALL_TORQUE_NM, NO_LOAD_RAD_S = 4.1, 4.817
 
 
-def _setup(seed: int, jitter: float) -> tuple[str, tuple[float, float], float]:
+def _setup(seed: int, jitter: float, shove: float
+           ) -> tuple[str, tuple[float, float], float, tuple[float, tuple[float, float, float]]]:
     rng = random.Random(seed)
     side = "right" if seed % 2 == 0 else "left"
     dx, dy = rng.uniform(-jitter, jitter), rng.uniform(-jitter, jitter)
-    return side, (dx, dy), round(1.0 + rng.uniform(0.0, 0.5), 2)
+    settle = round(1.0 + rng.uniform(0.0, 0.5), 2)
+    # A sideways shove while on one foot (1.0 to 2.0 s into the kick), either way.
+    at, force = round(rng.uniform(1.0, 2.0), 2), shove * rng.choice((-1.0, 1.0))
+    return side, (dx, dy), settle, (at, (0.0, force, 0.0))
 
 
 def trial(seed: int, seconds: float, line_noise: float, jitter: float,
-          plant: bool) -> dict[str, Any]:
+          plant: bool, shove: float) -> dict[str, Any]:
     """One kick in this process (the child's side)."""
     from efficient_comm.testing import test_container
     from humanoid_sim.soccer.kick_rig import ball_spot, compose_kicker, kick_trial, plant_kick_trial
 
-    side, (dx, dy), settle = _setup(seed, jitter)
+    side, (dx, dy), settle, push = _setup(seed, jitter, shove)
     ball = ball_spot(side, dx=dx, dy=dy)
     started = time.perf_counter()
     if plant:
-        r = plant_kick_trial(side, ball=ball, settle_s=settle, seconds=seconds)
+        r = plant_kick_trial(side, ball=ball, settle_s=settle, seconds=seconds,
+                             shove=push if shove else None)
     else:
         with test_container(guard_mutation=False) as container:
             robot = compose_kicker(container, simulator={
@@ -65,6 +73,7 @@ def trial(seed: int, seconds: float, line_noise: float, jitter: float,
     return {"seed": seed, "side": side, "ball_offset": [dx, dy], "distance_m": r.distance_m,
             "angle_deg": r.angle_deg, "ball_speed": r.ball_speed, "fell_at_s": r.fell_at_s,
             "completed": r.completed, "success": r.success(), "seconds": r.seconds,
+            "shove": [push[0], push[1][1]] if plant and shove else None,
             "peak_torque": r.peak_torque, "peak_speed": r.peak_speed,
             "wall_s": time.perf_counter() - started}
 
@@ -89,17 +98,25 @@ def cost() -> dict[str, float]:
             container.advance(0.1)
         after = list(container.stats())
 
-    def per_call(node: str, kinds: tuple[str, ...]) -> float:
+    def delta(node: str, kinds: tuple[str, ...], name: str = "") -> tuple[int, int]:
         calls = total = 0
         for s in after:
-            if s.node.endswith(node) and s.kind in kinds:
+            if s.node.endswith(node) and s.kind in kinds and s.name.endswith(name):
                 c0, t0 = before.get((s.node, s.kind, s.name), (0, 0))
                 calls += s.calls - c0
                 total += s.total_ns - t0
+        return calls, total
+
+    def per_call(node: str, kinds: tuple[str, ...], name: str = "") -> float:
+        calls, total = delta(node, kinds, name)
         return total / calls / 1e3 if calls else 0.0
 
+    kick_calls, _ = delta("/kick", ("timer",))
+    _, arbiter_total = delta("/motion", ("timer", "subscription"))
     return {"kick_callback_us": per_call("/kick", ("timer",)),
+            "arbiter_forward_us": per_call("/motion", ("subscription",), "motion/kick"),
             "arbiter_callback_us": per_call("/motion", ("timer", "subscription")),
+            "arbiter_cycle_us": arbiter_total / kick_calls / 1e3 if kick_calls else 0.0,
             "driver_cycle_us": per_call("/servo_driver", ("timer",))}
 
 
@@ -107,7 +124,7 @@ def child(args: argparse.Namespace) -> None:
     task = json.loads(args.child)
     if task["kind"] == "trial":
         result = trial(task["seed"], task["seconds"], task["line_noise"], task["jitter"],
-                       task["plant"])
+                       task["plant"], task["shove"])
     else:
         result = cost()
     print(json.dumps(result))
@@ -126,7 +143,9 @@ def run_child(task: dict[str, Any]) -> dict[str, Any]:
               f"({result['ball_offset'][0]:+.3f}, {result['ball_offset'][1]:+.3f}) m: "
               f"{result['distance_m']:.2f} m at {result['angle_deg']:+.1f}°, ball "
               f"{result['ball_speed']:.2f} m/s, {fell}, "
-              f"{'ok' if result['success'] else 'MISSED'} [{result['wall_s']:.0f} s wall]",
+              f"{'ok' if result['success'] else 'MISSED'}"
+              + (f", shoved {result['shove'][1]:+.0f} N at {result['shove'][0]:.2f} s"
+                 if result["shove"] else "") + f" [{result['wall_s']:.0f} s wall]",
               flush=True)
     return result
 
@@ -141,6 +160,9 @@ def main() -> int:
                         help="the ball lies up to this far (m) off its spot in x and y")
     parser.add_argument("--plant", action="store_true",
                         help="the kick on the MuJoCo plant alone (no driver, no bus)")
+    parser.add_argument("--shove", type=float, default=0.0,
+                        help="--plant: shove the torso sideways with this many newtons for "
+                             "0.1 s while on one foot (seeded time and direction)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--only", choices=["kick", "cost"], action="append")
     parser.add_argument("--quick", action="store_true", help="2 seeds, 4 s: a smoke run")
@@ -158,8 +180,10 @@ def main() -> int:
     if "cost" in parts:
         c = run_child({"kind": "cost"})
         results["cost"] = c
-        print(f"cost per callback while kicking: kick timer {c['kick_callback_us']:.0f} µs, "
-              f"arbiter {c['arbiter_callback_us']:.0f} µs; the driver's cycle in the same "
+        print(f"cost while kicking: kick timer {c['kick_callback_us']:.0f} µs per callback; "
+              f"arbiter {c['arbiter_forward_us']:.0f} µs per forwarded kick command, "
+              f"{c['arbiter_callback_us']:.0f} µs per callback (all its callbacks), "
+              f"{c['arbiter_cycle_us']:.0f} µs per 10 ms cycle; the driver's cycle in the same "
               f"run {c['driver_cycle_us']:.0f} µs: kick/driver "
               f"{c['kick_callback_us'] / c['driver_cycle_us']:.3f}, arbiter/driver "
               f"{c['arbiter_callback_us'] / c['driver_cycle_us']:.3f}; kick "
@@ -167,9 +191,10 @@ def main() -> int:
         summary |= c
     if "kick" in parts:
         tasks = [{"kind": "trial", "seed": seed, "seconds": args.seconds,
-                  "line_noise": args.line_noise, "jitter": args.jitter, "plant": args.plant}
+                  "line_noise": args.line_noise, "jitter": args.jitter, "plant": args.plant,
+                  "shove": args.shove if args.plant else 0.0}
                  for seed in range(args.seeds)]
-        how = ("kick on the plant, no driver" if args.plant
+        how = (f"kick on the plant, no driver, shoves of {args.shove:g} N" if args.plant
                else f"through the driver, line noise {args.line_noise:g}")
         print(f"{args.seeds} kicks ({how}; ball within ±{args.jitter:g} m of its spot):",
               flush=True)

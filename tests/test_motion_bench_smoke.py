@@ -21,7 +21,7 @@ BENCH = Path(__file__).resolve().parents[1] / "bench" / "motion_bench.py"
 def test_motion_bench_smoke(tmp_path: Path) -> None:
     out = tmp_path / "motion.json"
     result = subprocess.run(
-        [sys.executable, str(BENCH), "--seeds", "1", "--seconds", "3", "--out", str(out)],
+        [sys.executable, str(BENCH), "--seeds", "1", "--seconds", "4", "--out", str(out)],
         capture_output=True, text=True, timeout=235, check=False)
     assert result.returncode == 0, result.stdout + result.stderr
     data = json.loads(out.read_text())

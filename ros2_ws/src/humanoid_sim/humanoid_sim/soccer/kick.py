@@ -9,9 +9,10 @@ asked to jump; the feet's positions go through the legs' analytic inverse kinema
 (:mod:`.leg_ik`), as the walk's do. The swing is short: the servos turn at most 46 rpm, so
 its speed at the ball is what they give, not what the spline asks (the spline asks more).
 
-The ball must lie in front of the kicking foot: its centre about ``ball_x`` ahead of the
-torso's origin and on the foot's line (the hip, ``HIP_OFFSET``, 4.5 cm to that side);
-walking there is the behaviour's job.
+The ball must lie in front of the kicking foot: its centre about 0.16 m ahead of the
+torso's origin (``kick_rig.BALL_AHEAD_M``; 4 cm either way still kicks it well) and on the
+foot's line (the hip, ``leg_ik.HIP_OFFSET``, 4.5 cm to that side); walking there is the
+behaviour's job.
 
 Feedback from the IMU (``imu/data``), as in the walk: the torso's pitch and roll rates,
 low-pass filtered, added to the support leg's ankle pitch and hip roll.
@@ -105,7 +106,7 @@ class KickParameters:
     pitch_gain: float = 0.0
     gyro_pitch_gain: float = 0.15
     roll_gain: float = 1.0
-    gyro_roll_gain: float = 0.0
+    gyro_roll_gain: float = 0.4
     #: Low-pass time constant of the gyro feedback (s).
     gyro_filter_s: float = 0.03
 

@@ -168,12 +168,15 @@ def kick_trial(container: Container, robot: KickingRobot, side: str, *,
 
 def plant_kick_trial(side: str, *, ball: tuple[float, float] | None = None,
                      parameters: Mapping[str, float] | None = None, settle_s: float = 1.0,
-                     seconds: float = 12.0, until_m: float | None = None) -> KickResult:
+                     seconds: float = 12.0, until_m: float | None = None,
+                     shove: tuple[float, tuple[float, float, float]] | None = None
+                     ) -> KickResult:
     """:func:`kick_trial` on the MuJoCo plant alone: the kick's goals straight to the joints.
 
     Same physics and servo model (goals slewed at the no-load speed), the IMU's rates fed
     every 10 ms; no driver, no bus. ``ball`` is its (x, y) on the field, by default
-    :func:`ball_spot`'s.
+    :func:`ball_spot`'s. ``shove`` is (seconds into the kick, force in N on the torso in the
+    field frame) for 0.1 s: a disturbance while on one foot.
     """
     plant = MujocoPlant()
     model, data = plant.model, plant.data
@@ -197,6 +200,8 @@ def plant_kick_trial(side: str, *, ball: tuple[float, float] | None = None,
         motion.set_imu(ImuSample.from_imu(imu), SAMPLE_S)
         if started[0]:
             clock[0] += SAMPLE_S
+            if shove is not None and abs(clock[0] - shove[0]) < SAMPLE_S / 2:
+                plant.push(shove[1], duration_s=0.1)
             command(motion.goals(clock[0]))
         else:
             command(STANCE)
