@@ -22,7 +22,8 @@ MuJoCo's camera frame, which looks along -z with y up).
 
 Pushes, for push-recovery and fall tests: :meth:`Simulator.push` shoves the torso with a
 force for a while; the ``push`` topic (geometry_msgs/Vector3, an impulse in N s in the field
-frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`.
+frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`. For get-up trials,
+:meth:`Simulator.lay_down` lays the robot on its front or back.
 """
 
 from __future__ import annotations

@@ -7,6 +7,8 @@ the robot's frame; ``behaviour`` points the head at it (and searches when it is 
 ``walk`` is the walk engine (``cmd_vel`` in, whole-body joint goals and odometry out), from
 foot splines (``spline``) and the legs' analytic inverse kinematics (``leg_ik``);
 ``walk_rig`` is a robot that only walks, with a measured trial, for walking tests and bench;
+``getup`` gets the robot up after a fall (keyframed motions from the front and the back),
+``getup_rig`` measures a fall and get-up on the walking rig;
 ``monitor`` measures what the pipeline achieves against the simulator's ground truth.
 ``compose`` wires them, the simulator and the driver into one container.
 
@@ -21,4 +23,7 @@ Messages between them (all standard types, passed by reference when composed):
 * ``fall/state`` (String, transient local): ``standing``, ``falling`` or ``fallen``.
 * ``cmd_vel`` (Twist): the wanted walking velocity; ``odom`` (Odometry): the walk engine's
   odometry; ``motion/walk`` (JointState): the walk engine's whole-body goals.
+* ``motion/getup`` (JointState): the get-up's whole-body goals while it acts, and
+  ``motion/getup/active`` (Bool, transient local, on every change): whether it owns the
+  joints (from ``falling`` until the robot stands again).
 """
