@@ -211,8 +211,9 @@ class Simulator:
     def lay_down(self, side: str, *, heading: float | None = None, height_m: float = 0.12
                  ) -> None:
         """Lay the robot on its ``"front"`` (face down) or ``"back"``, where it stands now,
-        facing ``heading`` (rad, field frame; default: its present heading), its torso
-        ``height_m`` above the ground and at rest: a fallen robot for get-up trials.
+        as if it had fallen forward or backward from standing with ``heading`` (rad, field
+        frame; default: its present heading), its torso ``height_m`` above the ground and at
+        rest: a fallen robot for get-up trials.
 
         The joints keep their angles; the robot drops the last few centimetres onto the
         ground with the next physics steps.

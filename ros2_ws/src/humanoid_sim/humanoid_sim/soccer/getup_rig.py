@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from efficient_comm import Container
 
+from ..errors import SimConfigError
 from ..mujoco_plant import JOINTS
 from .walk import standing_height
 from .walk_rig import SAMPLE_S, WalkingRobot, torso_pose
@@ -63,9 +64,9 @@ def getup_trial(container: Container, robot: WalkingRobot, *, side: str | None =
     it stands again after having been down (then ``after_s`` more) or ``timeout_s`` has
     passed."""
     if robot.getup is None:
-        raise ValueError("getup_trial needs a robot composed with getup")
+        raise SimConfigError("getup_trial needs a robot composed with getup")
     if side is not None and push_n is not None:
-        raise ValueError("getup_trial takes side or push_n, not both")
+        raise SimConfigError("getup_trial takes side or push_n, not both")
     container.advance(settle_s)
     if side is not None:
         robot.simulator.lay_down(side)
