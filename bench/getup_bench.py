@@ -17,6 +17,11 @@ bus's line noise pattern (``--line-noise``, default 1 %) and how the robot goes 
   with ``protect`` ``none`` (the joints hold their last goals) and ``relax`` (compliant:
   goals follow the joints); printed, the median over trials of the torso's peak
   acceleration at the impact and of the highest servo torque, each way;
+* ``reach``: why the forearms are 0.13 m: over a grid of poses with the soles flat on the
+  ground (trunk pitch, hip pitch within its range, knee, ankle) the lowest the hands get
+  (arms straight down) while the centre of mass is over the soles (within 4.5 cm of their
+  middle), from the model's kinematics, for the forearm length of the model and for 0.09 m
+  (the model before): a get-up has to pass through such a pose, hands on the ground;
 * ``cost``: the get-up component's timer callback while it plays a get-up (µs, from the
   container's callback statistics), against the driver's cycle in the same run.
 
@@ -100,10 +105,53 @@ def cost() -> dict[str, float]:
     return {"getup_callback_us": getup, "driver_cycle_us": driver, "getup_cycles": cycles}
 
 
+def reach() -> dict[str, float]:
+    """Lowest hand height (m) over the poses with the centre of mass over the soles."""
+    import itertools
+
+    import mujoco
+    import numpy as np
+
+    from humanoid_sim.mujoco_plant import MujocoPlant
+    from humanoid_sim.soccer.motion import STANCE
+
+    plant = MujocoPlant()
+    model, data = plant.model, plant.data
+    sole = model.geom("l_sole").id
+    forearm = model.body("l_forearm").id
+    geom = next(g for g in range(model.ngeom) if model.geom_bodyid[g] == forearm)
+    length = 2 * float(model.geom_size[geom][1])  # the capsule's length
+    radius = float(model.geom_size[geom][0])
+    lowest: float | None = None
+    for hip, pitch, knee in itertools.product(np.linspace(-1.8, -0.8, 11),
+                                              np.linspace(0.6, 2.2, 33),
+                                              np.linspace(0.0, 2.3, 24)):
+        ankle = -pitch - hip - knee  # soles flat
+        if abs(ankle) > 1.2:
+            continue
+        pose = dict(STANCE) | {f"{s}_{j}": v for s in "lr" for j, v in (
+            ("hip_pitch", hip), ("knee", knee), ("ankle_pitch", ankle),
+            ("shoulder_pitch", -pitch), ("shoulder_roll", 0.0), ("elbow", 0.0))}
+        for name, value in pose.items():
+            data.qpos[model.joint(name).qposadr[0]] = value
+        data.qpos[0:3] = [0.0, 0.0, 1.0]
+        data.qpos[3:7] = [math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0]
+        mujoco.mj_forward(model, data)
+        com_x = float(data.subtree_com[model.body("torso").id][0])
+        if abs(com_x - float(data.geom_xpos[sole][0])) > 0.045:
+            continue
+        bottom = float(data.geom_xpos[sole][2]) - float(model.geom_size[sole][2])
+        hand = float(data.xpos[forearm][2]) - length - radius - bottom
+        lowest = hand if lowest is None else min(lowest, hand)
+    assert lowest is not None
+    return {"forearm_m": length, "lowest_hand_m": lowest,
+            "lowest_hand_short_m": lowest + length - 0.09}
+
+
 def child(args: argparse.Namespace) -> None:
     task = json.loads(args.child)
     kind = task.pop("kind")
-    result = trial(**task) if kind == "trial" else cost()
+    result = trial(**task) if kind == "trial" else cost() if kind == "cost" else reach()
     print(json.dumps(result))
 
 
@@ -143,7 +191,8 @@ def main() -> int:
                         help="simulated seconds a trial may take (retries included)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--side", choices=["front", "back"], action="append")
-    parser.add_argument("--only", choices=["getup", "cost", "protect"], action="append")
+    parser.add_argument("--only", choices=["getup", "cost", "protect", "reach"],
+                        action="append")
     parser.add_argument("--quick", action="store_true", help="1 seed per side: a smoke run")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     parser.add_argument("--child", help=argparse.SUPPRESS)
@@ -153,9 +202,18 @@ def main() -> int:
         return 0
     if args.quick:
         args.seeds = 1
-    parts = args.only or ["cost", "protect", "getup"]
+    parts = args.only or ["reach", "cost", "protect", "getup"]
     summary: dict[str, Any] = {}
     results: dict[str, Any] = {}
+    if "reach" in parts:
+        r = run_child({"kind": "reach"})
+        results["reach"] = r
+        print(f"centre of mass over the soles, arms straight down: the hands reach "
+              f"{100 * r['lowest_hand_m']:+.1f} cm above the ground at best with "
+              f"{100 * r['forearm_m']:.0f} cm forearms, {100 * r['lowest_hand_short_m']:+.1f} cm "
+              f"with 9 cm ones (> 0: no pose on hands and feet with the weight over the feet)",
+              flush=True)
+        summary |= r
     if "cost" in parts:
         c = run_child({"kind": "cost"})
         results["cost"] = c

@@ -26,7 +26,8 @@ as a referee does after a goal.
 
 Pushes, for push-recovery and fall tests: :meth:`Simulator.push` shoves the torso with a
 force for a while; the ``push`` topic (geometry_msgs/Vector3, an impulse in N s in the field
-frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`.
+frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`. For get-up trials,
+:meth:`Simulator.lay_down` lays the robot on its front or back.
 """
 
 from __future__ import annotations
@@ -233,8 +234,9 @@ class Simulator:
     def lay_down(self, side: str, *, heading: float | None = None, height_m: float = 0.12
                  ) -> None:
         """Lay the robot on its ``"front"`` (face down) or ``"back"``, where it stands now,
-        facing ``heading`` (rad, field frame; default: its present heading), its torso
-        ``height_m`` above the ground and at rest: a fallen robot for get-up trials.
+        as if it had fallen forward or backward from standing with ``heading`` (rad, field
+        frame; default: its present heading), its torso ``height_m`` above the ground and at
+        rest: a fallen robot for get-up trials.
 
         The joints keep their angles; the robot drops the last few centimetres onto the
         ground with the next physics steps.

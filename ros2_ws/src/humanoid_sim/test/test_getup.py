@@ -55,10 +55,13 @@ def test_trajectory_joins_the_keyframes_smoothly_and_ends_in_the_crouch() -> Non
         assert path.at(0.0) == start
         assert path.at(path.duration_s) == pytest.approx(STANCE)
         assert path.at(path.duration_s + 5.0) == pytest.approx(STANCE)
-        # At rest at each keyframe, no jumps in between: consecutive 10 ms goals close.
-        goals = [path.at(k * 0.01) for k in range(round(path.duration_s / 0.01) + 1)]
-        worst = max(abs(b[n] - a[n]) for a, b in itertools.pairwise(goals) for n in a)
-        assert worst < 0.2  # rad per 10 ms; the servo's no-load speed is 0.048
+        # No jumps: halving the control period halves the largest step between goals
+        # (a jump would stay the same size).
+        def largest_step(period: float, path: Trajectory = path) -> float:
+            goals = [path.at(k * period) for k in range(round(path.duration_s / period) + 1)]
+            return max(abs(b[n] - a[n]) for a, b in itertools.pairwise(goals) for n in a)
+
+        assert largest_step(0.005) < 0.55 * largest_step(0.01)
     with pytest.raises(SimConfigError):
         Trajectory(start, [Keyframe(0.0, STANCE)])
 

@@ -11,6 +11,8 @@ head goal on the neck; ``kick`` kicks the ball from standing (``kick_rig``: meas
 ``walk`` is the walk engine (``cmd_vel`` in, whole-body joint goals and odometry out), from
 foot splines (``spline``) and the legs' analytic inverse kinematics (``leg_ik``);
 ``walk_rig`` is a robot that only walks, with a measured trial, for walking tests and bench;
+``getup`` gets the robot up after a fall (keyframed motions from the front and the back),
+``getup_rig`` measures a fall and get-up on the walking rig;
 ``monitor`` measures what the pipeline achieves against the simulator's ground truth, and
 ``referee`` judges goals from it and puts the ball back (neither is the robot's).
 ``compose`` wires them, the simulator and the driver into one container.
@@ -34,4 +36,7 @@ Messages between them (all standard types, passed by reference when composed):
   each motion (walk, kick, getup); ``motion/state`` (String, transient local): ``stand``,
   ``walk``, ``kick``, ``getup`` or ``fallen``; ``motion/kick/request`` (String): ``left`` or
   ``right``.
+* ``motion/getup`` (JointState): the get-up's whole-body goals while it acts, and
+  ``motion/getup/active`` (Bool, transient local, on every change): whether it owns the
+  joints (from ``falling`` until the robot stands again).
 """

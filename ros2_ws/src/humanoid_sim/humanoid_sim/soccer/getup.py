@@ -79,34 +79,37 @@ ROLL_UP = ((1.35, -1.80, 0.07, 0.38, -0.27), (1.20, -1.76, 0.14, 0.42, -0.24),
            (0.15, -0.53, 0.63, -0.25, -0.03))
 
 
-def front_getup(*, hold_s: float = 0.6, pike_s: float = 0.8, pike_ankle: float = 0.4,
-                pike_arms: float = -1.5, roll_up_step_s: float = 0.12) -> tuple[Keyframe, ...]:
+def front_getup(*, sweep_s: float = 0.18, push_s: float = 0.3, pike_s: float = 0.45,
+                hold_s: float = 0.1, tip_s: float = 0.35, settle_s: float = 0.1,
+                roll_up_step_s: float = 0.07, crouch_s: float = 0.25, pike_ankle: float = 0.3,
+                pike_arms: float = -1.5) -> tuple[Keyframe, ...]:
     """Face down to the crouch: arms overhead, push up, pike, stand up from the pike.
 
     1. The arms sweep sideways along the ground (shoulder roll), turn (pitch) and come in
-       again beside the head: overhead, where pushing lifts the trunk instead of rolling it
-       head down (with the hands near the hips the shoulders' reaction tips the trunk over
-       the hands). 2. Pushing the hands into the ground lifts the trunk on straight arms.
-    3. The hips flex to their limit, legs straight, soles flat: the robot stands on hands
-       and feet, an inverted V, and the feet slide in under it while it holds (``hold_s``).
-    4. The ankles and arms tip it back until the centre of mass is over the feet and the
-       hands come off the ground (``pike_s``). 5. :data:`ROLL_UP` to the crouch.
+       again beside the head (``sweep_s`` each): overhead, where pushing lifts the trunk
+       instead of rolling it head down (with the hands near the hips the shoulders' reaction
+       tips the trunk over the hands). 2. Pushing the hands into the ground lifts the trunk on
+       straight arms (``push_s``). 3. The hips flex to their limit, legs straight, soles flat
+       (``pike_s``, then ``hold_s``): the robot stands on hands and feet, an inverted V, and
+       the feet slide in under it. 4. The ankles and arms tip it back until the centre of mass
+       is over the feet and the hands come off the ground (``tip_s``, ``settle_s``).
+       5. :data:`ROLL_UP` to the crouch (``roll_up_step_s`` each, ``crouch_s``).
     """
     frames = [
-        Keyframe(0.3, dict(STANCE) | _arms(0.0, roll=1.5) | _legs(0.0, 0.0, 0.0)
+        Keyframe(sweep_s, dict(STANCE) | _arms(0.0, roll=1.5) | _legs(0.0, 0.0, 0.0)
                  | {"neck_pitch": -0.5}),
-        Keyframe(0.3, _arms(-3.0, roll=1.5)),
-        Keyframe(0.3, _arms(-3.0, roll=0.1)),
-        Keyframe(0.5, _arms(-1.6, roll=0.1)),
-        Keyframe(0.8, _arms(-1.6, roll=0.1) | _legs(-1.8, 0.0, 0.2)),
+        Keyframe(sweep_s, _arms(-3.0, roll=1.5)),
+        Keyframe(sweep_s, _arms(-3.0, roll=0.1)),
+        Keyframe(push_s, _arms(-1.6, roll=0.1)),
+        Keyframe(pike_s, _arms(-1.6, roll=0.1) | _legs(-1.8, 0.0, 0.2)),
         Keyframe(hold_s, {}),
-        Keyframe(pike_s, _arms(pike_arms, roll=0.1) | _legs(-1.8, 0.0, pike_ankle)),
-        Keyframe(0.3, {}),
+        Keyframe(tip_s, _arms(pike_arms, roll=0.1) | _legs(-1.8, 0.0, pike_ankle)),
+        Keyframe(settle_s, {}),
     ]
     frames += [Keyframe(roll_up_step_s, _legs(hip, knee, ankle) | _arms(arms)
                         | {"neck_pitch": 0.0})
                for _, hip, knee, ankle, arms in ROLL_UP]
-    frames.append(Keyframe(0.4, STANCE))
+    frames.append(Keyframe(crouch_s, STANCE))
     return tuple(frames)
 
 
@@ -127,7 +130,7 @@ ROLL_OVER: tuple[Keyframe, ...] = (
         "l_shoulder_pitch": 2.05, "l_shoulder_roll": 0.06, "r_shoulder_pitch": -2.71,
         "r_shoulder_roll": -1.37, "l_hip_pitch": 0.67, "l_hip_roll": 0.37, "r_hip_pitch": 1.0,
         "r_hip_roll": 0.15, "l_knee": 0.63, "r_knee": 0.82}),
-    Keyframe(0.30, _arms(0.0) | _legs(0.0, 0.0, 0.0) | {
+    Keyframe(0.20, _arms(0.0) | _legs(0.0, 0.0, 0.0) | {
         "l_hip_roll": 0.0, "r_hip_roll": 0.0}),
 )
 
@@ -173,7 +176,7 @@ class GetUp:
         output = node.declare_parameter("output_topic", "motion/getup")
         self.protect = node.declare_parameter("protect", "relax")
         self.rest_rate = node.declare_parameter("rest_rate", 0.3)
-        self.rest_ns = round(node.declare_parameter("rest_s", 0.3) * 1e9)
+        self.rest_ns = round(node.declare_parameter("rest_s", 0.2) * 1e9)
         self.confirm_ns = round(node.declare_parameter("confirm_s", 1.5) * 1e9)
         self.max_attempts = node.declare_parameter("max_attempts", 5)
         if not 1.0 <= rate <= 1000.0 or not output:

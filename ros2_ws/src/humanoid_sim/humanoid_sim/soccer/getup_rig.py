@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from efficient_comm import Container
 
+from ..errors import SimConfigError
 from ..mujoco_plant import JOINTS
 from .walk import standing_height
 from .walk_rig import SAMPLE_S, WalkingRobot, torso_pose
@@ -59,22 +60,23 @@ def getup_trial(container: Container, robot: WalkingRobot, *, side: str | None =
                 push_n: tuple[float, float, float] | None = None, settle_s: float = 1.0,
                 timeout_s: float = 10.0, after_s: float = 0.0) -> GetUpResult:
     """Stand ``settle_s``, then lay the robot on ``side`` or shove it with ``push_n`` (N,
-    field frame, 0.1 s), and advance until it stands again (then ``after_s`` more) or
-    ``timeout_s`` has passed."""
+    field frame, 0.1 s), or neither (follow a robot that is already down), and advance until
+    it stands again after having been down (then ``after_s`` more) or ``timeout_s`` has
+    passed."""
     if robot.getup is None:
-        raise ValueError("getup_trial needs a robot composed with getup")
-    if (side is None) == (push_n is None):
-        raise ValueError("getup_trial needs either side or push_n")
+        raise SimConfigError("getup_trial needs a robot composed with getup")
+    if side is not None and push_n is not None:
+        raise SimConfigError("getup_trial takes side or push_n, not both")
     container.advance(settle_s)
     if side is not None:
         robot.simulator.lay_down(side)
-    else:
-        assert push_n is not None
+    elif push_n is not None:
         robot.simulator.push(push_n)
     detector, getup = robot.fall_detector, robot.getup
     attempts0, successes0 = getup.attempts, getup.successes
     result = GetUpResult(states=[detector.state])
     elapsed, stood_for = 0.0, None
+    down = detector.state != "standing"
     plant = robot.simulator.plant
     while elapsed < timeout_s - 1e-9:
         container.advance(SAMPLE_S)
@@ -92,7 +94,8 @@ def getup_trial(container: Container, robot: WalkingRobot, *, side: str | None =
             result.states.append(state)
             if state == "fallen" and result.fallen_at_s is None:
                 result.fallen_at_s = elapsed
-            if state == "standing" and result.fallen_at_s is not None:
+            down = down or state != "standing"
+            if state == "standing" and down:
                 result.stood_at_s = elapsed
                 stood_for = 0.0
         if stood_for is not None:
