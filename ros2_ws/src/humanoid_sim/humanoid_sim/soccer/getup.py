@@ -3,9 +3,9 @@
 A soccer robot that falls must be back on its feet within seconds. The component follows the
 fall detector (``fall/state``, :mod:`.fall`):
 
-* **falling**: the protective reaction (``protect``): ``"none"`` holds the last goals,
-  ``"relax"`` makes the joints compliant by setting each goal to where the joint is
-  (``joint_states``, the driver's reading): the servo's controller then pushes only
+* **falling**: the protective reaction (``protect``): ``"none"`` holds the joints where the
+  fall found them, ``"relax"`` makes them compliant by setting each goal to where the joint
+  is (``joint_states``, the driver's reading): the servo's controller then pushes only
   against its own delay, the back-EMF damps the impact; docs/HUMANOID_SIM.md has the
   measurement that chose the default;
 * **fallen** and at rest (the IMU's angular rate below ``rest_rate`` for ``rest_s``): the
@@ -251,7 +251,8 @@ class GetUp:
             self._set_active(False)
             return
         if posture.data == FALLEN and previous != FALLEN:
-            self._fallen_at_ns = now
+            if self._fallen_at_ns is None:  # the first time down counts, not a tip mid-motion
+                self._fallen_at_ns = now
             if self.phase in ("idle", "protect"):
                 self._enter("wait", now)
         elif posture.data == FALLING and self.phase == "idle":
