@@ -34,6 +34,7 @@ setup(
             "humanoid_sim::SoccerMonitor = humanoid_sim.soccer.monitor:SoccerMonitor",
             "humanoid_sim::FallDetector = humanoid_sim.soccer.fall:FallDetector",
             "humanoid_sim::WalkEngine = humanoid_sim.soccer.walk:WalkEngine",
+            "humanoid_sim::GetUp = humanoid_sim.soccer.getup:GetUp",
         ],
     },
 )

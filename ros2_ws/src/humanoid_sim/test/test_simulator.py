@@ -176,7 +176,8 @@ def test_the_camera_renders_only_frames_someone_wants_and_counts_the_rest() -> N
 @pytest.mark.parametrize(("side", "forward_z"), [("front", -1.0), ("back", 1.0)])
 def test_lay_down_puts_the_robot_on_its_front_or_back_where_it_stands(
         side: str, forward_z: float) -> None:
-    sim = _simulator()
+    node = TestHandle("sim", parameters={"camera_hz": 0.0})
+    sim = Simulator(node)
     try:
         torso = sim.model.body("torso").id
         sim.plant.data.qpos[0:2] = [1.0, -0.5]
@@ -186,7 +187,7 @@ def test_lay_down_puts_the_robot_on_its_front_or_back_where_it_stands(
         assert math.atan2(rotation[1, 2], rotation[0, 2]) == pytest.approx(
             0.7 if side == "front" else 0.7 - math.pi, abs=1e-9)  # up axis along the heading
         assert list(sim.data.xpos[torso][:2]) == pytest.approx([1.0, -0.5])
-        sim.node.advance(1.0)  # dropped onto the ground and lying there
+        node.advance(1.0)  # dropped onto the ground and lying there
         assert sim.plant.torso_height() < 0.08
         with pytest.raises(SimConfigError, match="side"):
             sim.lay_down("sideways")

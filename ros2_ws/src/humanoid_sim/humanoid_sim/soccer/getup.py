@@ -3,9 +3,9 @@
 A soccer robot that falls must be back on its feet within seconds. The component follows the
 fall detector (``fall/state``, :mod:`.fall`):
 
-* **falling**: the protective reaction (``protect``): ``"none"`` holds the last goals,
-  ``"relax"`` makes the joints compliant by setting each goal to where the joint is
-  (``joint_states``, the driver's reading): the servo's controller then pushes only
+* **falling**: the protective reaction (``protect``): ``"none"`` holds the joints where the
+  fall found them, ``"relax"`` makes them compliant by setting each goal to where the joint
+  is (``joint_states``, the driver's reading): the servo's controller then pushes only
   against its own delay, the back-EMF damps the impact; docs/HUMANOID_SIM.md has the
   measurement that chose the default;
 * **fallen** and at rest (the IMU's angular rate below ``rest_rate`` for ``rest_s``): the
@@ -79,9 +79,9 @@ ROLL_UP = ((1.35, -1.80, 0.07, 0.38, -0.27), (1.20, -1.76, 0.14, 0.42, -0.24),
            (0.15, -0.53, 0.63, -0.25, -0.03))
 
 
-def front_getup(*, sweep_s: float = 0.18, push_s: float = 0.3, pike_s: float = 0.45,
-                hold_s: float = 0.1, tip_s: float = 0.35, settle_s: float = 0.1,
-                roll_up_step_s: float = 0.07, crouch_s: float = 0.25, pike_ankle: float = 0.3,
+def front_getup(*, sweep_s: float = 0.16, push_s: float = 0.28, pike_s: float = 0.4,
+                hold_s: float = 0.1, tip_s: float = 0.3, settle_s: float = 0.08,
+                roll_up_step_s: float = 0.06, crouch_s: float = 0.2, pike_ankle: float = 0.3,
                 pike_arms: float = -1.5) -> tuple[Keyframe, ...]:
     """Face down to the crouch: arms overhead, push up, pike, stand up from the pike.
 
@@ -175,8 +175,8 @@ class GetUp:
         rate = node.declare_parameter("rate_hz", 100.0)
         output = node.declare_parameter("output_topic", "motion/getup")
         self.protect = node.declare_parameter("protect", "relax")
-        self.rest_rate = node.declare_parameter("rest_rate", 0.3)
-        self.rest_ns = round(node.declare_parameter("rest_s", 0.2) * 1e9)
+        self.rest_rate = node.declare_parameter("rest_rate", 0.6)
+        self.rest_ns = round(node.declare_parameter("rest_s", 0.1) * 1e9)
         self.confirm_ns = round(node.declare_parameter("confirm_s", 1.5) * 1e9)
         self.max_attempts = node.declare_parameter("max_attempts", 5)
         if not 1.0 <= rate <= 1000.0 or not output:
@@ -251,7 +251,8 @@ class GetUp:
             self._set_active(False)
             return
         if posture.data == FALLEN and previous != FALLEN:
-            self._fallen_at_ns = now
+            if self._fallen_at_ns is None:  # the first time down counts, not a tip mid-motion
+                self._fallen_at_ns = now
             if self.phase in ("idle", "protect"):
                 self._enter("wait", now)
         elif posture.data == FALLING and self.phase == "idle":
