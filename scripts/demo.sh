@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Set up, then run the soccer demo (a simulated humanoid tracks a rolling ball). Arguments go to
-# the demo: scripts/demo.sh --help
+# Set up, then run the soccer demo (a simulated humanoid plays: walks to the ball, kicks it at
+# the goal). Arguments go to the demo: scripts/demo.sh --help
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh >&2

@@ -2,7 +2,8 @@
 
 It asserts what the figures mean, not how fast this machine is: every bus transfer
 succeeded, the robot runs were real (simulated time advanced, frames rendered, the ball
-tracked), and the real-time run kept to the wall clock's order of magnitude.
+tracked), the real-time run kept to the wall clock's order of magnitude, and the demo's
+figures were read from its report.
 """
 
 from __future__ import annotations
@@ -34,3 +35,7 @@ def test_sim_bench_smoke(tmp_path: Path) -> None:
     assert 0.2 < summary["realtime_rtf"] < 1.5  # physics follows the wall clock
     assert summary["realtime_camera_fps"] > 0 and summary["render_only_fps"] > 0
     assert "bus, 20 servos" in result.stdout and "RTF" in result.stdout
+    # The demo as a user runs it, the robot playing: figures read from its report.
+    assert summary["demo_lockstep_rtf"] > 0 and summary["demo_lockstep_bus_hz"] > 0
+    assert 0.2 < summary["demo_realtime_rtf"] < 1.5
+    assert "the demo, robot playing" in result.stdout

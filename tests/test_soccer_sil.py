@@ -43,7 +43,7 @@ TRACKING_MAX_DEG = 6.0
 def robot(simulator: Mapping[str, Any] | None = None, *, guard: bool = True
           ) -> Iterator[tuple[Container, SoccerRobot]]:
     with test_container(guard_mutation="raise" if guard else False) as container:
-        yield container, compose(container, simulator=simulator)
+        yield container, compose(container, simulator=simulator, play=False)
 
 
 def joint_positions(bot: SoccerRobot) -> dict[str, float]:

@@ -29,10 +29,12 @@ setup(
             "humanoid_sim::BallDetector = humanoid_sim.soccer.vision:BallDetector",
             "humanoid_sim::BallModel = humanoid_sim.soccer.world_model:BallModel",
             "humanoid_sim::HeadBehaviour = humanoid_sim.soccer.behaviour:HeadBehaviour",
-            "humanoid_sim::Motion = humanoid_sim.soccer.motion:Motion",
+            "humanoid_sim::MotionArbiter = humanoid_sim.soccer.arbiter:MotionArbiter",
+            "humanoid_sim::Kick = humanoid_sim.soccer.kick:Kick",
             "humanoid_sim::SoccerMonitor = humanoid_sim.soccer.monitor:SoccerMonitor",
             "humanoid_sim::FallDetector = humanoid_sim.soccer.fall:FallDetector",
             "humanoid_sim::WalkEngine = humanoid_sim.soccer.walk:WalkEngine",
+            "humanoid_sim::GetUp = humanoid_sim.soccer.getup:GetUp",
         ],
     },
 )

@@ -1,11 +1,15 @@
-"""The soccer demo: a simulated kid-size humanoid tracks a rolling ball with its head.
+"""The soccer demo: a simulated kid-size humanoid plays: it finds the ball, walks to it and
+kicks it towards the opponent goal, again and again, and gets up when it falls.
 
     python -m humanoid_sim.demo --duration 30
 
 One container holds the simulator (MuJoCo behind emulated Dynamixel servos on a pty), the
-servo driver (dynamixel-sdk, unchanged) and the soccer pipeline (camera -> ball detection ->
-ball model -> behaviour -> motion), passing messages by reference on one thread. Every
-``--stats-period`` seconds it prints rates, latency and tracking error; at the end (after
+servo driver (dynamixel-sdk, unchanged) and the soccer software (camera -> ball detection ->
+ball model -> head behaviour and striker -> walk, kick, get-up -> motion arbiter), passing
+messages by reference on one thread; a referee (ground truth) counts goals and puts the
+ball back on the centre mark. The robot starts at ``--robot-pose``, the ball at
+``--ball``; nothing but the robot moves the ball. Every ``--stats-period`` seconds it prints
+rates, tracking error, distance walked, kicks, goals and falls; at the end (after
 ``--duration`` or on Ctrl-C/SIGTERM) it writes a short Markdown report.
 
 ``--namespace`` names the robot (default ``/robot``): its topics, its recorder
@@ -18,9 +22,9 @@ a debugging tool such as debug_gui.
 same ``--seed``; by default the simulation runs in real time. ``--push-at`` shoves the robot
 from behind at that simulated second (``--push-newtons`` for 0.1 s; 40 N fells it).
 
-Exit status: 0 the robot stood and tracked; 1 a bug (the ball was never detected, a
-callback raised, or the servo bus emulator raised); 3 the robot fell (the fall detector
-saw it on the ground), with no bug.
+Exit status: 0 the robot played (falls it got up from included); 1 a bug (the ball was
+never detected, a callback raised, or the servo bus emulator raised); 3 the robot fell and
+was still down at the end, with no bug.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import argparse
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -47,10 +51,12 @@ EXIT_OK, EXIT_BUG, EXIT_FELL = 0, 1, 3
 RECORDED_TOPICS = [
     "joint_states", "imu/data", "ball/detection", "ball/estimate", "head/goal",
     "fall/state", "ground_truth/robot", "ground_truth/ball", "camera/image_raw max_rate_hz=5",
+    "ball/position", "behaviour/state", "cmd_vel", "odom", "motion/state",
 ]
 
 HEADER = (f"{'sim s':>6} {'RTF':>5} {'cam fps':>7} {'det Hz':>6} {'bus Hz':>6} "
-          f"{'err mean°':>9} {'err p95°':>8} {'lat ms':>6} {'head':<9} {'bus err':>7}")
+          f"{'err mean°':>9} {'err p95°':>8} {'lat ms':>6} {'walked m':>8} {'kicks':>5} "
+          f"{'goals':>5} {'falls':>5} {'striker':<8} {'head':<9} {'bus err':>7}")
 
 
 def _f(value: float, spec: str) -> str:
@@ -63,7 +69,9 @@ def live_line(robot: SoccerRobot, window: Figures) -> str:
             f"{s['camera_fps']:>7.1f} {s['detection_rate_hz']:>6.1f} "
             f"{s['joint_state_rate_hz']:>6.1f} {_f(s['tracking_error_mean_deg'], '9.2f'):>9} "
             f"{_f(s['tracking_error_p95_deg'], '8.2f'):>8} "
-            f"{_f(s['latency_median_ms'], '6.1f'):>6} {robot.behaviour.state:<9} "
+            f"{_f(s['latency_median_ms'], '6.1f'):>6} {robot.monitor.walked_m:>8.2f} "
+            f"{robot.monitor.kicks:>5} {robot.referee.goals:>5} {robot.fall_detector.falls:>5} "
+            f"{robot.striker.state if robot.striker else '-':<8} {robot.behaviour.state:<9} "
             f"{robot.driver.comm_errors:>7}")
 
 
@@ -74,9 +82,28 @@ def posture(robot: SoccerRobot, frames_down: int) -> str:
     pushed = f"; pushed {pushes} time{'s' * (pushes != 1)}" if pushes else ""
     if not fall.falls:
         return f"stood throughout, now {fall.state}{pushed}"
-    when = ", ".join(f"{t / 1e9:.1f} s" for t in fall.fell_at_ns)
+    when = ", ".join(f"{(t - robot.monitor.started_ns) / 1e9:.1f} s" for t in fall.fell_at_ns)
     return (f"**FELL** {fall.falls} time{'s' * (fall.falls != 1)} (at {when}), now "
             f"{fall.state}; {frames_down} frames while down, not scored{pushed}")
+
+
+def play(robot: SoccerRobot) -> list[str]:
+    """The report's rows on the game: goals, kicks, falls and get-ups, walking."""
+    monitor, referee, striker = robot.monitor, robot.referee, robot.striker
+    goals = ", ".join(f"{t / 1e9:.1f} s" for t in referee.goal_at_ns)
+    first = (f"{monitor.first_kick_ns / 1e9:.1f} s" if monitor.first_kick_ns is not None
+             else "no kick")
+    return [
+        f"| goals (ball over the opponent goal line between the posts) | {referee.goals}"
+        f"{f' (at {goals})' if goals else ''}; own goals {referee.own_goals}, "
+        f"balls out {referee.outs} |",
+        f"| kicks | {monitor.kicks} ({striker.kicks if striker else 0} finished as the striker "
+        f"asked) |",
+        f"| time to the first kick | {first} |",
+        f"| falls and get-ups | {robot.fall_detector.falls} falls, {monitor.getups} get-ups |",
+        f"| distance walked (ground truth) | {monitor.walked_m:.2f} m |",
+        f"| striker | {striker.state if striker else 'none'} |",
+    ]
 
 
 def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
@@ -96,12 +123,15 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         "| figure | value |",
         "|---|---|",
         f"| simulated time | {sim['sim_time_s']:.1f} s in {wall_s:.1f} s wall |",
+        *play(robot),
         f"| real-time factor | {sim['real_time_factor']:.2f}{skipped} |",
         f"| camera frames | {totals.frames} ({s['camera_fps']:.1f} fps, "
         f"render {sim['render_ms_mean']:.1f} ms each) |",
         f"| ball detections | {totals.detections} ({s['detection_rate_hz']:.1f} Hz) |",
         f"| servo bus cycles (joint states) | {totals.joint_states} "
         f"({s['joint_state_rate_hz']:.1f} Hz) |",
+        f"| ball outside the image (searching, not scored) | {totals.frames_out_of_view} "
+        f"frames |",
         f"| tracking error (ball from image centre) | mean "
         f"{_f(s['tracking_error_mean_deg'], '.2f')}°, p95 "
         f"{_f(s['tracking_error_p95_deg'], '.2f')}°, max "
@@ -126,6 +156,20 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         "",
     ]
     return "\n".join(lines)
+
+
+def _floats(count: int) -> Callable[[str], list[float]]:
+    """An argument of ``count`` comma-separated finite numbers."""
+    def parse(text: str) -> list[float]:
+        try:
+            values = [float(part) for part in text.split(",")]
+        except ValueError:
+            values = []
+        if len(values) != count or not all(map(math.isfinite, values)):
+            raise argparse.ArgumentTypeError(f"{text!r}: need {count} numbers separated by "
+                                             f"commas")
+        return values
+    return parse
 
 
 def namespace_arg(text: str) -> str:
@@ -154,8 +198,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--lockstep", action="store_true",
                         help="manual clock, as fast as possible, deterministic")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--kick-period", type=float, default=4.0,
-                        help="seconds between kicks that set the ball rolling (0: never)")
+    parser.add_argument("--robot-pose", type=_floats(3), default=[-1.0, 0.5, 0.0],
+                        metavar="X,Y,HEADING",
+                        help="where the robot starts on the field (m, m, rad; x towards the "
+                        "opponent goal, origin the centre mark); default -1,0.5,0")
+    parser.add_argument("--ball", type=_floats(2), default=[0.0, 0.0], metavar="X,Y",
+                        help="where the ball starts (m); default 0,0: the centre mark")
     parser.add_argument("--line-noise", type=float, default=0.0,
                         help="share of servo bus packets (either way) with a flipped bit")
     parser.add_argument("--no-dds", action="store_true", help="no DDS: nothing leaves the process")
@@ -180,7 +228,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with Container("soccer", namespace=args.namespace, dds=not args.no_dds, clock=clock,
                    stats_namespace=args.namespace) as container:
         robot = compose(container, namespace=args.namespace, simulator={
-            "seed": args.seed, "ball_velocity": [0.0, 0.3], "ball_kick_period": args.kick_period,
+            "seed": args.seed, "robot_pose": args.robot_pose, "ball_position": args.ball,
             "line_noise": args.line_noise,
             "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
         })
@@ -211,14 +259,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         # A failing callback or an exception inside the emulator is a bug: exit status 1.
         ok = (robot.monitor.totals().detections > 0 and failures == 0
               and not robot.simulator.pty.errors)
-        fell = robot.fall_detector.falls > 0
+        down = robot.fall_detector.falls > 0 and robot.fall_detector.state != "standing"
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(text)
     print(f"\n{text}\nreport written to {args.report.resolve()}")
     if not ok:
         return EXIT_BUG
-    if fell:
-        print("the robot fell (exit status 3)")
+    if down:
+        print("the robot fell and did not get up (exit status 3)")
         return EXIT_FELL
     return EXIT_OK
 

@@ -20,9 +20,14 @@ only while someone wants a frame: a throttled publisher),
 frame: origin at the centre spot, x toward the opponent goal, z up; the camera pose uses
 MuJoCo's camera frame, which looks along -z with y up).
 
+``robot_pose`` places the robot (x, y, heading on the field) before the first step; the
+``place_ball`` topic (geometry_msgs/Point: x, y on the field) puts the ball there at rest,
+as a referee does after a goal.
+
 Pushes, for push-recovery and fall tests: :meth:`Simulator.push` shoves the torso with a
 force for a while; the ``push`` topic (geometry_msgs/Vector3, an impulse in N s in the field
-frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`.
+frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`. For get-up trials,
+:meth:`Simulator.lay_down` lays the robot on its front or back.
 """
 
 from __future__ import annotations
@@ -82,6 +87,7 @@ class Simulator:
         seed = node.declare_parameter("seed", 0)
         ball_position = node.declare_parameter("ball_position", [1.5, 0.0])
         ball_velocity = node.declare_parameter("ball_velocity", [0.0, 0.0])
+        robot_pose = node.declare_parameter("robot_pose", [0.0, 0.0, 0.0])
         self.kick_period_s = node.declare_parameter("ball_kick_period", 0.0)
         self._push_at_s = node.declare_parameter("push_at", 0.0)
         push_force = node.declare_parameter("push_force", [40.0, 0.0, 0.0])
@@ -92,6 +98,8 @@ class Simulator:
             )
         if len(ball_position) != 2 or len(ball_velocity) != 2:
             raise SimConfigError("ball_position and ball_velocity are [x, y] in metres (per s)")
+        if len(robot_pose) != 3 or not all(map(math.isfinite, robot_pose)):
+            raise SimConfigError(f"robot_pose is [x, y, heading] in m and rad, got {robot_pose}")
         if (len(push_force) != 3 or not all(map(math.isfinite, push_force))
                 or not self._push_at_s >= 0):
             raise SimConfigError(f"push_force is [x, y, z] in newtons and push_at >= 0 s, got "
@@ -120,6 +128,7 @@ class Simulator:
                 opened.callback(self._remove_link)
                 self.port = port_link
             self._ball = self.model.joint("ball")
+            self.place_robot(x=robot_pose[0], y=robot_pose[1], heading=robot_pose[2])
             self.roll_ball(position=(ball_position[0], ball_position[1]),
                            velocity=(ball_velocity[0], ball_velocity[1]))
 
@@ -136,6 +145,7 @@ class Simulator:
                 for what in ("robot", "ball", "camera")
             }
             node.create_subscription(Vector3, "push", self._on_push, qos=10)
+            node.create_subscription(Point, "place_ball", self._on_place_ball, qos=10)
             self.pushes = 0
             self.frames = 0
             self.frames_skipped = 0
@@ -196,6 +206,20 @@ class Simulator:
             self.data.qvel[v : v + 6] = [velocity[0], velocity[1], 0, 0, 0, 0]
             mujoco.mj_forward(self.model, self.data)
 
+    def place_robot(self, *, x: float, y: float, heading: float) -> None:
+        """Put the robot's torso above (x, y) on the field, facing ``heading`` (rad)."""
+        with self.pty.lock:
+            q = self.model.joint("root").qposadr[0]
+            self.data.qpos[q : q + 2] = [x, y]
+            self.data.qpos[q + 3 : q + 7] = [math.cos(heading / 2), 0, 0, math.sin(heading / 2)]
+            mujoco.mj_forward(self.model, self.data)
+
+    def _on_place_ball(self, point: Point) -> None:
+        if not (math.isfinite(point.x) and math.isfinite(point.y)):
+            self.node.logger.error(f"place_ball ignored: ({point.x}, {point.y}) is not finite")
+            return
+        self.roll_ball(position=(point.x, point.y))
+
     def push(self, force_n: tuple[float, float, float], *, duration_s: float = PUSH_SECONDS,
              body: str = "torso") -> None:
         """Push ``body`` with ``force_n`` (newtons, field frame) for ``duration_s`` of simulated
@@ -206,6 +230,37 @@ class Simulator:
         with self.pty.lock:
             self.plant.push(force_n, duration_s=duration_s, body=body)
         self.pushes += 1
+
+    def lay_down(self, side: str, *, heading: float | None = None, height_m: float = 0.12
+                 ) -> None:
+        """Lay the robot on its ``"front"`` (face down) or ``"back"``, where it stands now,
+        as if it had fallen forward or backward from standing with ``heading`` (rad, field
+        frame; default: its present heading), its torso ``height_m`` above the ground and at
+        rest: a fallen robot for get-up trials.
+
+        The joints keep their angles; the robot drops the last few centimetres onto the
+        ground with the next physics steps.
+        """
+        if side not in ("front", "back"):
+            raise SimConfigError(f"lay_down: side is 'front' or 'back', got {side!r}")
+        with self.pty.lock:
+            torso = self.model.body("torso").id
+            w, x, y, z = (float(v) for v in self.data.xquat[torso])
+            if heading is None:
+                heading = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+            pitch = math.pi / 2 if side == "front" else -math.pi / 2
+            yaw_q = np.array([math.cos(heading / 2), 0.0, 0.0, math.sin(heading / 2)])
+            pitch_q = np.array([math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0])
+            quat = np.zeros(4)
+            mujoco.mju_mulQuat(quat, yaw_q, pitch_q)
+            root = self.model.joint("root")
+            q, v = root.qposadr[0], root.dofadr[0]
+            self.data.qpos[q + 2] = height_m
+            self.data.qpos[q + 3 : q + 7] = quat
+            self.data.qvel[v : v + 6] = 0.0
+            for name in JOINTS.values():
+                self.data.qvel[self.model.joint(name).dofadr[0]] = 0.0
+            mujoco.mj_forward(self.model, self.data)
 
     def _on_push(self, impulse: Vector3) -> None:
         force = (impulse.x / PUSH_SECONDS, impulse.y / PUSH_SECONDS, impulse.z / PUSH_SECONDS)

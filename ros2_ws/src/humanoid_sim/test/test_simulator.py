@@ -171,3 +171,25 @@ def test_the_camera_renders_only_frames_someone_wants_and_counts_the_rest() -> N
         assert (got[0].width, got[0].height) == (32, 24)
     finally:
         sim.close()
+
+
+@pytest.mark.parametrize(("side", "forward_z"), [("front", -1.0), ("back", 1.0)])
+def test_lay_down_puts_the_robot_on_its_front_or_back_where_it_stands(
+        side: str, forward_z: float) -> None:
+    node = TestHandle("sim", parameters={"camera_hz": 0.0})
+    sim = Simulator(node)
+    try:
+        torso = sim.model.body("torso").id
+        sim.plant.data.qpos[0:2] = [1.0, -0.5]
+        sim.lay_down(side, heading=0.7)
+        rotation = sim.data.xmat[torso].reshape(3, 3)
+        assert rotation[2, 0] == pytest.approx(forward_z, abs=1e-9)  # forward axis down/up
+        assert math.atan2(rotation[1, 2], rotation[0, 2]) == pytest.approx(
+            0.7 if side == "front" else 0.7 - math.pi, abs=1e-9)  # up axis along the heading
+        assert list(sim.data.xpos[torso][:2]) == pytest.approx([1.0, -0.5])
+        node.advance(1.0)  # dropped onto the ground and lying there
+        assert sim.plant.torso_height() < 0.08
+        with pytest.raises(SimConfigError, match="side"):
+            sim.lay_down("sideways")
+    finally:
+        sim.close()

@@ -18,7 +18,6 @@ from efficient_comm.testing import TestHandle
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.behaviour import SEARCH_PITCH_RAD, HeadBehaviour
 from humanoid_sim.soccer.fall import FallDetector
-from humanoid_sim.soccer.motion import NECK_LIMITS, STANCE, Motion
 from humanoid_sim.soccer.vision import FALLBACK_FOVY_DEG, BallDetector
 from humanoid_sim.soccer.world_model import BALL_RADIUS_M, BallModel
 
@@ -135,21 +134,6 @@ def test_behaviour_tracks_then_searches_when_the_ball_is_gone() -> None:
     node.advance(0.6)
     assert behaviour.state == "searching"
     assert node.published("head/goal")[-1].position[1] == SEARCH_PITCH_RAD
-
-
-def test_motion_commands_the_stance_and_clamps_head_goals() -> None:
-    node = TestHandle("motion")
-    Motion(node)
-    node.advance(0.05)
-    stance = node.published("joint_commands")[-1]
-    assert dict(zip(stance.name, stance.position, strict=True)) == STANCE
-    node.inject("head/goal", JointState(name=["neck_yaw", "neck_pitch", "l_knee"],
-                                        position=[9.0, -9.0, 2.0]))
-    command = dict(zip(node.published("joint_commands")[-1].name,
-                       node.published("joint_commands")[-1].position, strict=True))
-    assert command["neck_yaw"] == NECK_LIMITS["neck_yaw"][1]
-    assert command["neck_pitch"] == NECK_LIMITS["neck_pitch"][0]
-    assert command["l_knee"] == STANCE["l_knee"]  # the head goal moves only the head
 
 
 def _imu(stamp_s: float, tilt_deg: float, rate: float = 0.0, *, heading_deg: float = 0.0

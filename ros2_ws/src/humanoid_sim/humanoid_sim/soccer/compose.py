@@ -1,5 +1,8 @@
 """The simulated soccer robot in one container: simulator, driver and the soccer pipeline.
 
+The pipeline's motions (walk engine, kick) publish on their own topics; the motion arbiter
+(:mod:`.arbiter`) is the one writer of ``joint_commands``.
+
 The same wiring serves the demo, the software-in-the-loop tests and the benchmarks, on a
 wall clock (real time) or a manual one (lockstep). The driver is given the simulator's pty
 path as its port; everything else it does is what it would do on the robot.
@@ -17,11 +20,16 @@ from efficient_comm import Container
 from ..driver import ServoDriver
 from ..mujoco_plant import JOINTS
 from ..simulator import Simulator
+from .arbiter import MotionArbiter
 from .behaviour import HeadBehaviour
 from .fall import FallDetector
+from .getup import GetUp
+from .kick import Kick
 from .monitor import SoccerMonitor
-from .motion import Motion
+from .referee import Referee
+from .striker import Striker
 from .vision import BallDetector
+from .walk import WalkEngine
 from .world_model import BallModel
 
 LOCKSTEP_LATENCY_TIMER_MS = 250.0
@@ -37,8 +45,18 @@ class SoccerRobot:
     ball_model: BallModel
     fall_detector: FallDetector
     behaviour: HeadBehaviour
-    motion: Motion
+    #: The motions (``motion/walk``, ``motion/kick``, ``motion/getup``) and the arbiter
+    #: that owns ``joint_commands`` (``motion/state``).
+    walk: WalkEngine
+    kick: Kick
+    getup: GetUp
+    arbiter: MotionArbiter
     monitor: SoccerMonitor
+    #: The body's behaviour: walk to the ball and kick it towards the opponent goal (None:
+    #: a robot that only stands and tracks, ``compose(play=False)``).
+    striker: Striker | None
+    #: Goals and balls out of play, from ground truth; puts the ball back (not the robot's).
+    referee: Referee
     #: ``camera/image_raw/compressed`` for viewers off the robot (encodes only on demand).
     compressor: JpegCompressor
 
@@ -66,8 +84,12 @@ def add_body(container: Container, *, namespace: str,
 
 def compose(container: Container, *, namespace: str = "/robot",
             simulator: Mapping[str, Any] | None = None,
-            driver: Mapping[str, Any] | None = None) -> SoccerRobot:
-    """Add the robot to ``container``; ``simulator``/``driver`` override their parameters.
+            driver: Mapping[str, Any] | None = None,
+            striker: Mapping[str, Any] | None = None, play: bool = True) -> SoccerRobot:
+    """Add the robot to ``container``; ``simulator``/``driver``/``striker`` override their
+    parameters. The striker's ``start_pose`` is the simulator's ``robot_pose`` unless given:
+    where the robot was placed is what it knows at kick-off. ``play=False`` leaves the
+    striker out: the robot stands and its head tracks (the tracking tests' robot).
 
     Order matters on a shared timer deadline: the simulator steps (and renders, and the
     pipeline reacts to the image in the same pass) before the driver reads and writes the
@@ -76,6 +98,8 @@ def compose(container: Container, *, namespace: str = "/robot",
     """
     sim, servo_driver = add_body(container, namespace=namespace, simulator=simulator,
                                  driver=driver)
+    striker = {"start_pose": list((simulator or {}).get("robot_pose", [0.0, 0.0, 0.0])),
+               **(striker or {})}
     robot = SoccerRobot(
         simulator=sim,
         driver=servo_driver,
@@ -83,8 +107,14 @@ def compose(container: Container, *, namespace: str = "/robot",
         ball_model=container.add(BallModel, name="ball_model", namespace=namespace),
         fall_detector=container.add(FallDetector, name="fall_detector", namespace=namespace),
         behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
-        motion=container.add(Motion, name="motion", namespace=namespace),
+        walk=container.add(WalkEngine, name="walk", namespace=namespace),
+        kick=container.add(Kick, name="kick", namespace=namespace),
+        getup=container.add(GetUp, name="getup", namespace=namespace),
+        arbiter=container.add(MotionArbiter, name="motion", namespace=namespace),
         monitor=container.add(SoccerMonitor, name="monitor", namespace=namespace),
+        striker=container.add(Striker, name="striker", namespace=namespace,
+                              parameters=striker) if play else None,
+        referee=container.add(Referee, name="referee", namespace=namespace),
         compressor=container.add(JpegCompressor, name="jpeg_compressor", namespace=namespace),
     )
     return robot

@@ -5,8 +5,15 @@ ball at each camera frame: what "the head keeps the ball centred" means, indepen
 the pipeline believes. Latency runs from an image's capture stamp to the joint command it
 caused. Rates count what each stage produced. Frames taken while the fall detector says the
 robot is down (``fall/state``) are counted but not scored: a head on the ground tracks
-nothing. :meth:`SoccerMonitor.window` returns the figures since its last call (live
-statistics); :meth:`SoccerMonitor.totals` those of the run.
+nothing; neither are frames in which the ball lies outside the image (the head is looking
+for it, or it was just put back behind the robot): that is searching, not tracking, and
+is counted on its own (``frames_out_of_view``). What the robot did as a player is
+counted over the run: kicks and get-ups (the motion arbiter's ``motion/state`` entering
+``kick``, and leaving ``getup`` for a standing motion), the time to the first kick, and
+the distance walked (ground truth: the torso's path on the ground, sampled once a gait
+cycle, :data:`PATH_SAMPLE_S`, so the sway from foot to foot does not count, and only
+while standing). :meth:`SoccerMonitor.window` returns the figures since its last call
+(live statistics); :meth:`SoccerMonitor.totals` those of the run.
 """
 
 from __future__ import annotations
@@ -18,13 +25,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from geometry_msgs.msg import PointStamped, PoseStamped
-from sensor_msgs.msg import Image, JointState
+from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import String
 
 from efficient_comm import from_msg
 from efficient_comm.handle import NodeHandle
 
 from .fall import LATCHED, STANDING
+from .vision import FALLBACK_FOVY_DEG
+
+#: The walked path is sampled this often (s): one cycle of the walk engine's gait.
+PATH_SAMPLE_S = 0.5
+#: Moves shorter than this (m) are the body swaying on the spot, not walking.
+PATH_MIN_STEP_M = 0.02
+#: ``motion/state`` values in which the robot is on its feet.
+STANDING_MOTIONS = ("stand", "walk", "kick")
 
 
 def _rotation(pose: PoseStamped) -> np.ndarray:
@@ -57,6 +72,7 @@ class Figures:
     seconds: float = 0.0
     frames: int = 0
     frames_down: int = 0  # taken while the robot was falling or fallen: not scored
+    frames_out_of_view: int = 0  # the ball outside the image: searching, not scored
     detections: int = 0
     joint_states: int = 0
     commands: int = 0
@@ -101,14 +117,56 @@ class SoccerMonitor:
         self._command_times: dict[int, int] = {}
         self._window = Figures()
         self._total = Figures()
-        self._window_start = self._total_start = node.clock.now_ns()
+        #: When the monitor started (the clock's ns): times in the report count from here.
+        self.started_ns = node.clock.now_ns()
+        self._window_start = self._total_start = self.started_ns
+        self.motion = ""
+        self.kicks = 0
+        self.getups = 0
+        #: Simulated time (ns since the monitor started) of the first kick.
+        self.first_kick_ns: int | None = None
+        self.walked_m = 0.0
+        self._path_point: tuple[float, float] | None = None
+        self._path_next_ns = 0
         node.create_subscription(PoseStamped, "ground_truth/camera", self._on_camera, qos=10)
         node.create_subscription(PoseStamped, "ground_truth/ball", self._on_ball, qos=10)
         node.create_subscription(Image, "camera/image_raw", self._on_image, qos=10)
+        #: Half the image's width and height over the focal length (tangents of the half
+        #: fields of view), from ``camera_info``; until then the head camera's.
+        fovy = math.radians(FALLBACK_FOVY_DEG)
+        self._half_view = (math.tan(fovy / 2) * 4 / 3, math.tan(fovy / 2))
+        node.create_subscription(CameraInfo, "camera/camera_info", self._on_info,
+                                 qos=LATCHED)
         node.create_subscription(PointStamped, "ball/detection", self._on_detection, qos=10)
         node.create_subscription(JointState, "joint_states", self._on_state, qos=10)
         node.create_subscription(JointState, "joint_commands", self._on_command, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
+        node.create_subscription(String, "motion/state", self._on_motion, qos=LATCHED)
+        node.create_subscription(PoseStamped, "ground_truth/robot", self._on_robot, qos=10)
+
+    def _on_motion(self, state: String) -> None:
+        previous, self.motion = self.motion, state.data
+        if state.data == "kick" and previous != "kick":
+            self.kicks += 1
+            if self.first_kick_ns is None:
+                self.first_kick_ns = self.node.clock.now_ns() - self._total_start
+        if previous == "getup" and state.data in STANDING_MOTIONS:
+            self.getups += 1
+
+    def _on_robot(self, pose: PoseStamped) -> None:
+        now = self.node.clock.now_ns()
+        if now < self._path_next_ns:
+            return
+        self._path_next_ns = now + round(PATH_SAMPLE_S * 1e9)
+        point = (pose.pose.position.x, pose.pose.position.y)
+        if self.posture != STANDING:
+            self._path_point = None  # a fall and a get-up are not walking
+            return
+        if self._path_point is None:
+            self._path_point = point
+        elif (step := math.dist(point, self._path_point)) >= PATH_MIN_STEP_M:
+            self.walked_m += step  # smaller steps add up until they are one: no jitter
+            self._path_point = point
 
     def _both(self) -> tuple[Figures, Figures]:
         return self._window, self._total
@@ -128,17 +186,30 @@ class SoccerMonitor:
     def _on_ball(self, pose: PoseStamped) -> None:
         self.ball = pose
 
+    def _on_info(self, info: CameraInfo) -> None:
+        fx, fy = info.k[0], info.k[4]
+        if fx > 0 and fy > 0 and info.width and info.height:
+            self._half_view = (info.width / 2 / fx, info.height / 2 / fy)
+
+    def _in_view(self, yaw: float, pitch: float, off_axis: float) -> bool:
+        return (off_axis < math.pi / 2 and abs(math.tan(yaw)) <= self._half_view[0]
+                and abs(math.tan(pitch)) <= self._half_view[1])
+
     def _on_image(self, image: Image) -> None:
         stamp = from_msg(image.header.stamp)
         self._image_stamps.append(stamp)
         if (sent := self._command_times.pop(stamp, None)) is not None:
             self._latency((sent - stamp) / 1e6)
         error = None
+        out_of_view = False
         if (truth := self._truth()) is not None:
-            error = math.degrees(ball_in_camera(*truth)[2])
+            seen = ball_in_camera(*truth)
+            out_of_view = not self._in_view(*seen)
+            error = None if out_of_view else math.degrees(seen[2])
         for figures in self._both():
             figures.frames += 1
             figures.frames_down += self.posture != STANDING
+            figures.frames_out_of_view += out_of_view
             if error is not None:
                 figures.tracking_error_deg.append(error)
 

@@ -1,18 +1,11 @@
-"""Motion: the whole body's joint commands, from the stance and the head goal.
+"""The standing pose and the neck's range, shared by the motions and the motion arbiter.
 
-The robot stands in a slight crouch (knees bent, so it can balance and react); the head goal
-is clamped to the neck's range. A command goes out at once for every head goal (the chain
-from image to servo goal stays one pass) and at ``rate_hz`` otherwise, so the robot stands
-even before anything is seen.
+The robot stands in a slight crouch (knees bent, so it can balance and react); head goals
+are clamped to the neck's range. Which motion moves the body is the arbiter's choice
+(:mod:`.arbiter`), which sends this pose while no motion runs.
 """
 
 from __future__ import annotations
-
-from builtin_interfaces.msg import Time
-from sensor_msgs.msg import JointState
-
-from efficient_comm import to_msg
-from efficient_comm.handle import NodeHandle
 
 from ..mujoco_plant import JOINTS
 
@@ -23,25 +16,3 @@ STANCE: dict[str, float] = {name: 0.0 for name in JOINTS.values()} | {
     "neck_pitch": 0.45,
 }
 NECK_LIMITS = {"neck_yaw": (-2.0, 2.0), "neck_pitch": (-1.0, 1.3)}
-
-
-class Motion:
-    def __init__(self, node: NodeHandle) -> None:
-        self.node = node
-        rate = node.declare_parameter("rate_hz", 20.0)
-        self.goal = dict(STANCE)
-        self.pub = node.create_publisher(JointState, "joint_commands", qos=10)
-        node.create_subscription(JointState, "head/goal", self._on_head, qos=10)
-        node.create_timer(1.0 / rate, self._send)
-
-    def _on_head(self, goal: JointState) -> None:
-        for name, position in zip(goal.name, goal.position, strict=False):
-            if name in NECK_LIMITS:
-                low, high = NECK_LIMITS[name]
-                self.goal[name] = min(high, max(low, position))
-        self._send(goal.header.stamp)
-
-    def _send(self, stamp: Time | None = None) -> None:
-        command = JointState(name=list(self.goal), position=list(self.goal.values()))
-        command.header.stamp = stamp if stamp is not None else to_msg(self.node.clock.now_ns())
-        self.pub.publish(command)

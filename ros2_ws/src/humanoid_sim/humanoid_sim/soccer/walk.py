@@ -27,8 +27,10 @@ Topics (relative to the robot namespace): ``cmd_vel`` (geometry_msgs/Twist: line
 forward, linear.y left in m/s, angular.z in rad/s; zero stops); ``fall/state`` (while the
 robot is not standing, the walk stops and publishes nothing); published: ``motion/walk``
 (sensor_msgs/JointState; ``output_topic`` renames it, e.g. to ``joint_commands`` to drive
-the servo driver directly) and ``odom`` (nav_msgs/Odometry, integrated from the commanded
-steps, frame ``odom``, child ``base_footprint``). Every gait figure is a ROS parameter that
+the servo driver directly), ``motion/walk/active`` (std_msgs/Bool, transient local, on every
+change: true while stepping, for the motion arbiter of :mod:`.arbiter`) and ``odom``
+(nav_msgs/Odometry, integrated from the commanded steps, frame ``odom``, child
+``base_footprint``). Every gait figure is a ROS parameter that
 can be changed while it walks (see :data:`PARAMETERS`).
 """
 
@@ -42,7 +44,7 @@ from geometry_msgs.msg import Quaternion, Twist
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 
 from efficient_comm import to_msg
 from efficient_comm.handle import NodeHandle, ParameterValue
@@ -298,6 +300,10 @@ class WalkEngine:
         self.cycles = 0
         self.pub = node.create_publisher(JointState, output, qos=10)
         self.odom_pub = node.create_publisher(Odometry, "odom", qos=10)
+        #: Whether the robot is stepping (the motion arbiter forwards the goals only then).
+        self.active = False
+        self.active_pub = node.create_publisher(Bool, "motion/walk/active", qos=LATCHED)
+        self.active_pub.publish(Bool(data=False))
         node.create_subscription(Twist, "cmd_vel", self._on_cmd_vel, qos=10)
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
@@ -329,6 +335,12 @@ class WalkEngine:
         self.standing = posture.data == "standing"
         if not self.standing:
             self.gait.stop_now()
+            self._set_active(False)
+
+    def _set_active(self, active: bool) -> None:
+        if active != self.active:
+            self.active = active
+            self.active_pub.publish(Bool(data=active))
 
     def cycle(self) -> None:
         if not self.standing:
@@ -339,6 +351,7 @@ class WalkEngine:
         command = JointState(name=list(goals), position=list(goals.values()))
         command.header.stamp = now
         self.pub.publish(command)
+        self._set_active(self.gait.walking)
         if self.odom_pub.get_subscription_count():
             self.odom_pub.publish(self.odometry(now))
 

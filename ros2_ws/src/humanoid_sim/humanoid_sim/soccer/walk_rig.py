@@ -27,6 +27,7 @@ from ..mujoco_plant import JOINTS, NO_LOAD_SPEED_RAD_S, MujocoPlant
 from ..simulator import Simulator
 from .compose import add_body
 from .fall import FallDetector
+from .getup import GetUp
 from .walk import Gait, GaitParameters, WalkEngine, standing_height
 
 #: How often a trial samples ground truth and the servos (s of simulated time).
@@ -41,15 +42,22 @@ class WalkingRobot:
     driver: ServoDriver
     fall_detector: FallDetector
     walk: WalkEngine
+    #: The get-up component, when composed (``compose_walker(getup=...)``).
+    getup: GetUp | None = None
 
 
 def compose_walker(container: Container, *, namespace: str = "/robot",
                    simulator: Mapping[str, Any] | None = None,
                    driver: Mapping[str, Any] | None = None,
-                   walk: Mapping[str, Any] | None = None) -> WalkingRobot:
+                   walk: Mapping[str, Any] | None = None,
+                   getup: Mapping[str, Any] | None = None) -> WalkingRobot:
     """Add the walking robot to ``container``; the mappings override parameters.
 
-    The camera is off unless ``simulator`` turns it on: walking does not look.
+    The camera is off unless ``simulator`` turns it on: walking does not look. With
+    ``getup`` (its parameters, ``{}`` for the defaults) the robot also gets up after a fall:
+    the get-up component sends to ``joint_commands`` too, which needs no arbiter because
+    the walk is silent whenever the fall detector does not say ``standing`` and the get-up
+    is silent whenever it does.
     """
     sim, servo_driver = add_body(container, namespace=namespace,
                                  simulator={"camera_hz": 0.0, **(simulator or {})},
@@ -59,6 +67,9 @@ def compose_walker(container: Container, *, namespace: str = "/robot",
         fall_detector=container.add(FallDetector, name="fall_detector", namespace=namespace),
         walk=container.add(WalkEngine, name="walk", namespace=namespace,
                            parameters={"output_topic": "joint_commands", **(walk or {})}),
+        getup=None if getup is None else container.add(
+            GetUp, name="getup", namespace=namespace,
+            parameters={"output_topic": "joint_commands", **getup}),
     )
 
 

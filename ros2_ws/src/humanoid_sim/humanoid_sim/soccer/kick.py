@@ -1,0 +1,328 @@
+"""The kick: from standing, shift the weight, lift the foot, swing it through the ball, stand.
+
+A kick of the kind KidSize robots make from a stop: the trunk moves over the support foot,
+the kicking foot is lifted and drawn back, swung forward through the ball (straight ahead,
+along the torso's x axis), brought back, set down, and the weight moves back onto both feet
+into the standing pose (:data:`~.motion.STANCE`). Every foot coordinate follows quintic
+splines (:mod:`.spline`) through the phases' knots, at rest at each knot, so no servo is
+asked to jump; the feet's positions go through the legs' analytic inverse kinematics
+(:mod:`.leg_ik`), as the walk's do. The swing is short: the servos turn at most 46 rpm, so
+its speed at the ball is what they give, not what the spline asks (the spline asks more).
+
+The ball must lie in front of the kicking foot: its centre about 0.16 m ahead of the
+torso's origin (``kick_rig.BALL_AHEAD_M``; 4 cm either way still kicks it well) and on the
+foot's line (the hip, ``leg_ik.HIP_OFFSET``, 4.5 cm to that side); walking there is the
+behaviour's job.
+
+Feedback from the IMU (``imu/data``), as in the walk: the torso's pitch and roll rates,
+low-pass filtered, added to the support leg's ankle pitch and hip roll.
+
+Topics, relative to the robot namespace: ``motion/kick/request`` (std_msgs/String: ``left``
+or ``right``, the kicking foot) starts a kick if the motion arbiter's ``motion/state`` is
+``stand``; otherwise (walking, fallen, getting up, already kicking) the request is refused
+with a log line and counted (:attr:`Kick.refused`). ``motion/kick`` (sensor_msgs/JointState,
+whole body, every ``1 / rate_hz`` s while kicking) and ``motion/kick/active`` (std_msgs/Bool,
+transient local, on every change): true from the accepted request to the end of the kick,
+so a behaviour waits for it to go false. A fall (``fall/state`` not ``standing``) aborts the
+kick at once (:attr:`Kick.aborted`). Every figure of :class:`KickParameters` is a ROS
+parameter, changeable between kicks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields, replace
+
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Bool, String
+
+from efficient_comm import to_msg
+from efficient_comm.handle import NodeHandle, ParameterValue
+
+from ..errors import SimConfigError
+from .fall import STANDING
+from .leg_ik import LegAngles, UnreachableError, foot_pose, leg_ik
+from .motion import STANCE
+from .spline import Knot, QuinticSpline
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: ``motion/kick/request`` data -> the kicking leg's side and the sign of its y.
+SIDES = {"left": ("l", 1.0), "right": ("r", -1.0)}
+#: Time step at which a kick's trajectory is checked against the legs' reach.
+REACH_CHECK_S = 0.02
+
+
+@dataclass(frozen=True, slots=True)
+class ImuSample:
+    """The torso's tilt (rad: pitch forward, roll to the right positive) and its rates."""
+
+    pitch: float = 0.0
+    roll: float = 0.0
+    pitch_rate: float = 0.0
+    roll_rate: float = 0.0
+
+    @classmethod
+    def from_imu(cls, imu: Imu) -> ImuSample:
+        q = imu.orientation
+        roll = math.atan2(2 * (q.w * q.x + q.y * q.z), 1 - 2 * (q.x * q.x + q.y * q.y))
+        pitch = math.asin(max(-1.0, min(1.0, 2 * (q.w * q.y - q.z * q.x))))
+        return cls(pitch=pitch, roll=roll, pitch_rate=imu.angular_velocity.y,
+                   roll_rate=imu.angular_velocity.x)
+
+
+@dataclass(frozen=True, slots=True)
+class KickParameters:
+    """The kick's figures; each is also a ROS parameter of the same name."""
+
+    #: Time to move the trunk over the support foot, and back at the end (s).
+    shift_s: float = 0.8
+    #: How far the trunk moves sideways toward the support foot (m).
+    shift_y: float = 0.05
+    #: Extra hip roll of the support leg while on one foot (rad): the servos give under
+    #: the body's weight, and the trunk sags toward the kicking side.
+    support_roll: float = 0.1
+    #: How much lower the trunk goes during the kick (m).
+    crouch: float = 0.02
+    #: Trunk leaning forward during the kick (rad).
+    trunk_pitch: float = 0.0
+    #: Lifting the kicking foot and drawing it back (s, m, m).
+    lift_s: float = 0.35
+    lift_height: float = 0.05
+    draw_back: float = 0.05
+    #: The swing through the ball: its time (s), the foot's height (m) and how far ahead of
+    #: the hip it ends (m).
+    swing_s: float = 0.2
+    kick_height: float = 0.04
+    reach: float = 0.10
+    #: Bringing the foot back under the hip (s), and setting it down (s).
+    retract_s: float = 0.4
+    set_down_s: float = 0.35
+    #: Standing still on both feet before the weight moves back (s).
+    settle_s: float = 0.2
+    #: Balance on the support foot, from the IMU: ankle pitch per rad of torso pitch and
+    #: per rad/s of its rate; ankle roll per rad of torso roll and per rad/s of its rate.
+    pitch_gain: float = 0.0
+    gyro_pitch_gain: float = 0.15
+    roll_gain: float = 1.0
+    gyro_roll_gain: float = 0.4
+    #: Low-pass time constant of the gyro feedback (s).
+    gyro_filter_s: float = 0.03
+
+    def check(self) -> None:
+        """Raise :class:`SimConfigError` naming the first figure the kick cannot use."""
+        rules = {
+            "shift_s": 0.05 <= self.shift_s <= 5.0,
+            "shift_y": 0.0 <= self.shift_y <= 0.1,
+            "support_roll": abs(self.support_roll) <= 0.3,
+            "crouch": 0.0 <= self.crouch <= 0.06,
+            "trunk_pitch": abs(self.trunk_pitch) <= 0.5,
+            "lift_s": 0.05 <= self.lift_s <= 5.0,
+            "lift_height": 0.0 <= self.lift_height <= 0.12,
+            "draw_back": 0.0 <= self.draw_back <= 0.15,
+            "swing_s": 0.03 <= self.swing_s <= 2.0,
+            "kick_height": 0.0 <= self.kick_height <= 0.12,
+            "reach": 0.0 <= self.reach <= 0.2,
+            "retract_s": 0.05 <= self.retract_s <= 5.0,
+            "set_down_s": 0.05 <= self.set_down_s <= 5.0,
+            "settle_s": 0.0 <= self.settle_s <= 5.0,
+            "gyro_filter_s": self.gyro_filter_s >= 0,
+        }
+        for name, ok in rules.items():
+            if not ok or not math.isfinite(getattr(self, name)):
+                raise SimConfigError(f"kick parameter {name} = {getattr(self, name)} is out "
+                                     f"of range")
+
+
+#: The ROS parameters of the kick and their defaults.
+PARAMETERS: dict[str, float] = asdict(KickParameters())
+
+
+def _stance_foot(side: str) -> tuple[float, float, float]:
+    """The foot origin in the hip frame in the standing pose (forward kinematics)."""
+    angles = LegAngles(**{j: STANCE[f"{side}_{j}"] for j in (
+        "hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")})
+    return foot_pose(angles)[0]
+
+
+def _path(*points: tuple[float, float]) -> QuinticSpline:
+    return QuinticSpline([Knot(t, p) for t, p in points])
+
+
+class KickMotion:
+    """One kick's trajectory, free of ROS: time in, whole-body joint goals out.
+
+    ``side`` is the kicking foot (``left`` or ``right``). :meth:`goals` is the pose at ``t``
+    seconds into the kick; at 0 and from :attr:`duration` on it is the standing pose.
+    """
+
+    def __init__(self, side: str, parameters: KickParameters | None = None) -> None:
+        if side not in SIDES:
+            raise SimConfigError(f"kick side must be 'left' or 'right', got {side!r}")
+        self.p = p = parameters or KickParameters()
+        p.check()
+        self.side, sign = SIDES[side]
+        self.support = "r" if self.side == "l" else "l"
+        t1 = p.shift_s
+        t2 = t1 + p.lift_s
+        t3 = t2 + p.swing_s
+        t4 = t3 + p.retract_s
+        t5 = t4 + p.set_down_s
+        t6 = t5 + p.settle_s
+        self.duration = t6 + p.shift_s
+        #: When the swing starts and ends (s into the kick).
+        self.swing = (t2, t3)
+        end = self.duration
+        # 0 -> 1 while the weight is over the support foot.
+        self._shift = _path((0.0, 0.0), (t1, 1.0), (t6, 1.0), (end, 0.0))
+        self._dy = sign * p.shift_y
+        self._x = _path((0.0, 0.0), (t1, 0.0), (t2, -p.draw_back), (t3, p.reach), (t4, 0.0),
+                        (end, 0.0))
+        self._z = _path((0.0, 0.0), (t1, 0.0), (t2, p.lift_height), (t3, p.kick_height),
+                        (t4, p.lift_height), (t5, 0.0), (end, 0.0))
+        self._stance = {s: _stance_foot(s) for s in ("l", "r")}
+        self._gyro = (0.0, 0.0)
+        self._tilt = (0.0, 0.0)
+
+    def set_imu(self, imu: ImuSample, dt: float) -> None:
+        """Feed the torso's tilt (rad) and angular rates (rad/s); the rates low-pass filtered."""
+        tau = self.p.gyro_filter_s
+        k = 1.0 if tau <= 0 or dt <= 0 else min(1.0, dt / tau)
+        gp, gr = self._gyro
+        self._gyro = (gp + k * (imu.pitch_rate - gp), gr + k * (imu.roll_rate - gr))
+        self._tilt = (imu.pitch, imu.roll)
+
+    def goals(self, t: float) -> dict[str, float]:
+        """The whole body's joint goals (rad) at ``t`` seconds into the kick."""
+        p = self.p
+        shift = self._shift(t)
+        pitch = p.trunk_pitch * shift
+        cp, sp = math.cos(pitch), math.sin(pitch)
+        goals = dict(STANCE)
+        for side in ("l", "r"):
+            x, y, z = self._stance[side]
+            y += self._dy * shift
+            z += p.crouch * shift
+            if side == self.side:
+                x += self._x(t)
+                z += self._z(t)
+            # Into the pitched torso's frame (the hip frame turns with the trunk).
+            tx, tz = cp * x - sp * z, sp * x + cp * z
+            goals.update(leg_ik(tx, y, tz, pitch=-pitch).named(side))
+        s = self.support
+        gyro_pitch, gyro_roll = self._gyro
+        tilt_pitch, tilt_roll = self._tilt
+        goals[f"{s}_ankle_pitch"] += (p.pitch_gain * tilt_pitch + p.gyro_pitch_gain * gyro_pitch)
+        goals[f"{s}_ankle_roll"] += shift * (p.roll_gain * tilt_roll + p.gyro_roll_gain * gyro_roll)
+        goals[f"{s}_hip_roll"] += (1.0 if s == "l" else -1.0) * p.support_roll * shift
+        return goals
+
+    def check_reach(self) -> None:
+        """Raise :class:`SimConfigError` if the trajectory leaves a leg's reach anywhere."""
+        steps = math.ceil(self.duration / REACH_CHECK_S)
+        try:
+            for i in range(steps + 1):
+                self.goals(i * self.duration / steps)
+        except UnreachableError as exc:
+            raise SimConfigError(f"kick parameters out of the leg's reach: {exc}") from None
+
+
+class Kick:
+    """The kick component (see the module's docstring for topics and parameters)."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.node = node
+        rate = node.declare_parameter("rate_hz", 100.0)
+        if not 1.0 <= rate <= 1000.0:
+            raise SimConfigError(f"need 1 <= rate_hz <= 1000, got {rate}")
+        values = {name: node.declare_parameter(name, default)
+                  for name, default in PARAMETERS.items()}
+        self.p = KickParameters(**values)
+        self.p.check()
+        for side in SIDES:
+            KickMotion(side, self.p).check_reach()
+        self.period_s = 1.0 / rate
+        self.motion: KickMotion | None = None
+        self.t = 0.0
+        self.motion_state = "stand"
+        self.standing = True
+        #: Kicks completed, requests refused, kicks aborted by a fall.
+        self.kicks = self.refused = self.aborted = 0
+        self._imu = ImuSample()
+        self.pub = node.create_publisher(JointState, "motion/kick", qos=10)
+        self.active_pub = node.create_publisher(Bool, "motion/kick/active", qos=LATCHED)
+        node.create_subscription(String, "motion/kick/request", self._on_request, qos=10)
+        node.create_subscription(String, "motion/state", self._on_motion_state, qos=LATCHED)
+        node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
+        node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
+        node.add_on_parameter_change(self._on_parameters)
+        node.create_timer(self.period_s, self.cycle)
+        self.active_pub.publish(Bool(data=False))
+
+    @property
+    def active(self) -> bool:
+        return self.motion is not None
+
+    def _on_parameters(self, changed: Mapping[str, ParameterValue]) -> None:
+        """Take new figures for the next kick; one out of range is refused (ValueError)."""
+        known = {f.name for f in fields(KickParameters)}
+        update = {name: float(value) for name, value in changed.items()  # type: ignore[arg-type]
+                  if name in known}
+        if update:
+            parameters = replace(self.p, **update)
+            parameters.check()  # SimConfigError is a ValueError: the change is vetoed
+            for side in SIDES:
+                KickMotion(side, parameters).check_reach()
+            self.p = parameters
+
+    def _refuse(self, why: str) -> None:
+        self.refused += 1
+        self.node.logger.warning(f"kick refused: {why}")
+
+    def _on_request(self, request: String) -> None:
+        side = request.data.strip().lower()
+        if side not in SIDES:
+            self._refuse(f"request {request.data!r} is not 'left' or 'right'")
+        elif self.motion is not None:
+            self._refuse("a kick is under way")
+        elif not self.standing or self.motion_state != "stand":
+            self._refuse(f"the motion state is {self.motion_state!r}, not 'stand' (stop "
+                         f"walking first)")
+        else:
+            self.motion = KickMotion(side, self.p)
+            self.motion.set_imu(self._imu, 0.0)
+            self.t = 0.0
+            self.node.logger.info(f"kick: {side} foot")
+            self.active_pub.publish(Bool(data=True))
+
+    def _on_motion_state(self, state: String) -> None:
+        self.motion_state = state.data
+
+    def _on_posture(self, posture: String) -> None:
+        self.standing = posture.data == STANDING
+        if not self.standing and self.motion is not None:
+            self.aborted += 1
+            self.node.logger.warning(f"kick aborted: the robot is {posture.data}")
+            self._end()
+
+    def _on_imu(self, imu: Imu) -> None:
+        self._imu = ImuSample.from_imu(imu)
+        if self.motion is not None:
+            self.motion.set_imu(self._imu, self.period_s)
+
+    def _end(self) -> None:
+        self.motion = None
+        self.active_pub.publish(Bool(data=False))
+
+    def cycle(self) -> None:
+        if self.motion is None:
+            return
+        self.t += self.period_s
+        goals = self.motion.goals(self.t)
+        command = JointState(name=list(goals), position=list(goals.values()))
+        command.header.stamp = to_msg(self.node.clock.now_ns())
+        self.pub.publish(command)
+        if self.t >= self.motion.duration - 1e-9:
+            self.kicks += 1
+            self._end()

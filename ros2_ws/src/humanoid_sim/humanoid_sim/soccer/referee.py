@@ -1,0 +1,70 @@
+"""The referee: goals and balls out of play, judged from ground truth; the ball put back.
+
+A goal is the ball wholly over the goal line between the posts and under the crossbar
+(Law 10: the whole ball past the line's outer edge); ``opponent`` goals are scored at
++x, the goal the robot attacks, ``own`` goals at -x. A ball wholly over a touch line or a
+goal line elsewhere is out. After ``restart_s`` the ball is put back at rest, through the
+simulator's ``place_ball`` topic: on the centre mark after a goal, just inside the field
+where it left otherwise. The referee is not the robot's: only the simulation and the
+report read it (the robot's software never sees ground truth).
+"""
+
+from __future__ import annotations
+
+from geometry_msgs.msg import Point, PoseStamped
+
+from efficient_comm.handle import NodeHandle
+
+from ..errors import SimConfigError
+from .world_model import BALL_RADIUS_M
+
+#: The KidSize field (``models/soccer_field.xml``): half length and width, the goals'
+#: half width between the posts' inner faces and the crossbar's lower edge (m).
+HALF_LENGTH, HALF_WIDTH = 4.5, 3.0
+GOAL_HALF_WIDTH, CROSSBAR = 1.3, 1.2
+#: How far inside the lines a ball out of play is put back (m).
+INSIDE_M = 0.3
+
+
+class Referee:
+    def __init__(self, node: NodeHandle) -> None:
+        self.node = node
+        self.restart_ns = round(node.declare_parameter("restart_s", 1.0) * 1e9)
+        if self.restart_ns < 0:
+            raise SimConfigError(f"need restart_s >= 0, got {self.restart_ns / 1e9}")
+        self.goals = 0
+        self.own_goals = 0
+        self.outs = 0
+        #: When the goals in the opponent goal were scored (ns since the referee started).
+        self.goal_at_ns: list[int] = []
+        self._start_ns = node.clock.now_ns()
+        self._restart: tuple[int, Point] | None = None  # when and where the ball goes back
+        self.place_pub = node.create_publisher(Point, "place_ball", qos=10)
+        node.create_subscription(PoseStamped, "ground_truth/ball", self._on_ball, qos=10)
+
+    def _on_ball(self, pose: PoseStamped) -> None:
+        now = self.node.clock.now_ns()
+        if self._restart is not None:
+            when, where = self._restart
+            if now >= when:
+                self._restart = None
+                self.place_pub.publish(where)
+            return
+        x, y, z = pose.pose.position.x, pose.pose.position.y, pose.pose.position.z
+        over_goal_line = abs(x) > HALF_LENGTH + BALL_RADIUS_M
+        if not over_goal_line and abs(y) <= HALF_WIDTH + BALL_RADIUS_M:
+            return
+        if over_goal_line and abs(y) < GOAL_HALF_WIDTH and z < CROSSBAR:
+            if x > 0:
+                self.goals += 1
+                self.goal_at_ns.append(now - self._start_ns)
+                self.node.logger.info(f"GOAL ({self.goals})")
+            else:
+                self.own_goals += 1
+                self.node.logger.info("own goal")
+            where = Point()
+        else:
+            self.outs += 1
+            where = Point(x=max(-HALF_LENGTH + INSIDE_M, min(HALF_LENGTH - INSIDE_M, x)),
+                          y=max(-HALF_WIDTH + INSIDE_M, min(HALF_WIDTH - INSIDE_M, y)))
+        self._restart = (now + self.restart_ns, where)
