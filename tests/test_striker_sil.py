@@ -45,13 +45,15 @@ def play(seed: int) -> Outcome:
     with test_container(guard_mutation=False) as container:
         robot = compose(container, simulator={"robot_pose": ROBOT_POSE, "ball_position": BALL,
                                               "seed": seed, "line_noise": 0.01})
+        striker = robot.striker
+        assert striker is not None  # compose() plays by default
         states: list[str] = []
         kicked_at: float | None = None
         rest: list[tuple[float, float]] = []
         while robot.simulator.sim_time_s < LIMIT_S:
             container.advance(0.1)
-            if not states or states[-1] != robot.striker.state:
-                states.append(robot.striker.state)
+            if not states or states[-1] != striker.state:
+                states.append(striker.state)
             if kicked_at is None and robot.monitor.kicks:
                 kicked_at = robot.simulator.sim_time_s
             if kicked_at is not None:
