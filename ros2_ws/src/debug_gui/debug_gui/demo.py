@@ -5,6 +5,11 @@
 in the second domain under their own namespaces, so the GUI shows both ways robots are
 told apart. Then it serves the GUI (as ``debug_gui`` would) and prints its URL. Ctrl-C,
 SIGTERM or ``--duration`` stop the GUI and every robot.
+
+The robots play (walk to the ball, kick, get up) in real time. A machine that cannot
+simulate them all in real time makes them late, and a late walk falls: ``--lockstep`` runs
+each robot on a manual clock instead, as fast as the machine allows (slower than real
+time on a small machine, but every robot plays as it would on a fast one).
 """
 
 from __future__ import annotations
@@ -57,6 +62,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--layout", type=Path, default=None, help="layout JSON file")
     parser.add_argument("--plain-robots", action="store_true",
                         help="also show plain ROS 2 robots (as debug_gui --plain-robots)")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="robots on manual clocks, as fast as the machine allows "
+                             "(slower than real time, but never late)")
     parser.add_argument("--log-dir", type=Path, default=None,
                         help="where the robots' output goes (default: a temporary folder)")
     return parser
@@ -73,7 +81,8 @@ def _domains(text: str | None) -> tuple[int, int]:
 
 
 @contextlib.contextmanager
-def robots(planned: Sequence[DemoRobot], log_dir: Path) -> Iterator[list[subprocess.Popen[bytes]]]:
+def robots(planned: Sequence[DemoRobot], log_dir: Path, *, lockstep: bool = False
+           ) -> Iterator[list[subprocess.Popen[bytes]]]:
     """The robots as processes in sessions of their own; stopped (Ctrl-C, then kill) on exit."""
     procs: list[subprocess.Popen[bytes]] = []
     try:
@@ -86,12 +95,14 @@ def robots(planned: Sequence[DemoRobot], log_dir: Path) -> Iterator[list[subproc
             with open(log_dir / f"{name}.log", "wb") as log:
                 procs.append(subprocess.Popen(
                     [sys.executable, "-m", "humanoid_sim.demo", "--duration", "0",
-                     "--namespace", robot.namespace],
+                     "--namespace", robot.namespace, *(["--lockstep"] if lockstep else [])],
                     env=env, stdout=log, stderr=subprocess.STDOUT, cwd=workdir,
                     start_new_session=True,
                 ))
         yield procs
     finally:
+        if procs:  # each writes its report first: say why nothing happens for a while
+            print(f"debug_gui demo: stopping {len(procs)} robot(s)", file=sys.stderr, flush=True)
         for proc in procs:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(proc.pid, signal.SIGINT)
@@ -139,7 +150,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         log_dir = args.log_dir or Path(stack.enter_context(
             tempfile.TemporaryDirectory(prefix="debug_gui_demo_")))
         log_dir.mkdir(parents=True, exist_ok=True)
-        procs = stack.enter_context(robots(planned, log_dir))
+        procs = stack.enter_context(robots(planned, log_dir, lockstep=args.lockstep))
         for robot, proc in zip(planned, procs, strict=True):
             print(f"debug_gui demo: {robot.namespace} in domain {robot.domain} "
                   f"(pid {proc.pid}, log: {log_dir / robot.namespace.strip('/')}.log)",
