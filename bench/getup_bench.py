@@ -35,7 +35,6 @@ import argparse
 import json
 import math
 import statistics
-import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -43,6 +42,9 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run as a script: the repo root holds the bench package
+from bench._children import run_child as run_json_child  # noqa: E402
+
 DEFAULT_OUT = ROOT / "bench" / "out" / "getup_bench.json"
 #: Issue 13: standing again within 5 s in at least 90 % of the trials.
 TARGET_S, TARGET_SHARE = 5.0, 0.9
@@ -156,11 +158,7 @@ def child(args: argparse.Namespace) -> None:
 
 
 def run_child(task: dict[str, Any]) -> dict[str, Any]:
-    out = subprocess.run([sys.executable, __file__, "--child", json.dumps(task)],
-                         capture_output=True, text=True, check=False)
-    if out.returncode != 0:
-        raise SystemExit(f"getup_bench: a {task['kind']} run failed:\n{out.stderr[-2000:]}")
-    result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    result = run_json_child(__file__, task, name="getup_bench")
     if task["kind"] == "trial":
         took = down_to_stand(result)
         verdict = f"stood after {took:.2f} s" if took is not None else "STILL DOWN"

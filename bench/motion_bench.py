@@ -28,7 +28,6 @@ import argparse
 import json
 import random
 import statistics
-import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -36,6 +35,9 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run as a script: the repo root holds the bench package
+from bench._children import run_child as run_json_child  # noqa: E402
+
 DEFAULT_OUT = ROOT / "bench" / "out" / "motion_bench.json"
 TARGET_SUCCESS = 0.8
 DISTANCE_M, ANGLE_DEG = 2.0, 15.0
@@ -131,11 +133,7 @@ def child(args: argparse.Namespace) -> None:
 
 
 def run_child(task: dict[str, Any]) -> dict[str, Any]:
-    out = subprocess.run([sys.executable, __file__, "--child", json.dumps(task)],
-                         capture_output=True, text=True, check=False)
-    if out.returncode != 0:
-        raise SystemExit(f"motion_bench: a {task['kind']} run failed:\n{out.stderr[-2000:]}")
-    result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    result = run_json_child(__file__, task, name="motion_bench")
     if task["kind"] == "trial":
         fell = (f"FELL at {result['fell_at_s']:.1f} s" if result["fell_at_s"] is not None
                 else "stood")

@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -42,6 +41,9 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run as a script: the repo root holds the bench package
+from bench._children import run_child as run_json_child  # noqa: E402
+
 DEFAULT_OUT = ROOT / "bench" / "out" / "walk_bench.json"
 DEFAULT_PLOT = ROOT / "docs" / "images" / "walk_velocity.png"
 DIRECTIONS = {"forward": (0.2, 0.0, 0.0), "sideways": (0.0, 0.12, 0.0),
@@ -149,11 +151,7 @@ def child(args: argparse.Namespace) -> None:
 
 
 def run_child(task: dict[str, Any]) -> dict[str, Any]:
-    out = subprocess.run([sys.executable, __file__, "--child", json.dumps(task)],
-                         capture_output=True, text=True, check=False)
-    if out.returncode != 0:
-        raise SystemExit(f"walk_bench: a {task['kind']} run failed:\n{out.stderr[-2000:]}")
-    result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    result = run_json_child(__file__, task, name="walk_bench")
     if task["kind"] == "trial":
         fell = f"FELL at {result['fell_at_s']:.1f} s" if result["fell_at_s"] is not None else "ok"
         print(f"  trial {task['command']} seed {task['seed']}: ({result['vx']:+.3f}, "
