@@ -108,7 +108,7 @@ def test_head_searches_for_a_ball_out_of_sight_and_finds_it() -> None:
         assert bot.monitor.window().summary()["tracking_error_max_deg"] < TRACKING_MAX_DEG
 
 
-def test_a_robot_pushed_over_is_noticed_and_stops_claiming_to_track() -> None:
+def test_a_robot_pushed_over_is_noticed_stops_claiming_to_track_and_gets_up() -> None:
     with robot({"ball_position": [1.5, 0.0]}) as (container, bot):
         probe = TestHandle("probe", container=container)
         diagnostics: list[DiagnosticArray] = []
@@ -127,7 +127,8 @@ def test_a_robot_pushed_over_is_noticed_and_stops_claiming_to_track() -> None:
         assert postures == ["standing"] and bot.behaviour.state == "tracking"
 
         bot.simulator.push((40.0, 0.0, 0.0), duration_s=0.1)  # from behind: falls forward
-        container.advance(1.5)
+        # Down within half a second; the get-up starts once it lies still (about 0.5 s on).
+        container.advance(0.6)
         assert bot.simulator.plant.torso_height() < 0.15  # the truth: it is on the ground
         assert postures == ["standing", "falling", "fallen"]
         assert bot.fall_detector.falls == 1
@@ -136,9 +137,13 @@ def test_a_robot_pushed_over_is_noticed_and_stops_claiming_to_track() -> None:
         head_goals.clear()
         frames_before = bot.monitor.totals().frames_down
         container.advance(1.0)
-        assert head_goals == []  # neither tracking nor searching from the ground
+        assert head_goals == []  # neither tracking nor searching from the ground (or getting up)
         assert bot.behaviour.state == "fallen"
         assert bot.monitor.totals().frames_down - frames_before == pytest.approx(30, abs=1)
+        # It gets up, and the head goes back to work.
+        container.advance(5.0)
+        assert postures[-1] == "standing" and bot.fall_detector.falls == 1
+        assert bot.behaviour.state != "fallen" and head_goals
 
 
 def _posture(diagnostics: list[DiagnosticArray]) -> tuple[int, str]:
