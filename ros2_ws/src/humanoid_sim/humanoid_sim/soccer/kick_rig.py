@@ -34,7 +34,7 @@ from .kick import SIDES, ImuSample, Kick, KickMotion, KickParameters
 from .leg_ik import HIP_OFFSET
 from .motion import STANCE
 from .walk import WalkEngine
-from .walk_rig import FALL_COS, SAMPLE_S, torso_pose
+from .walk_rig import FALL_COS, SAMPLE_S, record_servo_peaks, torso_pose
 
 #: Where the ball's centre lies ahead of the torso's origin for a kick (m).
 BALL_AHEAD_M = 0.16
@@ -124,11 +124,7 @@ def _follow(result: KickResult, plant: MujocoPlant, advance: Callable[[], None],
         result.ball_speed = max(result.ball_speed, speed)
         bx, by = float(plant.data.xpos[ball][0]), float(plant.data.xpos[ball][1])
         result.path.append((bx, by))
-        for dxl_id, name in JOINTS.items():
-            result.peak_torque[name] = max(result.peak_torque.get(name, 0.0),
-                                           abs(plant.motor_torque(dxl_id)))
-            result.peak_speed[name] = max(result.peak_speed.get(name, 0.0),
-                                          abs(plant.state(dxl_id).velocity_rad_s))
+        record_servo_peaks(plant, torque=result.peak_torque, speed=result.peak_speed)
         if result.fell_at_s is None and fallen():
             result.fell_at_s = elapsed
         if not kicking() and ((speed < REST_SPEED and elapsed > 1.0) or (until_m is not None

@@ -81,6 +81,16 @@ def torso_pose(plant: MujocoPlant) -> tuple[float, float, float]:
             math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
+def record_servo_peaks(plant: MujocoPlant, *, torque: dict[str, float],
+                       speed: dict[str, float]) -> None:
+    """Raise each joint's entry in ``torque`` (N m) and ``speed`` (rad/s) to what its servo
+    uses now: a trial's peaks, sampled as it runs, say how near the servos' limits a motion
+    goes (walking and kicking alike are limited by speed, not torque)."""
+    for dxl_id, name in JOINTS.items():
+        torque[name] = max(torque.get(name, 0.0), abs(plant.motor_torque(dxl_id)))
+        speed[name] = max(speed.get(name, 0.0), abs(plant.state(dxl_id).velocity_rad_s))
+
+
 def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
@@ -206,11 +216,7 @@ def _measure(command: tuple[float, float, float], plant: MujocoPlant, gait: Gait
         result.path.append((x, y, heading))
         if warm is None and elapsed >= warmup_s - 1e-9:
             warm = (elapsed, x, y, heading)
-        for dxl_id, name in JOINTS.items():
-            result.peak_torque[name] = max(result.peak_torque.get(name, 0.0),
-                                           abs(plant.motor_torque(dxl_id)))
-            result.peak_speed[name] = max(result.peak_speed.get(name, 0.0),
-                                          abs(plant.state(dxl_id).velocity_rad_s))
+        record_servo_peaks(plant, torque=result.peak_torque, speed=result.peak_speed)
         if result.fell_at_s is None and fallen():
             result.fell_at_s = elapsed
             if stop_on_fall:
