@@ -10,6 +10,8 @@ Where things live (read ARCHITECTURE.md for the why):
 * ``config``     container files; ``dds`` keeping in-process and DDS delivery apart;
 * ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
+* ``typenames`` type name <-> class (``pkg/msg/Name``), the one owner of that spelling;
+* ``plain``      messages as plain trees (``to_plain``), as ``ros2 topic echo`` shows them;
 * ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
 
 Everything public is re-exported here once; modules starting with ``_`` are private.
@@ -36,8 +38,12 @@ from .errors import NameResolutionError as NameResolutionError
 from .errors import ParameterError as ParameterError
 from .errors import ServiceFailedError as ServiceFailedError
 from .errors import TopicTypeError as TopicTypeError
+from .errors import UnknownTypeError as UnknownTypeError
 from .executor import ConsecutiveExecutor as ConsecutiveExecutor
 from .handle import NodeHandle as NodeHandle
+from .plain import element_type as element_type
+from .plain import is_message as is_message
+from .plain import to_plain as to_plain
 from .standalone import Standalone as Standalone
 from .standalone import run_standalone as run_standalone
 from .standalone import standalone_main as standalone_main
@@ -45,3 +51,5 @@ from .stats import StatsSnapshot as StatsSnapshot
 from .stats import format_stats as format_stats
 from .stats_publisher import STATS_TOPIC as STATS_TOPIC
 from .stats_publisher import StatsPublisher as StatsPublisher
+from .typenames import import_type as import_type
+from .typenames import type_name as type_name

@@ -1,0 +1,50 @@
+"""One owner per concept at the bottom layer (ARCHITECTURE.md, "Owners"), checked on the source.
+
+A review found the same concept written by hand in several packages, each copy drifting
+(``bus.py`` spelled types ``pkg/Name``). Each test here finds the hand-written form of one
+concept anywhere outside its owner, so a new copy fails CI instead of waiting for a review.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+SRC = Path(__file__).resolve().parents[1] / "ros2_ws" / "src"
+PACKAGES = sorted(p.parent.name for p in SRC.glob("*/setup.py"))
+
+
+def _modules() -> list[tuple[Path, ast.Module]]:
+    return [(path, ast.parse(path.read_text()))
+            for package in PACKAGES for path in sorted((SRC / package / package).rglob("*.py"))]
+
+
+def _where(path: Path, node: ast.AST) -> str:
+    return f"{path.relative_to(SRC)}:{getattr(node, 'lineno', 0)}"
+
+
+def _names_an_interface_module(text: ast.JoinedStr) -> bool:
+    """``f"{package}.msg"``, or ``f"{parts[0]}.{parts[1]}"`` from a split type name."""
+    return any(
+        (isinstance(v, ast.Constant) and re.search(r"\.(msg|srv|action)$", str(v.value)))
+        or (isinstance(v, ast.FormattedValue) and isinstance(v.value, ast.Subscript))
+        for v in text.values)
+
+
+def test_type_names_are_spelled_by_efficient_comm_typenames_only() -> None:
+    """class -> name reads ``__module__``; name -> class imports ``pkg.msg``/``pkg.srv``."""
+    owner = SRC / "efficient_comm" / "efficient_comm" / "typenames.py"
+    found = []
+    for path, tree in _modules():
+        if path == owner:
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and node.attr == "__module__":
+                found.append(f"{_where(path, node)} reads __module__")
+            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                  and node.func.attr == "import_module" and node.args
+                  and isinstance(node.args[0], ast.JoinedStr)
+                  and _names_an_interface_module(node.args[0])):
+                found.append(f"{_where(path, node)} imports an interface module by name")
+    assert not found, "use efficient_comm.type_name / import_type:\n" + "\n".join(found)
