@@ -48,3 +48,24 @@ def test_type_names_are_spelled_by_efficient_comm_typenames_only() -> None:
                   and _names_an_interface_module(node.args[0])):
                 found.append(f"{_where(path, node)} imports an interface module by name")
     assert not found, "use efficient_comm.type_name / import_type:\n" + "\n".join(found)
+
+
+def _is_transient_local(node: ast.AST) -> bool:
+    return isinstance(node, ast.Attribute) and node.attr == "TRANSIENT_LOCAL"
+
+
+def test_latched_profiles_come_from_latched_qos() -> None:
+    """A QoSProfile built with a literal TRANSIENT_LOCAL durability is a hand-made latched
+    profile (KEEP_ALL readers, which keep everything, are another profile)."""
+    owner = SRC / "efficient_comm" / "efficient_comm" / "_qos.py"
+    found = []
+    for path, tree in _modules():
+        if path == owner:
+            continue
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Call) and getattr(node.func, "id", None) == "QoSProfile"):
+                kw = {k.arg: k.value for k in node.keywords}
+                keep_all = getattr(kw.get("history"), "attr", "") == "KEEP_ALL"
+                if _is_transient_local(kw.get("durability", ast.Constant(None))) and not keep_all:
+                    found.append(_where(path, node))
+    assert not found, "use efficient_comm.latched_qos():\n" + "\n".join(found)

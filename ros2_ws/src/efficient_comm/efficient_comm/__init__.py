@@ -12,6 +12,7 @@ Where things live (read ARCHITECTURE.md for the why):
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
 * ``typenames`` type name <-> class (``pkg/msg/Name``), the one owner of that spelling;
 * ``plain``      messages as plain trees (``to_plain``), as ``ros2 topic echo`` shows them;
+* ``latched_qos`` the one latched profile;
 * ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
 
 Everything public is re-exported here once; modules starting with ``_`` are private.
@@ -22,6 +23,7 @@ from ._clock import SystemClock as SystemClock
 from ._clock import from_msg as from_msg
 from ._clock import to_msg as to_msg
 from ._closing import Closing as Closing
+from ._qos import latched_qos as latched_qos
 from ._qos import matching_qos as matching_qos
 from ._signals import stop_on_sigterm as stop_on_sigterm
 from .config import ComponentSpec as ComponentSpec

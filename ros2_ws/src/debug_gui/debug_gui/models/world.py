@@ -32,7 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from efficient_comm import latched_qos
 
 from ..hub import Feed, Hub
 from ..robots import RobotId
@@ -51,7 +51,7 @@ FRESH_S = 1.0
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
 TOPICS = ("odom", "ball/estimate", "ground_truth/robot", "ground_truth/ball", "motion/state")
 #: Latched state topics: a view opened later still learns the current state at once.
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 
 
 @dataclass(frozen=True, slots=True)

@@ -34,11 +34,10 @@ import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import to_msg
+from efficient_comm import latched_qos, to_msg
 from efficient_comm.handle import NodeHandle, ParameterValue
 
 from ..errors import SimConfigError
@@ -47,7 +46,7 @@ from .leg_ik import LegAngles, UnreachableError, foot_pose, leg_ik
 from .motion import STANCE
 from .spline import Knot, QuinticSpline
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 #: ``motion/kick/request`` data -> the kicking leg's side and the sign of its y.
 SIDES = {"left": ("l", 1.0), "right": ("r", -1.0)}
 #: Time step at which a kick's trajectory is checked against the legs' reach.

@@ -21,10 +21,10 @@ from typing import Any
 import cv2
 import numpy as np
 from geometry_msgs.msg import PointStamped
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo, Image
 
 from debug_probes import CYAN, GREEN, MAGENTA, RED, WHITE, YELLOW, DebugDrawing
+from efficient_comm import latched_qos
 from efficient_comm.handle import NodeHandle, ParameterValue
 
 from ..errors import SimConfigError
@@ -54,7 +54,7 @@ class BallDetector:
         self.drawing = DebugDrawing(node, "ball/debug_markers")
         node.create_subscription(
             CameraInfo, "camera/camera_info", self._on_info,
-            qos=QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+            qos=latched_qos(),
         )
         node.create_subscription(Image, "camera/image_raw", self._on_image, qos=1)
 

@@ -42,11 +42,10 @@ from dataclasses import asdict, dataclass, fields, replace
 
 from geometry_msgs.msg import Quaternion, Twist
 from nav_msgs.msg import Odometry
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import to_msg
+from efficient_comm import latched_qos, to_msg
 from efficient_comm.handle import NodeHandle, ParameterValue
 
 from ..errors import SimConfigError
@@ -54,7 +53,7 @@ from .leg_ik import HIP_OFFSET, SOLE_BELOW_FOOT, leg_ik
 from .motion import STANCE
 from .spline import BUMP, SMOOTH_STEP
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 
 
 @dataclass(frozen=True, slots=True)
