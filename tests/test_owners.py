@@ -69,3 +69,20 @@ def test_latched_profiles_come_from_latched_qos() -> None:
                 if _is_transient_local(kw.get("durability", ast.Constant(None))) and not keep_all:
                     found.append(_where(path, node))
     assert not found, "use efficient_comm.latched_qos():\n" + "\n".join(found)
+
+
+#: ``x.sec * 1_000_000_000 + x.nanosec`` (and the sum the other way round) written by hand.
+_STAMP_ARITHMETIC = re.compile(
+    r"\.sec\)?\s*\*\s*(1_000_000_000|10\s*\*\*\s*9|1e9)|Time\(\s*sec\s*=|\.nanosec\)?\s*\+")
+
+
+def test_stamp_nanoseconds_conversions_go_through_from_msg_and_to_msg() -> None:
+    owner = SRC / "efficient_comm" / "efficient_comm" / "_clock.py"
+    found = [
+        f"{path.relative_to(SRC)}:{n}: {line.strip()}"
+        for package in PACKAGES for path in sorted((SRC / package / package).rglob("*.py"))
+        if path != owner
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if _STAMP_ARITHMETIC.search(line)
+    ]
+    assert not found, "use efficient_comm.from_msg / to_msg:\n" + "\n".join(found)

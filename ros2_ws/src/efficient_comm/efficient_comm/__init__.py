@@ -12,7 +12,8 @@ Where things live (read ARCHITECTURE.md for the why):
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
 * ``typenames`` type name <-> class (``pkg/msg/Name``), the one owner of that spelling;
 * ``plain``      messages as plain trees (``to_plain``), as ``ros2 topic echo`` shows them;
-* ``latched_qos`` the one latched profile;
+* ``from_msg``/``to_msg`` header stamp <-> integer nanoseconds; ``latched_qos`` the one
+  latched profile;
 * ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
 
 Everything public is re-exported here once; modules starting with ``_`` are private.

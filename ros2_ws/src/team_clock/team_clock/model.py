@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from efficient_comm import from_msg
+
 from .errors import LogFormatError, NoEstimateError, OtherRobotError
 
 __all__ = ["METADATA_NAME", "Knot", "OffsetModel", "offset_metadata"]
@@ -47,7 +49,7 @@ class Knot:
 
 def offset_metadata(msg: Any) -> dict[str, str]:
     """A :class:`ClockOffset` as the string key/values of a ``team_clock`` metadata record."""
-    stamp = int(msg.stamp.sec) * 1_000_000_000 + int(msg.stamp.nanosec)
+    stamp = from_msg(msg.stamp)
     return {
         "robot": str(msg.robot),
         "reference": str(msg.reference),
@@ -166,7 +168,7 @@ class OffsetModel:
             if not getattr(msg, "valid", True):
                 by_robot.setdefault(str(msg.robot), [])
                 continue
-            stamp = int(msg.stamp.sec) * 1_000_000_000 + int(msg.stamp.nanosec)
+            stamp = from_msg(msg.stamp)
             by_robot.setdefault(str(msg.robot), []).append(Knot(
                 stamp, int(msg.offset_ns), float(msg.drift_ppm), int(msg.uncertainty_ns),
                 int(getattr(msg, "hops", 0)), str(getattr(msg, "source", "")),
