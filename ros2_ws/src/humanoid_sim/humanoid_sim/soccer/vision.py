@@ -41,9 +41,9 @@ class BallDetector:
     def __init__(self, node: NodeHandle) -> None:
         self.node = node
         self.hue = node.declare_parameter("hue_range", [5, 22])  # OpenCV hue, 0..180
-        self.min_saturation = node.declare_parameter("min_saturation", 120)
-        self.min_value = node.declare_parameter("min_value", 70)
-        self.min_radius_px = node.declare_parameter("min_radius_px", 1.5)
+        self.min_saturation = node.declare_parameter("min_saturation", 120, range=(0, 255))
+        self.min_value = node.declare_parameter("min_value", 70, range=(0, 255))
+        self.min_radius_px = node.declare_parameter("min_radius_px", 1.5, range=(0.0, 100.0))
         _check_hue(self.hue)
         node.add_on_parameter_change(self._on_parameters)
         self.fx = self.fy = self.cx = self.cy = 0.0
