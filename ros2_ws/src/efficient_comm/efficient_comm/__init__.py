@@ -12,6 +12,7 @@ Where things live (read ARCHITECTURE.md for the why):
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
 * ``typenames`` type name <-> class (``pkg/msg/Name``), the one owner of that spelling;
 * ``plain``      messages as plain trees (``to_plain``), as ``ros2 topic echo`` shows them;
+* ``binding``    a parameter dataclass bound to the node's parameters (``bind_parameters``);
 * ``from_msg``/``to_msg`` header stamp <-> integer nanoseconds; ``latched_qos`` the one
   latched profile;
 * ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
@@ -27,6 +28,8 @@ from ._closing import Closing as Closing
 from ._qos import latched_qos as latched_qos
 from ._qos import matching_qos as matching_qos
 from ._signals import stop_on_sigterm as stop_on_sigterm
+from .binding import BoundParameters as BoundParameters
+from .binding import bind_parameters as bind_parameters
 from .config import ComponentSpec as ComponentSpec
 from .container import Container as Container
 from .container import LoadedComponent as LoadedComponent

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import socket
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import pytest
@@ -13,7 +14,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32, String
 
-from efficient_comm import ParameterError, ServiceFailedError
+from efficient_comm import ParameterError, ServiceFailedError, bind_parameters
 from efficient_comm.handle import NodeHandle, ParameterValue
 from efficient_comm_interfaces.msg import ExecutorStats
 from efficient_comm_interfaces.srv import ListComponents, UnloadComponent
@@ -456,3 +457,52 @@ def test_ranges_reach_the_descriptor_that_tools_describe(dds_backend: str) -> No
         assert [(r.from_value, r.to_value, r.step)
                 for r in gain.floating_point_range] == [(0.0, 2.0, 0.5)]
 
+
+@dataclass(frozen=True)
+class Figures:
+    gain: float = 1.0
+    count: int = 3
+    label: str = "a"
+
+    def check(self) -> None:
+        if self.gain <= 0 or self.count > 10 * self.gain:
+            raise ValueError(f"gain must be > 0 and count <= 10 * gain: {self}")
+
+
+class Tuned:
+    """Binds a parameter dataclass, as the walk and the kick do."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.seen: list[Figures] = []
+        self.figures = bind_parameters(node, Figures(), check=Figures.check,
+                                       on_change=self.seen.append, ranges={"count": (0, 20)})
+
+
+def test_a_bound_dataclass_is_declared_kept_current_and_vetoed_alike(backend: str) -> None:
+    with harness(backend, Tuned, parameters={"count": 5}) as h:
+        node, tuned = h.handle, h.component
+        assert tuned.figures.value == Figures(gain=1.0, count=5, label="a")  # override wins
+        assert [node.get_parameter(n) for n in ("gain", "count", "label")] == [1.0, 5, "a"]
+        node.set_parameter("gain", 2.0)
+        node.set_parameter("label", "b")
+        assert tuned.figures.value == Figures(gain=2.0, count=5, label="b")
+        assert tuned.seen[-1] == tuned.figures.value
+        with pytest.raises(ParameterError, match="count <= 10"):
+            node.set_parameter("gain", 0.1)  # the dataclass's check vetoes the combination
+        with pytest.raises(ParameterError, match="count"):
+            node.set_parameter("count", 21)  # the declared range
+        with pytest.raises(ParameterError):
+            node.set_parameter("count", 2.0)  # the field's type
+        assert tuned.figures.value == Figures(gain=2.0, count=5, label="b")
+        assert node.get_parameter("gain") == 2.0 and len(tuned.seen) == 2
+
+
+class Misbound:
+    def __init__(self, node: NodeHandle) -> None:
+        bind_parameters(node, Figures(), check=Figures.check)
+
+
+def test_a_deployment_the_check_refuses_fails_the_component(backend: str) -> None:
+    with pytest.raises(Exception, match="gain must be > 0"), \
+            harness(backend, Misbound, parameters={"gain": -1.0}):
+        pass
