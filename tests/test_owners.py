@@ -86,3 +86,26 @@ def test_stamp_nanoseconds_conversions_go_through_from_msg_and_to_msg() -> None:
         if _STAMP_ARITHMETIC.search(line)
     ]
     assert not found, "use efficient_comm.from_msg / to_msg:\n" + "\n".join(found)
+
+
+#: The modules that use the field's dimensions; each must read them from soccer_field.
+FIELD_READERS = ("humanoid_sim/humanoid_sim/soccer/referee.py",
+                 "humanoid_sim/humanoid_sim/soccer/striker.py",
+                 "debug_gui/debug_gui/models/world.py")
+
+
+def test_the_fields_dimensions_come_from_soccer_field() -> None:
+    for reader in FIELD_READERS:
+        tree = ast.parse((SRC / reader).read_text())
+        imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+        assert "soccer_field" in imported, f"{reader} does not read the field from soccer_field"
+    from debug_gui.models.world import FIELD
+    from humanoid_sim.soccer import referee, striker
+    from soccer_field import KIDSIZE
+
+    assert (KIDSIZE.half_length, KIDSIZE.half_width) == (referee.HALF_LENGTH, referee.HALF_WIDTH)
+    assert KIDSIZE.goal_width == referee.GOAL_HALF_WIDTH * 2
+    assert KIDSIZE.goal_height == referee.CROSSBAR
+    assert tuple(striker.PARAMETERS["goal"]) == KIDSIZE.opponent_goal
+    assert (FIELD["length"], FIELD["width"], FIELD["goal_width"]) == (
+        KIDSIZE.length, KIDSIZE.width, KIDSIZE.goal_width)
