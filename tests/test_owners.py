@@ -106,6 +106,6 @@ def test_the_fields_dimensions_come_from_soccer_field() -> None:
     assert (KIDSIZE.half_length, KIDSIZE.half_width) == (referee.HALF_LENGTH, referee.HALF_WIDTH)
     assert KIDSIZE.goal_width == referee.GOAL_HALF_WIDTH * 2
     assert KIDSIZE.goal_height == referee.CROSSBAR
-    assert tuple(striker.PARAMETERS["goal"]) == KIDSIZE.opponent_goal
+    assert striker.PARAMETERS["goal"] == list(KIDSIZE.opponent_goal)
     assert (FIELD["length"], FIELD["width"], FIELD["goal_width"]) == (
         KIDSIZE.length, KIDSIZE.width, KIDSIZE.goal_width)

@@ -208,9 +208,12 @@ def _imports(package: str) -> dict[str, list[str]]:
     found: dict[str, list[str]] = {}
     for path in _sources(package):
         for node in ast.walk(ast.parse(path.read_text())):
-            names = ([node.module] if isinstance(node, ast.ImportFrom) and node.level == 0
-                     and node.module else
-                     [a.name for a in node.names] if isinstance(node, ast.Import) else [])
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
             for name in names:
                 top = name.split(".")[0]
                 if top != package and top not in sys.stdlib_module_names:

@@ -57,7 +57,9 @@ class JpegCompressor:
 
     def _on_parameters(self, changes: Mapping[str, ParameterValue]) -> None:
         if "jpeg_quality" in changes:
-            self.quality = int(changes["jpeg_quality"])  # in JPEG_QUALITY: the store checked
+            quality = changes["jpeg_quality"]
+            assert isinstance(quality, int)  # the store checked its type and JPEG_QUALITY
+            self.quality = quality
 
     def _on_image(self, image: Image) -> None:
         if not self.out.wants():

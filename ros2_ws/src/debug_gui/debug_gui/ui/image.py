@@ -27,8 +27,10 @@ from fastapi import WebSocket, WebSocketDisconnect
 from nicegui import app, background_tasks, run, ui
 from nicegui.context import context
 
+from debug_probes import JPEG_QUALITY
+
 from ..errors import DebugGuiError
-from ..models.image import GRACE_S, JPEG_QUALITY, ImageModel
+from ..models.image import GRACE_S, ImageModel
 from .registry import ViewContext, register
 
 _log = logging.getLogger(__name__)
