@@ -24,9 +24,12 @@ def _where(path: Path, node: ast.AST) -> str:
     return f"{path.relative_to(SRC)}:{getattr(node, 'lineno', 0)}"
 
 
-def _names_an_interface_module(text: ast.JoinedStr) -> bool:
-    """``f"{package}.msg"``, or ``f"{parts[0]}.{parts[1]}"`` from a split type name."""
-    return any(
+def _names_an_interface_module(text: ast.expr) -> bool:
+    """``f"{package}.msg"``, ``f"{parts[0]}.{parts[1]}"`` from a split type name, or
+    ``".".join(namespaces)`` of a rosidl type."""
+    if isinstance(text, ast.Call) and isinstance(text.func, ast.Attribute):
+        return text.func.attr == "join" and getattr(text.func.value, "value", None) == "."
+    return isinstance(text, ast.JoinedStr) and any(
         (isinstance(v, ast.Constant) and re.search(r"\.(msg|srv|action)$", str(v.value)))
         or (isinstance(v, ast.FormattedValue) and isinstance(v.value, ast.Subscript))
         for v in text.values)
@@ -44,7 +47,6 @@ def test_type_names_are_spelled_by_efficient_comm_typenames_only() -> None:
                 found.append(f"{_where(path, node)} reads __module__")
             elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
                   and node.func.attr == "import_module" and node.args
-                  and isinstance(node.args[0], ast.JoinedStr)
                   and _names_an_interface_module(node.args[0])):
                 found.append(f"{_where(path, node)} imports an interface module by name")
     assert not found, "use efficient_comm.type_name / import_type:\n" + "\n".join(found)
