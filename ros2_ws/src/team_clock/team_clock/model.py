@@ -20,7 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from efficient_comm import from_msg
+from builtin_interfaces.msg import Time
+
+from efficient_comm import from_msg, to_msg
 
 from .errors import LogFormatError, NoEstimateError, OtherRobotError
 
@@ -195,11 +197,12 @@ class OffsetModel:
                 if "stamp_ns" in values:
                     stamp = int(values["stamp_ns"])
                 else:
-                    stamp = int(values["stamp.sec"]) * 1_000_000_000 + int(values["stamp.nanosec"])
+                    stamp = from_msg(Time(sec=int(values["stamp.sec"]),
+                                          nanosec=int(values["stamp.nanosec"])))
                 messages.append(_Record(
                     robot=values.get("robot", ""), reference=values.get("reference", ""),
-                    source=values.get("source", ""), sec=stamp // 1_000_000_000,
-                    nanosec=stamp % 1_000_000_000, offset_ns=int(values["offset_ns"]),
+                    source=values.get("source", ""), stamp=to_msg(stamp),
+                    offset_ns=int(values["offset_ns"]),
                     drift_ppm=float(values.get("drift_ppm", "0")),
                     uncertainty_ns=int(values.get("uncertainty_ns", "0")),
                     hops=int(values.get("hops", "0")),
@@ -250,20 +253,14 @@ class OffsetModel:
                               f"{METADATA_NAME!r} metadata: cannot align it")
 
 
-@dataclass(frozen=True, slots=True)
-class _Stamp:
-    sec: int
-    nanosec: int
-
-
 class _Record:
     """A ClockOffset look-alike built from a metadata record."""
 
-    def __init__(self, *, robot: str, reference: str, source: str, sec: int, nanosec: int,
+    def __init__(self, *, robot: str, reference: str, source: str, stamp: Time,
                  offset_ns: int, drift_ppm: float, uncertainty_ns: int, hops: int,
                  valid: bool) -> None:
         self.robot, self.reference, self.source = robot, reference, source
-        self.stamp = _Stamp(sec, nanosec)
+        self.stamp = stamp
         self.offset_ns, self.drift_ppm = offset_ns, drift_ppm
         self.uncertainty_ns, self.hops, self.valid = uncertainty_ns, hops, valid
 
