@@ -94,6 +94,12 @@ def _wrapped_cases() -> list[tuple[str, str, str, str]]:
         ("rf_bridge names a ROS 2 type through efficient_comm",
          "rf_bridge.translate:ros2_class", "rf_bridge.errors:UnknownTypeError",
          "efficient_comm.errors:EfficientCommError"),
+        ("ros2_pip_cli names a type through efficient_comm",
+         "ros2_pip_cli._messages:import_interface", "ros2_pip_cli.errors:CliError",
+         "efficient_comm.errors:EfficientCommError"),
+        ("debug_gui's topic view names a type through efficient_comm",
+         "debug_gui.models.topics:message_class", "debug_gui.errors:InvalidInput",
+         "efficient_comm.errors:EfficientCommError"),
     ]
 
 

@@ -42,7 +42,7 @@ def message_class(type_name: str) -> type:
     try:
         return import_type(type_name, kind="msg")
     except UnknownTypeError as exc:
-        raise InvalidInput(str(exc)) from None
+        raise InvalidInput(str(exc)) from exc
 
 
 def numeric_paths(tree: Any, prefix: str = "") -> Iterator[tuple[str, float]]:
