@@ -166,6 +166,9 @@ def test_our_components_in_a_container(tmp_path: Path) -> None:
 
         camera = {p.name: p for p in model.load("/demo/camera")}
         assert camera["rate_hz"].value == 30.0 and camera["rate_hz"].description == "frame rate"
+        # The range the component declared: shown, and checked before anything is sent.
+        assert camera["rate_hz"].floating_point_range == (1.0, 1000.0, 0.0)
+        assert model.set("rate_hz", 0.5).message == "rate_hz must be within 1..1000, not 0.5"
         assert camera["width"].read_only and camera["width"].value == 160
         assert model.set("width", 320).message == "width is read-only"
 

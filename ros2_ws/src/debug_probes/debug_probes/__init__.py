@@ -10,6 +10,7 @@ nothing is computed while nobody looks. Depends on efficient_comm, throttle_publ
 ROS messages only (no GUI toolkit): it runs on the robot.
 """
 
+from .compressor import JPEG_QUALITY as JPEG_QUALITY
 from .compressor import JpegCompressor as JpegCompressor
 from .drawing import BLUE as BLUE
 from .drawing import CYAN as CYAN

@@ -20,16 +20,13 @@ from efficient_comm.handle import NodeHandle, ParameterValue
 from efficient_comm.standalone import standalone_main
 from throttle_publisher import ThrottledPublisher
 
-from .errors import ProbeConfigError
-
 #: What cv2 can convert to the BGR it encodes from, by ROS image encoding.
 _TO_BGR = {"rgb8": cv2.COLOR_RGB2BGR, "bgr8": None, "mono8": None}
 
 
-def _check_quality(value: ParameterValue) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 100:
-        raise ProbeConfigError(f"jpeg_quality must be an integer 1..100, got {value!r}")
-    return value
+#: ``jpeg_quality``'s range, declared with the parameter: every backend refuses values
+#: outside it, and ``ros2 param describe`` and the GUI read it from the descriptor.
+JPEG_QUALITY = (1, 100)
 
 
 class JpegCompressor:
@@ -45,8 +42,9 @@ class JpegCompressor:
         topic = node.declare_parameter(
             "input", "camera/image_raw", description="sensor_msgs/Image topic to compress",
             read_only=True)
-        self.quality = _check_quality(node.declare_parameter(
-            "jpeg_quality", 80, description="JPEG quality 1..100 (higher: larger, sharper)"))
+        self.quality = node.declare_parameter(
+            "jpeg_quality", 80, description="JPEG quality (higher: larger, sharper)",
+            range=JPEG_QUALITY)
         node.add_on_parameter_change(self._on_parameters)
         self.out = ThrottledPublisher(node, CompressedImage, f"{topic.rstrip('/')}/compressed",
                                       qos=2)
@@ -59,7 +57,9 @@ class JpegCompressor:
 
     def _on_parameters(self, changes: Mapping[str, ParameterValue]) -> None:
         if "jpeg_quality" in changes:
-            self.quality = _check_quality(changes["jpeg_quality"])
+            quality = changes["jpeg_quality"]
+            assert isinstance(quality, int)  # the store checked its type and JPEG_QUALITY
+            self.quality = quality
 
     def _on_image(self, image: Image) -> None:
         if not self.out.wants():

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from sensor_msgs.msg import CompressedImage, Image
 
-from debug_probes import JpegCompressor
-from efficient_comm import ParameterError, to_msg
-from efficient_comm.testing import TestHandle, test_container
+from debug_probes import JPEG_QUALITY, JpegCompressor
+from efficient_comm import ParameterError, Standalone, to_msg
+from efficient_comm.testing import TestHandle, isolated_domain_id, test_container
 from throttle_publisher import ThrottledSubscription, ThrottleOptions
 
 W, H = 320, 240
@@ -83,7 +83,7 @@ def test_nothing_is_encoded_while_nobody_wants_it_and_skips_are_counted() -> Non
 
 
 def test_a_bad_quality_or_image_is_refused_with_a_reason() -> None:
-    with pytest.raises(Exception, match=r"jpeg_quality must be an integer 1\.\.100"):
+    with pytest.raises(Exception, match=r"'jpeg_quality': 101 is out of range \[1, 100\]"):
         _setup(jpeg_quality=101)
     camera, compressor, got = _setup()
     bad = _image()
@@ -92,3 +92,11 @@ def test_a_bad_quality_or_image_is_refused_with_a_reason() -> None:
     assert got == [] and compressor.rejected == 1
     assert isinstance(compressor.node, TestHandle)
     assert any("not compressing" in text for _level, text in compressor.node.records)
+
+
+def test_the_quality_range_is_in_the_descriptor_tools_read() -> None:
+    """What ``ros2 param describe`` prints and the GUI pre-checks: the range, declared once."""
+    with Standalone(JpegCompressor, name="jpeg_compressor", domain_id=isolated_domain_id(),
+                    stats_period_s=0) as node:
+        descriptor = node.node.describe_parameter("jpeg_quality")
+    assert [(r.from_value, r.to_value) for r in descriptor.integer_range] == [JPEG_QUALITY]

@@ -10,6 +10,11 @@ Where things live (read ARCHITECTURE.md for the why):
 * ``config``     container files; ``dds`` keeping in-process and DDS delivery apart;
 * ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
+* ``typenames`` type name <-> class (``pkg/msg/Name``), the one owner of that spelling;
+* ``plain``      messages as plain trees (``to_plain``), as ``ros2 topic echo`` shows them;
+* ``binding``    a parameter dataclass bound to the node's parameters (``bind_parameters``);
+* ``from_msg``/``to_msg`` header stamp <-> integer nanoseconds; ``latched_qos`` the one
+  latched profile;
 * ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
 
 Everything public is re-exported here once; modules starting with ``_`` are private.
@@ -20,8 +25,11 @@ from ._clock import SystemClock as SystemClock
 from ._clock import from_msg as from_msg
 from ._clock import to_msg as to_msg
 from ._closing import Closing as Closing
+from ._qos import latched_qos as latched_qos
 from ._qos import matching_qos as matching_qos
 from ._signals import stop_on_sigterm as stop_on_sigterm
+from .binding import BoundParameters as BoundParameters
+from .binding import bind_parameters as bind_parameters
 from .config import ComponentSpec as ComponentSpec
 from .container import Container as Container
 from .container import LoadedComponent as LoadedComponent
@@ -36,8 +44,12 @@ from .errors import NameResolutionError as NameResolutionError
 from .errors import ParameterError as ParameterError
 from .errors import ServiceFailedError as ServiceFailedError
 from .errors import TopicTypeError as TopicTypeError
+from .errors import UnknownTypeError as UnknownTypeError
 from .executor import ConsecutiveExecutor as ConsecutiveExecutor
 from .handle import NodeHandle as NodeHandle
+from .plain import element_type as element_type
+from .plain import is_message as is_message
+from .plain import to_plain as to_plain
 from .standalone import Standalone as Standalone
 from .standalone import run_standalone as run_standalone
 from .standalone import standalone_main as standalone_main
@@ -45,3 +57,5 @@ from .stats import StatsSnapshot as StatsSnapshot
 from .stats import format_stats as format_stats
 from .stats_publisher import STATS_TOPIC as STATS_TOPIC
 from .stats_publisher import StatsPublisher as StatsPublisher
+from .typenames import import_type as import_type
+from .typenames import type_name as type_name

@@ -48,4 +48,6 @@ def to_msg(ns: int) -> Time:
 
 
 def from_msg(stamp: Time) -> int:
+    """Integer nanoseconds of a ``builtin_interfaces/Time`` (a header stamp): the inverse
+    of :func:`to_msg`, and the one place that does this arithmetic."""
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)

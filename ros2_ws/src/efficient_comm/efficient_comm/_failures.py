@@ -22,6 +22,7 @@ import traceback
 from typing import TYPE_CHECKING, Any
 
 from .errors import ServiceFailedError
+from .typenames import type_name
 
 if TYPE_CHECKING:
     from .handle import Logger
@@ -103,7 +104,7 @@ def failure_outcome(srv_type: type) -> str:
     fields = getattr(srv_type, "Response")().get_fields_and_field_types()  # noqa: B009
     if fields.get("success") == "boolean":
         return "its caller gets success=False"
-    return f"{_type_name(srv_type)} has no success field: its caller gets no answer"
+    return f"{type_name(srv_type)} has no success field: its caller gets no answer"
 
 
 def local_failure(service: str, exc: BaseException) -> ServiceFailedError:
@@ -126,7 +127,3 @@ def without_answer(rclpy_service: Any) -> None:
             send(response, header)
 
     rclpy_service.send_response = send_response
-
-
-def _type_name(srv_type: type) -> str:
-    return f"{srv_type.__module__.split('.')[0]}/srv/{srv_type.__name__}"

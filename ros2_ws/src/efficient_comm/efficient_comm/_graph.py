@@ -5,18 +5,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from ._names import fully_qualified
+from .typenames import type_name
 
 if TYPE_CHECKING:
     from rclpy.node import Node
     from rclpy.qos import QoSProfile
 
     from .bus import Bus
-
-
-def ros_type_name(msg_type: type) -> str:
-    """``pkg/msg/Type`` of a generated message class, as the ROS graph names it."""
-    package, kind = [*msg_type.__module__.split("."), "msg"][:2]
-    return f"{package}/{kind}/{msg_type.__name__}"
 
 
 class NodeGraph:
@@ -36,7 +31,7 @@ class NodeGraph:
         found: dict[str, list[str]] = {}
         if self._bus is not None:
             for name, msg_type in self._bus.topics().items():
-                found[name] = [ros_type_name(msg_type)]
+                found[name] = [type_name(msg_type)]
         if self._node is not None:
             for name, types in self._node.get_topic_names_and_types():
                 known = found.setdefault(name, [])

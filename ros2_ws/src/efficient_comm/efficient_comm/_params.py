@@ -8,11 +8,17 @@ or an undeclared name fails, and on-change callbacks can veto a change by raisin
 from __future__ import annotations
 
 import array
+import math
 import re
 from collections.abc import Mapping
 from typing import Any, cast
 
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -24,7 +30,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from .errors import ConfigError, ParameterError
-from .handle import P, ParameterCallback, ParameterValue
+from .handle import P, ParameterCallback, ParameterRange, ParameterValue
 
 # -- the ROS 2 params-file layout -------------------------------------------------------
 
@@ -106,6 +112,67 @@ def refuse_unset(name: str, value: Any) -> None:
         )
 
 
+#: rclpy's tolerance for a float on a range's end or step grid (Node.PARAM_REL_TOL).
+_REL_TOL = 1e-6
+
+
+class Limits:
+    """A numeric parameter's range, checked as rclpy checks a descriptor's range.
+
+    Both ends are included; with a step, a value must also lie on the grid ``low + k*step``
+    (or be ``high``). The local store applies it itself, so every backend refuses the same
+    values, and it becomes the descriptor's ``integer_range`` or ``floating_point_range``
+    where an rclpy node holds the parameter, so tools can show it.
+    """
+
+    __slots__ = ("high", "integer", "low", "step")
+
+    def __init__(self, name: str, default: Any, limits: ParameterRange) -> None:
+        integer = isinstance(default, int) and not isinstance(default, bool)
+        if not integer and not isinstance(default, float):
+            raise ParameterError(f"parameter {name!r}: a range needs an int or float "
+                                 f"default, not {default!r}")
+        if not isinstance(limits, tuple) or len(limits) not in (2, 3) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in limits):
+            raise ParameterError(f"parameter {name!r}: range must be (low, high) or "
+                                 f"(low, high, step), not {limits!r}")
+        if integer and not all(isinstance(v, int) for v in limits):
+            raise ParameterError(f"parameter {name!r} is an integer: its range must be "
+                                 f"integers, not {limits!r}")
+        low, high, step = (*limits, 0) if len(limits) == 2 else limits
+        if not low <= high or step < 0:
+            raise ParameterError(f"parameter {name!r}: range {limits!r} needs low <= high "
+                                 "and a step >= 0")
+        self.integer = integer
+        self.low, self.high, self.step = low, high, step
+
+    def check(self, name: str, value: Any) -> None:
+        """ParameterError when ``value`` is outside the range or off its step grid."""
+        on_end = (value in (self.low, self.high) if self.integer else
+                  any(math.isclose(value, end, rel_tol=_REL_TOL)
+                      for end in (self.low, self.high)))
+        if on_end:
+            return
+        if not self.low < value < self.high:
+            raise ParameterError(f"parameter {name!r}: {value!r} is out of range "
+                                 f"[{self.low}, {self.high}]")
+        if self.step:
+            steps = (value - self.low) / self.step
+            if (self.integer and (value - self.low) % self.step) or (
+                    not self.integer and not math.isclose(steps, round(steps),
+                                                          rel_tol=_REL_TOL)):
+                raise ParameterError(f"parameter {name!r}: {value!r} is not on the step "
+                                     f"{self.step} from {self.low}")
+
+    def descriptor_fields(self) -> dict[str, Any]:
+        """``integer_range`` or ``floating_point_range`` for a ParameterDescriptor."""
+        if self.integer:
+            return {"integer_range": [IntegerRange(
+                from_value=int(self.low), to_value=int(self.high), step=int(self.step))]}
+        return {"floating_point_range": [FloatingPointRange(
+            from_value=float(self.low), to_value=float(self.high), step=float(self.step))]}
+
+
 def _run_callbacks(callbacks: list[ParameterCallback], changes: Mapping[str, Any]) -> None:
     for callback in callbacks:
         try:
@@ -126,9 +193,11 @@ class LocalParameters:
         self._overrides = dict(overrides)
         self._values: dict[str, Any] = {}
         self._read_only: set[str] = set()
+        self._limits: dict[str, Limits] = {}
         self._callbacks: list[ParameterCallback] = []
 
-    def declare(self, name: str, default: P, *, description: str, read_only: bool) -> P:
+    def declare(self, name: str, default: P, *, description: str, read_only: bool,
+                limits: Limits | None = None) -> P:
         del description  # kept by the rclpy store, where ros2 param describe shows it
         if name in self._values:
             raise ParameterError(f"parameter {name!r} is already declared")
@@ -140,6 +209,9 @@ class LocalParameters:
                 f"parameter {name!r}: override {value!r} is not of the declared type "
                 f"{declared.name}"
             )
+        if limits is not None:
+            limits.check(name, value)
+            self._limits[name] = limits
         _run_callbacks(self._callbacks, {name: value})
         self._values[name] = value
         if read_only:
@@ -159,6 +231,8 @@ class LocalParameters:
         declared = parameter_type(name, current)
         if parameter_type(name, value) != declared:
             raise ParameterError(f"parameter {name!r} is {declared.name}, cannot set {value!r}")
+        if name in self._limits:
+            self._limits[name].check(name, value)
         _run_callbacks(self._callbacks, {name: value})
         self._values[name] = value
 
@@ -188,8 +262,10 @@ class RclpyParameters:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
-    def declare(self, name: str, default: P, *, description: str, read_only: bool) -> P:
-        descriptor = ParameterDescriptor(description=description, read_only=read_only)
+    def declare(self, name: str, default: P, *, description: str, read_only: bool,
+                limits: Limits | None = None) -> P:
+        descriptor = ParameterDescriptor(description=description, read_only=read_only,
+                                         **(limits.descriptor_fields() if limits else {}))
         # rclpy keeps the node's overrides (--ros-args -p, params files) in this dict only.
         override = self._node._parameter_overrides.get(name)
         if override is not None and override.type_ == Parameter.Type.NOT_SET:
@@ -240,8 +316,11 @@ class ParameterMethods:
         *,
         description: str = "",
         read_only: bool = False,
+        range: ParameterRange | None = None,
     ) -> P:
-        return self._params.declare(name, default, description=description, read_only=read_only)
+        limits = None if range is None else Limits(name, default, range)
+        return self._params.declare(name, default, description=description,
+                                    read_only=read_only, limits=limits)
 
     def get_parameter(self, name: str) -> ParameterValue:
         return self._params.get(name)

@@ -14,6 +14,19 @@ from rclpy.qos import (
 from .handle import QoSLike
 
 
+def latched_qos(*, depth: int = 1) -> QoSProfile:
+    """The latched profile: reliable, transient local, the last ``depth`` messages.
+
+    What ROS 1 called latching: a late subscriber (one that asks for transient local too)
+    gets the last message at once. Every latched topic of ours uses this one profile, so a
+    publisher and its subscribers cannot disagree on it. A new object each call: QoSProfile
+    is mutable.
+    """
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
 def to_profile(qos: QoSLike) -> QoSProfile:
     if isinstance(qos, QoSProfile):
         return qos

@@ -26,6 +26,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from ._qos import compatible, incompatible_policy, is_transient_local, queue_limit
 from .errors import ComponentError, TopicTypeError
+from .typenames import type_name
 
 if TYPE_CHECKING:
     from .executor import ConsecutiveExecutor
@@ -220,8 +221,8 @@ class Bus:
             topic = self._topics[name] = Topic(name, msg_type)
         elif topic.msg_type is not msg_type:
             raise TopicTypeError(
-                f"topic {name} already carries {_type_name(topic.msg_type)} in this process, "
-                f"cannot use it with {_type_name(msg_type)}"
+                f"topic {name} already carries {type_name(topic.msg_type)} in this process, "
+                f"cannot use it with {type_name(msg_type)}"
             )
         return topic
 
@@ -313,10 +314,6 @@ class Bus:
     def _drop_if_unused(self, topic: Topic) -> None:
         if not topic.publishers and not topic.subscriptions:
             self._topics.pop(topic.name, None)
-
-
-def _type_name(msg_type: type) -> str:
-    return f"{msg_type.__module__.split('.')[0]}/{msg_type.__name__}"
 
 
 def _describe(qos: QoSProfile) -> str:

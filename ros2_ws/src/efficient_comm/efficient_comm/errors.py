@@ -5,6 +5,7 @@ Catch :class:`EfficientCommError` to handle anything this package raises::
     EfficientCommError
     ├── NameResolutionError      an invalid topic/service/node name or remap rule
     ├── TopicTypeError           a topic used with two different message types in one process
+    ├── UnknownTypeError         a type name that is malformed or not installed (LookupError)
     ├── ParameterError           undeclared, wrongly typed, read-only or rejected parameter
     ├── ComponentError           a component could not be created or loaded
     │   └── ConfigError          a container file or load request is malformed
@@ -28,6 +29,10 @@ class NameResolutionError(EfficientCommError, ValueError):
 
 class TopicTypeError(EfficientCommError, TypeError):
     """One topic is used with two message types; ROS 2 would never connect them."""
+
+
+class UnknownTypeError(EfficientCommError, LookupError):
+    """A type name that is not ``pkg/msg/Name`` (or ``pkg/srv/Name``) or is not installed."""
 
 
 class ParameterError(EfficientCommError, ValueError):

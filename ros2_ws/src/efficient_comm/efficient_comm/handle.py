@@ -36,6 +36,7 @@ __all__ = [
     "MessageCallback",
     "NodeHandle",
     "ParameterCallback",
+    "ParameterRange",
     "ParameterValue",
     "Publisher",
     "QoSLike",
@@ -51,6 +52,10 @@ QoSLike: TypeAlias = QoSProfile | int
 ParameterValue: TypeAlias = (
     bool | int | float | str | list[bool] | list[int] | list[float] | list[str]
 )
+#: The values a numeric parameter may take: ``(low, high)`` or ``(low, high, step)``, both
+#: ends included; ints for an int parameter, numbers for a float one (step 0: any value).
+ParameterRange: TypeAlias = tuple[float, float] | tuple[float, float, float]
+
 #: A parameter's declared type: ``declare_parameter`` returns the type of its default.
 P = TypeVar("P", bound=ParameterValue)
 MessageCallback: TypeAlias = Callable[[Any], None]
@@ -255,11 +260,15 @@ class NodeHandle(Protocol):
         *,
         description: str = "",
         read_only: bool = False,
+        range: ParameterRange | None = None,
     ) -> P:
         """Declare ``name`` with the type of ``default``; return the effective value.
 
         The effective value is the override given at deployment (params file, container
-        entry, test fixture) when there is one, else ``default``.
+        entry, test fixture) when there is one, else ``default``. ``range`` is
+        ``(low, high)`` or ``(low, high, step)`` for an int or float parameter: values
+        outside it (or off the step grid from ``low``) are refused on every backend, and
+        tools see it in the descriptor (``ros2 param describe``, the GUI's pre-check).
         """
         ...
 

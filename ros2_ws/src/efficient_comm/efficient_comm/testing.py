@@ -38,9 +38,8 @@ from collections import deque
 from collections.abc import Mapping
 from typing import Any
 
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
 from ._clock import ManualClock
+from ._qos import latched_qos
 from .bus import LocalPublisher
 from .composed import ComposedHandle, RecordingLogger
 from .container import Container
@@ -62,9 +61,7 @@ __all__ = [
 
 #: How many ids domain_coordinator hands out (1..100).
 DOMAIN_IDS = 100
-_INJECT_QOS = QoSProfile(
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-)
+_INJECT_QOS = latched_qos()
 
 
 def test_container(

@@ -47,7 +47,7 @@ def test_volatile_publisher_cannot_serve_transient_local_subscriber() -> None:
 def test_one_topic_one_type() -> None:
     node = TestHandle()
     node.create_publisher(String, "t")
-    with pytest.raises(TopicTypeError, match="std_msgs/String"):
+    with pytest.raises(TopicTypeError, match="std_msgs/msg/String"):
         node.create_subscription(Int32, "t", lambda m: None)
 
 

@@ -5,15 +5,16 @@ from __future__ import annotations
 import os
 import socket
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import pytest
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import DescribeParameters, SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32, String
 
-from efficient_comm import ParameterError, ServiceFailedError
+from efficient_comm import ParameterError, ServiceFailedError, bind_parameters
 from efficient_comm.handle import NodeHandle, ParameterValue
 from efficient_comm_interfaces.msg import ExecutorStats
 from efficient_comm_interfaces.srv import ListComponents, UnloadComponent
@@ -411,3 +412,97 @@ def test_callback_statistics_are_published_only_while_someone_listens(backend: s
             assert len(got) == count + 2
             (tick,) = [c for c in got[-1].callbacks if c.name == "Busy._tick"]
             assert (tick.rate_hz, got[-1].window_ns) == (20.0, 200_000_000)
+
+
+class Ranged:
+    """Declares numeric parameters with ranges, as components with limits do."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.errors: dict[str, ParameterError] = {}
+        self.quality = node.declare_parameter("quality", 80, range=(1, 100))
+        self.gain = node.declare_parameter("gain", 1.0, range=(0.0, 2.0, 0.5))
+        for name, default, limits in (("from_override", 5, (1, 10)),
+                                      ("text", "a", (0, 1)), ("float_ints", 1, (0.0, 1.5))):
+            try:
+                node.declare_parameter(name, default, range=limits)
+            except ParameterError as exc:
+                self.errors[name] = exc
+
+
+def test_ranges_are_enforced_alike_on_every_backend(backend: str) -> None:
+    with harness(backend, Ranged, parameters={"from_override": 11}) as h:
+        node, ranged = h.handle, h.component
+        assert (ranged.quality, ranged.gain) == (80, 1.0)
+        assert set(ranged.errors) == {"from_override", "text", "float_ints"}
+        assert "'from_override'" in str(ranged.errors["from_override"])
+        for name, value in (("quality", 1), ("quality", 100), ("gain", 2.0), ("gain", 0.5)):
+            node.set_parameter(name, value)  # the ends and the step grid are allowed
+            assert node.get_parameter(name) == value
+        for name, value in (("quality", 0), ("quality", 101), ("gain", -0.5), ("gain", 0.7)):
+            with pytest.raises(ParameterError, match=name):
+                node.set_parameter(name, value)
+        assert (node.get_parameter("quality"), node.get_parameter("gain")) == (100, 0.5)
+
+
+@pytest.mark.parametrize("dds_backend", ["standalone", "composed"])
+def test_ranges_reach_the_descriptor_that_tools_describe(dds_backend: str) -> None:
+    """What ``ros2 param describe`` and the GUI read: the ranges in the node's descriptor."""
+    with harness(dds_backend, Ranged) as h:
+        client = h.client(DescribeParameters, "/dut/describe_parameters")
+        assert h.wait_for(client.service_is_ready)
+        future = client.call_async(DescribeParameters.Request(names=["quality", "gain"]))
+        assert h.wait_for(future.done)
+        quality, gain = future.result().descriptors
+        assert [(r.from_value, r.to_value, r.step) for r in quality.integer_range] == [(1, 100, 0)]
+        assert [(r.from_value, r.to_value, r.step)
+                for r in gain.floating_point_range] == [(0.0, 2.0, 0.5)]
+
+
+@dataclass(frozen=True)
+class Figures:
+    gain: float = 1.0
+    count: int = 3
+    label: str = "a"
+
+    def check(self) -> None:
+        if self.gain <= 0 or self.count > 10 * self.gain:
+            raise ValueError(f"gain must be > 0 and count <= 10 * gain: {self}")
+
+
+class Tuned:
+    """Binds a parameter dataclass, as the walk and the kick do."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.seen: list[Figures] = []
+        self.figures = bind_parameters(node, Figures(), check=Figures.check,
+                                       on_change=self.seen.append, ranges={"count": (0, 20)})
+
+
+def test_a_bound_dataclass_is_declared_kept_current_and_vetoed_alike(backend: str) -> None:
+    with harness(backend, Tuned, parameters={"count": 5}) as h:
+        node, tuned = h.handle, h.component
+        assert tuned.figures.value == Figures(gain=1.0, count=5, label="a")  # override wins
+        assert [node.get_parameter(n) for n in ("gain", "count", "label")] == [1.0, 5, "a"]
+        node.set_parameter("gain", 2.0)
+        node.set_parameter("label", "b")
+        assert tuned.figures.value == Figures(gain=2.0, count=5, label="b")
+        assert tuned.seen[-1] == tuned.figures.value
+        with pytest.raises(ParameterError, match="count <= 10"):
+            node.set_parameter("gain", 0.1)  # the dataclass's check vetoes the combination
+        with pytest.raises(ParameterError, match="count"):
+            node.set_parameter("count", 21)  # the declared range
+        with pytest.raises(ParameterError):
+            node.set_parameter("count", 2.0)  # the field's type
+        assert tuned.figures.value == Figures(gain=2.0, count=5, label="b")
+        assert node.get_parameter("gain") == 2.0 and len(tuned.seen) == 2
+
+
+class Misbound:
+    def __init__(self, node: NodeHandle) -> None:
+        bind_parameters(node, Figures(), check=Figures.check)
+
+
+def test_a_deployment_the_check_refuses_fails_the_component(backend: str) -> None:
+    with pytest.raises(Exception, match="gain must be > 0"), \
+            harness(backend, Misbound, parameters={"gain": -1.0}):
+        pass

@@ -44,10 +44,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo, Image, Imu
 
-from efficient_comm import to_msg
+from efficient_comm import latched_qos, to_msg
 from efficient_comm.handle import NodeHandle
 from efficient_comm.standalone import standalone_main
 from throttle_publisher import ThrottledPublisher
@@ -66,7 +65,7 @@ KICK_SECONDS = 2.0
 MAX_CATCH_UP = 4
 #: How long a push that arrives as an impulse on the ``push`` topic lasts.
 PUSH_SECONDS = 0.1
-TRANSIENT_LOCAL = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+TRANSIENT_LOCAL = latched_qos()
 
 
 def _pose(position: npt.ArrayLike, quat_wxyz: npt.ArrayLike) -> Pose:

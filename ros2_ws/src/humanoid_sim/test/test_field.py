@@ -7,6 +7,7 @@ the same law's text. The model's lines are centred on these dimensions.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -16,20 +17,13 @@ import pytest
 
 from humanoid_sim.mujoco_plant import MujocoPlant
 from humanoid_sim.render import OffscreenCamera
+from soccer_field import KIDSIZE
 
+#: soccer_field owns the dimensions (its own test holds them to the laws' table); the
+#: simulator's MJCF is checked against them here, by the law's names.
 RULES_2025_KIDSIZE = {
-    "field length": 9.0,  # A
-    "field width": 6.0,  # B
-    "goal width": 2.6,  # D, between the posts
-    "goal height": 1.2,  # lower edge of the crossbar
-    "goal area length": 1.0,  # E
-    "goal area width": 3.0,  # F
-    "penalty mark distance": 1.5,  # G, from the goal line
-    "centre circle diameter": 1.5,  # H
-    "border strip width": 1.0,  # I, at least
-    "penalty area length": 2.0,  # J
-    "penalty area width": 5.0,  # K
-    "line width": 0.05,  # "approximately 5 cm", all lines alike
+    f"field {name}" if name in ("length", "width") else name.replace("_", " "): value
+    for name, value in dataclasses.asdict(KIDSIZE).items()
 }
 GOAL_POST_THICKNESS = (0.08, 0.12)  # "not smaller than 8 cm and do not exceed 12 cm"
 SIDES = {"opponent": 1, "own": -1}  # the opponent's goal is at +x

@@ -13,7 +13,7 @@ from geometry_msgs.msg import PointStamped, Quaternion
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 from std_msgs.msg import String
 
-from efficient_comm import to_msg
+from efficient_comm import ParameterError, to_msg
 from efficient_comm.testing import TestHandle
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.behaviour import SEARCH_PITCH_RAD, HeadBehaviour
@@ -267,3 +267,17 @@ def test_detector_thresholds_changed_at_run_time_apply_to_the_next_image() -> No
     node.set_parameter("hue_range", [5, 22])
     node.inject("camera/image_raw", _image((250, 60), radius=12))
     assert node.published("ball/detection") == []  # 12 px < 20 px
+
+
+def test_detector_thresholds_outside_the_pixel_range_are_refused() -> None:
+    """HSV saturation and value are 0..255: the range is declared, so a tool sees it and
+    the store refuses what no pixel can reach (which would silently detect nothing)."""
+    node = TestHandle("detector")
+    detector = BallDetector(node)
+    for name in ("min_saturation", "min_value"):
+        with pytest.raises(ParameterError, match=name):
+            node.set_parameter(name, 256)
+        node.set_parameter(name, 255)
+    assert (detector.min_saturation, detector.min_value) == (255, 255)
+    with pytest.raises(ParameterError, match="torso_height"):
+        BallModel(TestHandle("ball_model", parameters={"torso_height": 3.0}))

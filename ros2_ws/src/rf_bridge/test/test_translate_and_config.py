@@ -42,7 +42,7 @@ def test_mismatched_types_are_refused_with_the_field_named() -> None:
 def test_unknown_ros2_types() -> None:
     with pytest.raises(UnknownTypeError, match="not installed"):
         ros2_class("no_such_pkg/msg/Thing")
-    with pytest.raises(UnknownTypeError, match="bad ROS 2 type name"):
+    with pytest.raises(UnknownTypeError, match="must be pkg/msg/Name"):
         ros2_class("a/b/c/d")
 
 

@@ -8,15 +8,13 @@
     ├── StorageError          writing failed (disk full, free-space guard, I/O error)
     └── PlaybackError         a bag that cannot be played (missing, unreadable, unknown type)
 
-The bag format itself is rosbag2_layout's: its errors reach the recorder's callers as these
-(``UnknownTypeError`` and ``StorageError`` also derive from rosbag2_layout's, so catching
-either package's class works).
+The bag format itself is rosbag2_layout's: its errors reach the recorder's callers wrapped
+in these (``raise StorageError(...) from exc``, the bag's error kept as ``__cause__``), never
+as subclasses of rosbag2_layout's, so ``except RecorderError`` means "the recorder failed"
+and this tree does not change when rosbag2_layout's does (ARCHITECTURE.md, "Errors").
 """
 
 from __future__ import annotations
-
-from rosbag2_layout import BagWriteError
-from rosbag2_layout import UnknownTypeError as BagTypeError
 
 
 class RecorderError(Exception):
@@ -27,11 +25,11 @@ class RecorderConfigError(RecorderError, ValueError):
     """A topic selection, option or path the recorder refuses before starting anything."""
 
 
-class UnknownTypeError(RecorderError, BagTypeError):
+class UnknownTypeError(RecorderError, LookupError):
     """A message type that is not installed (no Python module or no .msg file)."""
 
 
-class StorageError(RecorderError, BagWriteError):
+class StorageError(RecorderError, OSError):
     """Writing the recording failed; the recording stopped and what was written is readable."""
 
 

@@ -13,13 +13,10 @@ Where things live:
 * ``_pkg``, ``_node``, ``_topic``, ``_service``, ``_param``, ``_interface``,
   ``_component``, ``_bag``: one module per command.
 
-The public API is :func:`main`, the error tree in ``errors``, and the two message helpers
-other tools share with ``topic echo`` (the debug GUI's topic view): :func:`import_interface`
-(a type name to its class) and :func:`to_plain` (a message as dicts, lists and scalars).
+The public API is :func:`main` and the error tree in ``errors``. What other tools share
+with ``topic echo`` (type names, messages as plain trees) is efficient_comm's.
 """
 
 from ._main import main as main
-from ._messages import import_interface as import_interface
-from ._messages import to_plain as to_plain
 from .errors import CliError as CliError
 from .errors import UsageError as UsageError

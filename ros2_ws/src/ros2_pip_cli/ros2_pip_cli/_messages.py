@@ -8,13 +8,13 @@ default, and YAML values converted to the field's type (an int given for a float
 
 from __future__ import annotations
 
-import array
-import importlib
 import re
 from collections.abc import Mapping
 from typing import Any
 
 import yaml
+
+from efficient_comm import EfficientCommError, import_type, to_plain
 
 from .errors import CliError
 
@@ -23,88 +23,16 @@ _FLOAT_RE = re.compile(r"^(float\d+|double)$")
 
 
 def import_interface(name: str, kind: str = "msg") -> Any:
-    """``pkg/msg/Name`` (or ``pkg/Name``) to its Python class; CliError if there is none."""
-    parts = name.split("/")
-    if len(parts) == 2:
-        parts = [parts[0], kind, parts[1]]
-    if len(parts) != 3 or not all(parts):
-        raise CliError(f"The passed {_KIND[kind]} type is invalid: {name!r} "
-                       f"(expected pkg/{kind}/Name)")
+    """``pkg/msg/Name`` (or ``pkg/Name``) to its Python class; CliError if there is none.
+    efficient_comm's :func:`~efficient_comm.import_type` owns the spelling; this keeps
+    ros2cli's wording."""
     try:
-        module = importlib.import_module(f"{parts[0]}.{parts[1]}")
-        cls = getattr(module, parts[2])
-    except (ImportError, AttributeError, ValueError) as exc:
+        return import_type(name, kind=kind)
+    except EfficientCommError as exc:
         raise CliError(f"The passed {_KIND[kind]} type is invalid: {name} ({exc})") from exc
-    if kind == "srv" and not hasattr(cls, "Request"):
-        raise CliError(f"The passed type is not a service: {name}")
-    return cls
 
 
 _KIND = {"msg": "message", "srv": "service", "action": "action"}
-
-
-def type_name(cls: type) -> str:
-    """The ``pkg/msg/Name`` of a message class, as the graph spells it."""
-    module = cls.__module__.split(".")
-    return f"{module[0]}/{module[1]}/{cls.__name__}"
-
-
-def is_message(value: Any) -> bool:
-    return hasattr(value, "get_fields_and_field_types")
-
-
-def to_plain(value: Any, *, truncate_length: int | None = None, no_arr: bool = False,
-             no_str: bool = False, field_type: str = "") -> Any:
-    """A message (or field value) as dicts, lists and scalars, ready for YAML.
-
-    ``field_type`` is the field's type as the message class spells it
-    (``sequence<uint8>``), for ``--no-arr``'s summary."""
-    if is_message(value):
-        return {
-            field: to_plain(getattr(value, field), truncate_length=truncate_length,
-                            no_arr=no_arr, no_str=no_str, field_type=field_type)
-            for field, field_type in value.get_fields_and_field_types().items()
-        }
-    if isinstance(value, bytes):
-        text = "".join(chr(c) for c in value)
-        return _cut_str(text, truncate_length)
-    if isinstance(value, str):
-        if no_str:
-            return f"<string length: <{len(value)}>>"
-        return _cut_str(value, truncate_length)
-    if isinstance(value, (list, tuple, array.array)) or type(value).__name__ == "ndarray":
-        if no_arr:
-            return f"<sequence type: {element_type(field_type)}, length: {len(value)}>"
-        cut = truncate_length is not None and len(value) > truncate_length
-        items = value[:truncate_length] if cut else value
-        out = [to_plain(v, truncate_length=truncate_length, no_arr=no_arr, no_str=no_str)
-               for v in (items.tolist() if hasattr(items, "tolist") else items)]
-        if cut:
-            out.append("...")
-        return out
-    if hasattr(value, "item"):  # numpy scalars
-        return value.item()
-    return value
-
-
-def element_type(field_type: str) -> str:
-    """The element type of an array or sequence field as ros2cli names it:
-    ``sequence<uint8, 5>`` and ``uint8[3]`` -> ``uint8``; ``sequence<geometry_msgs/Point>``
-    -> ``geometry_msgs/msg/Point``; ``string<=10`` -> ``string``."""
-    inner = field_type
-    if inner.startswith("sequence<"):
-        inner = inner[len("sequence<"):].rsplit(">", 1)[0].split(",")[0].strip()
-    inner = inner.split("[", 1)[0].split("<=", 1)[0]
-    if "/" in inner:
-        package, name = inner.split("/", 1)
-        return f"{package}/msg/{name}"
-    return inner or "unknown"
-
-
-def _cut_str(text: str, truncate_length: int | None) -> str:
-    if truncate_length is not None and len(text) > truncate_length:
-        return text[:truncate_length] + "..."
-    return text
 
 
 def message_to_yaml(msg: Any, *, truncate_length: int | None = 128, no_arr: bool = False,

@@ -6,7 +6,8 @@ import pytest
 from geometry_msgs.msg import Pose, PoseArray
 from sensor_msgs.msg import Image
 
-from ros2_pip_cli._messages import element_type, message_to_yaml
+from efficient_comm import element_type
+from ros2_pip_cli._messages import message_to_yaml
 
 
 @pytest.mark.parametrize(("field_type", "expected"), [

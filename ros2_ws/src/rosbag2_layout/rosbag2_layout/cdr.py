@@ -85,11 +85,12 @@ def _elements_step(value_type: Any, *, prefixed: bool) -> _Step:
 
 
 def _import(slot: Any) -> type:
-    import importlib
+    """A nested field's class (``slot.namespaces`` is ``[pkg, "msg"]``), named as efficient_comm
+    names types."""
+    import efficient_comm
 
-    module = importlib.import_module(".".join(slot.namespaces))
-    cls: type = getattr(module, slot.name)
-    return cls
+    return efficient_comm.import_type("/".join([*slot.namespaces, slot.name]),
+                                      kind=slot.namespaces[-1])
 
 
 def _plan(msg_type: type) -> _Step:

@@ -11,10 +11,12 @@ files come from ``share/<pkg>/msg/`` of every prefix on the ament index
 from __future__ import annotations
 
 import functools
-import importlib
 import os
 import re
 from pathlib import Path
+
+import efficient_comm
+from efficient_comm import EfficientCommError
 
 from .errors import UnknownTypeError
 
@@ -31,11 +33,15 @@ _SRV_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Za-z][A-Za-z0-9_]*$")
 
 
 def type_name(msg_type: type) -> str:
-    """``pkg/msg/Type`` of a generated message class (what rosbag2 stores as the type)."""
-    module = msg_type.__module__.split(".")
-    if len(module) < 2 or module[1] != "msg":
+    """``pkg/msg/Type`` of a generated message class (what rosbag2 stores as the type);
+    efficient_comm owns the spelling, this keeps the error rosbag2_layout's own."""
+    try:
+        name = efficient_comm.type_name(msg_type)
+    except EfficientCommError as exc:
+        raise UnknownTypeError(str(exc)) from exc
+    if name.split("/")[1] != "msg":
         raise UnknownTypeError(f"{msg_type!r} is not a generated ROS message class")
-    return f"{module[0]}/msg/{msg_type.__name__}"
+    return name
 
 
 def _split(name: str) -> tuple[str, str]:
@@ -46,16 +52,12 @@ def _split(name: str) -> tuple[str, str]:
 
 
 def import_type(name: str) -> type:
-    """The message class for ``pkg/msg/Type`` (or ``pkg/Type``)."""
-    package, short = _split(name)
+    """The message class for ``pkg/msg/Type`` (or ``pkg/Type``), through efficient_comm's
+    :func:`~efficient_comm.import_type` with rosbag2_layout's error."""
     try:
-        module = importlib.import_module(f"{package}.msg")
-    except ImportError as exc:
-        raise UnknownTypeError(f"message package {package!r} is not installed: {exc}") from exc
-    msg_type = getattr(module, short, None)
-    if not isinstance(msg_type, type):
-        raise UnknownTypeError(f"{package}.msg has no message {short!r}")
-    return msg_type
+        return efficient_comm.import_type(name, kind="msg")
+    except EfficientCommError as exc:
+        raise UnknownTypeError(str(exc)) from exc
 
 
 def _prefixes() -> list[Path]:
@@ -129,15 +131,11 @@ def _split_service(name: str) -> tuple[str, str]:
 
 def import_service(name: str) -> type:
     """The service class for ``pkg/srv/Type`` (with ``.Request`` and ``.Response``)."""
-    package, short = _split_service(name)
+    _split_service(name)
     try:
-        module = importlib.import_module(f"{package}.srv")
-    except ImportError as exc:
-        raise UnknownTypeError(f"service package {package!r} is not installed: {exc}") from exc
-    srv_type = getattr(module, short, None)
-    if not isinstance(srv_type, type):
-        raise UnknownTypeError(f"{package}.srv has no service {short!r}")
-    return srv_type
+        return efficient_comm.import_type(name, kind="srv")
+    except EfficientCommError as exc:
+        raise UnknownTypeError(str(exc)) from exc
 
 
 @functools.cache

@@ -20,6 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from builtin_interfaces.msg import Time
+
+from efficient_comm import from_msg, to_msg
+
 from .errors import LogFormatError, NoEstimateError, OtherRobotError
 
 __all__ = ["METADATA_NAME", "Knot", "OffsetModel", "offset_metadata"]
@@ -47,7 +51,7 @@ class Knot:
 
 def offset_metadata(msg: Any) -> dict[str, str]:
     """A :class:`ClockOffset` as the string key/values of a ``team_clock`` metadata record."""
-    stamp = int(msg.stamp.sec) * 1_000_000_000 + int(msg.stamp.nanosec)
+    stamp = from_msg(msg.stamp)
     return {
         "robot": str(msg.robot),
         "reference": str(msg.reference),
@@ -166,7 +170,7 @@ class OffsetModel:
             if not getattr(msg, "valid", True):
                 by_robot.setdefault(str(msg.robot), [])
                 continue
-            stamp = int(msg.stamp.sec) * 1_000_000_000 + int(msg.stamp.nanosec)
+            stamp = from_msg(msg.stamp)
             by_robot.setdefault(str(msg.robot), []).append(Knot(
                 stamp, int(msg.offset_ns), float(msg.drift_ppm), int(msg.uncertainty_ns),
                 int(getattr(msg, "hops", 0)), str(getattr(msg, "source", "")),
@@ -193,11 +197,12 @@ class OffsetModel:
                 if "stamp_ns" in values:
                     stamp = int(values["stamp_ns"])
                 else:
-                    stamp = int(values["stamp.sec"]) * 1_000_000_000 + int(values["stamp.nanosec"])
+                    stamp = from_msg(Time(sec=int(values["stamp.sec"]),
+                                          nanosec=int(values["stamp.nanosec"])))
                 messages.append(_Record(
                     robot=values.get("robot", ""), reference=values.get("reference", ""),
-                    source=values.get("source", ""), sec=stamp // 1_000_000_000,
-                    nanosec=stamp % 1_000_000_000, offset_ns=int(values["offset_ns"]),
+                    source=values.get("source", ""), stamp=to_msg(stamp),
+                    offset_ns=int(values["offset_ns"]),
                     drift_ppm=float(values.get("drift_ppm", "0")),
                     uncertainty_ns=int(values.get("uncertainty_ns", "0")),
                     hops=int(values.get("hops", "0")),
@@ -248,20 +253,14 @@ class OffsetModel:
                               f"{METADATA_NAME!r} metadata: cannot align it")
 
 
-@dataclass(frozen=True, slots=True)
-class _Stamp:
-    sec: int
-    nanosec: int
-
-
 class _Record:
     """A ClockOffset look-alike built from a metadata record."""
 
-    def __init__(self, *, robot: str, reference: str, source: str, sec: int, nanosec: int,
+    def __init__(self, *, robot: str, reference: str, source: str, stamp: Time,
                  offset_ns: int, drift_ppm: float, uncertainty_ns: int, hops: int,
                  valid: bool) -> None:
         self.robot, self.reference, self.source = robot, reference, source
-        self.stamp = _Stamp(sec, nanosec)
+        self.stamp = stamp
         self.offset_ns, self.drift_ppm = offset_ns, drift_ppm
         self.uncertainty_ns, self.hops, self.valid = uncertainty_ns, hops, valid
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from efficient_comm import ParameterError, standalone_main, to_msg
+from efficient_comm import ParameterError, latched_qos, standalone_main, to_msg
 from efficient_comm.handle import Clock, NodeHandle
 from team_clock_interfaces.msg import ClockOffset, TimeSyncPing, TimeSyncPong
 
@@ -52,12 +52,7 @@ EXCHANGE_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 #: Estimates: the latest one reaches late subscribers (a recorder started afterwards).
-OFFSET_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+OFFSET_QOS = latched_qos()
 
 
 @dataclass(frozen=True, slots=True)

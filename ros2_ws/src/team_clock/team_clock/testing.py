@@ -43,7 +43,7 @@ from typing import Any
 from geometry_msgs.msg import PointStamped
 from rclpy.serialization import deserialize_message, serialize_message
 
-from efficient_comm import Container, ManualClock, to_msg
+from efficient_comm import Container, ManualClock, from_msg, to_msg
 from efficient_comm.handle import Clock, NodeHandle, Timer
 from efficient_comm.testing import TestHandle, test_container
 from team_clock_interfaces.msg import ClockOffset, TimeSyncPing, TimeSyncPong
@@ -274,7 +274,7 @@ def flash_times(path: Path) -> dict[str, dict[str, tuple[int, int]]]:
     for _, channel, message in LogReader(Path(path)).records():
         if channel.topic.endswith(EVENT_TOPIC):
             event = deserialize_message(message.data, PointStamped)
-            stamp = event.header.stamp.sec * 1_000_000_000 + event.header.stamp.nanosec
+            stamp = from_msg(event.header.stamp)
             namespace = channel.topic.removesuffix(EVENT_TOPIC).strip("/")
             out.setdefault(namespace, {})[event.header.frame_id] = (message.log_time, stamp)
     return out

@@ -38,18 +38,15 @@ import uuid
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from efficient_comm import latched_qos
+
 PROTOCOL_VERSION = 1
 REQUEST_SUFFIX = "_throttle"
 #: A request whose reply topic has had no reader this long is dropped by the publisher.
 FORGET_AFTER_S = 30.0
 
 #: The subscriber's request writer.
-REQUEST_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+REQUEST_QOS = latched_qos()
 #: The publisher's request reader.
 REQUEST_READER_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_ALL,

@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from debug_probes import Drawing, Shape, read_drawing
+from debug_probes import JPEG_QUALITY, Drawing, Shape, read_drawing
 from efficient_comm import from_msg
 
 from ..errors import CallFailed, InvalidInput
@@ -293,13 +293,14 @@ class ImageModel:
         return int(response.values[0].integer_value)
 
     def set_quality(self, quality: int, *, timeout_s: float = 5.0) -> None:
-        """Set the compressor's ``jpeg_quality`` (1..100; blocking). The caller checks the
-        writer's token first (it is a change to the robot)."""
+        """Set the compressor's ``jpeg_quality`` (within JPEG_QUALITY; blocking). The caller
+        checks the writer's token first (it is a change to the robot)."""
         from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
         from rcl_interfaces.srv import SetParameters
 
-        if isinstance(quality, bool) or not isinstance(quality, int) or not 1 <= quality <= 100:
-            raise InvalidInput(f"JPEG quality is an integer 1..100, not {quality!r}")
+        low, high = JPEG_QUALITY
+        if isinstance(quality, bool) or not isinstance(quality, int) or not low <= quality <= high:
+            raise InvalidInput(f"JPEG quality is an integer {low}..{high}, not {quality!r}")
         value = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=quality)
         request = SetParameters.Request(parameters=[Parameter(name="jpeg_quality", value=value)])
         response = self.hub.call(self.robot, f"{COMPRESSOR_NODE}/set_parameters", SetParameters,

@@ -20,6 +20,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from efficient_comm import from_msg
+
 from ..errors import InvalidInput
 from ..hub import Feed, Hub
 from ..robots import RobotId
@@ -132,7 +134,7 @@ class LogsModel:
         if owner is False:
             return
         entry = LogEntry(
-            stamp_ns=msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec,
+            stamp_ns=from_msg(msg.stamp),
             level=int(msg.level), logger=msg.name, text=msg.msg,
             where=f"{msg.file}:{msg.line} ({msg.function})", shared=owner is None,
         )
@@ -141,7 +143,7 @@ class LogsModel:
             self.received += 1
 
     def on_diagnostics(self, msg: Any) -> None:
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp = from_msg(msg.header.stamp)
         with self._lock:
             for status in msg.status:
                 owner = self._owner(status.name, separator="/")

@@ -10,7 +10,7 @@ nobody reads on the robot has no such figure; echoing it measures its rate here,
 
 Only the topic being echoed is subscribed to, through the Hub at :data:`ECHO_HZ` (or
 :data:`PLOT_HZ` while a field is plotted), so a throttle-aware publisher sends no more.
-Messages are shown as the trees ``ros2 topic echo`` prints (ros2_pip_cli's ``to_plain``),
+Messages are shown as the trees ``ros2 topic echo`` prints (efficient_comm's ``to_plain``),
 arrays cut at :data:`TRUNCATE`; numeric fields are named by dotted paths (``pose.position.x``,
 ``data.3``) for plotting over a rolling :data:`WINDOW_S`.
 """
@@ -23,7 +23,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from ros2_pip_cli import CliError, import_interface, to_plain
+from efficient_comm import UnknownTypeError, import_type, to_plain
 
 from ..errors import InvalidInput
 from ..hub import Feed, Hub, hidden
@@ -40,9 +40,9 @@ RATE_SAMPLES = 50
 def message_class(type_name: str) -> type:
     """``pkg/msg/Name`` to its class; InvalidInput when it cannot be imported here."""
     try:
-        return import_interface(type_name, "msg")  # type: ignore[no-any-return]
-    except CliError as exc:
-        raise InvalidInput(str(exc)) from None
+        return import_type(type_name, kind="msg")
+    except UnknownTypeError as exc:
+        raise InvalidInput(str(exc)) from exc
 
 
 def numeric_paths(tree: Any, prefix: str = "") -> Iterator[tuple[str, float]]:

@@ -32,18 +32,21 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from efficient_comm import latched_qos
+from soccer_field import KIDSIZE
 
 from ..hub import Feed, Hub
 from ..robots import RobotId
 
-#: KidSize field (RoboCup Humanoid League rules 2025, as humanoid_sim's field model):
-#: length, width, goal area depth and width, penalty area depth and width, penalty mark
-#: distance, centre circle diameter, border, goal width (metres).
+#: The field the view draws, by the names ui/world.py uses (metres); the dimensions are
+#: soccer_field's, the same the simulator builds and the referee judges with.
 FIELD = {
-    "length": 9.0, "width": 6.0, "goal_area_depth": 1.0, "goal_area_width": 3.0,
-    "penalty_area_depth": 2.0, "penalty_area_width": 5.0, "penalty_mark": 1.5,
-    "centre_circle": 1.5, "border": 1.0, "goal_width": 2.6,
+    "length": KIDSIZE.length, "width": KIDSIZE.width,
+    "goal_area_depth": KIDSIZE.goal_area_length, "goal_area_width": KIDSIZE.goal_area_width,
+    "penalty_area_depth": KIDSIZE.penalty_area_length,
+    "penalty_area_width": KIDSIZE.penalty_area_width,
+    "penalty_mark": KIDSIZE.penalty_mark_distance, "centre_circle": KIDSIZE.centre_circle_diameter,
+    "border": KIDSIZE.border_strip_width, "goal_width": KIDSIZE.goal_width,
 }
 #: A ball estimate older than this (seconds, GUI clock) no longer counts for the team ball.
 FRESH_S = 1.0
@@ -51,7 +54,7 @@ FRESH_S = 1.0
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
 TOPICS = ("odom", "ball/estimate", "ground_truth/robot", "ground_truth/ball", "motion/state")
 #: Latched state topics: a view opened later still learns the current state at once.
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 
 
 @dataclass(frozen=True, slots=True)

@@ -27,6 +27,8 @@ from fastapi import WebSocket, WebSocketDisconnect
 from nicegui import app, background_tasks, run, ui
 from nicegui.context import context
 
+from debug_probes import JPEG_QUALITY
+
 from ..errors import DebugGuiError
 from ..models.image import GRACE_S, ImageModel
 from .registry import ViewContext, register
@@ -167,7 +169,8 @@ def build(ctx: ViewContext) -> None:
         rate = ui.select({r: f"{r} fps" for r in RATES_HZ}, value=int(model.rate_hz),
                          label="rate").props(f"dense data-testid=image-rate-{robot.key}")
         # Wide enough for its label: a dense field as narrow as its number cuts it off.
-        quality = ui.number("JPEG quality", value=80, min=1, max=100, step=5,
+        low, high = JPEG_QUALITY
+        quality = ui.number("JPEG quality", value=80, min=low, max=high, step=5,
                             precision=0).props(
             f"dense data-testid=image-quality-{robot.key}").classes("min-w-[7.5rem]")
         apply = ui.button("set").props(f"dense data-testid=image-quality-set-{robot.key}")

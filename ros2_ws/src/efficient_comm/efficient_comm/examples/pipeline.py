@@ -24,7 +24,8 @@ class Camera:
 
     def __init__(self, node: NodeHandle) -> None:
         self._node = node
-        rate = node.declare_parameter("rate_hz", 30.0, description="frame rate")
+        rate = node.declare_parameter("rate_hz", 30.0, description="frame rate",
+                                      range=(1.0, 1000.0))
         self._width = node.declare_parameter("width", 160, read_only=True)
         self._height = node.declare_parameter("height", 120, read_only=True)
         self._pub = node.create_publisher(Image, "image", qos=5)

@@ -35,18 +35,17 @@ from collections import Counter
 from functools import partial
 
 from builtin_interfaces.msg import Time
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import to_msg
+from efficient_comm import latched_qos, to_msg
 from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
 from .fall import STANDING
 from .motion import NECK_LIMITS, STANCE
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 #: The motions, highest priority first; each on ``motion/<name>`` and ``motion/<name>/active``.
 SOURCES = ("getup", "kick", "walk")
 STAND, FALLEN = "stand", "fallen"

@@ -15,7 +15,7 @@ from geometry_msgs.msg import PointStamped
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from efficient_comm import to_msg
+from efficient_comm import from_msg, to_msg
 from efficient_comm.handle import NodeHandle
 
 from .fall import LATCHED, STANDING
@@ -62,9 +62,7 @@ class HeadBehaviour:
             return
         self.last_seen_ns = self.node.clock.now_ns()
         self._set_state("tracking")
-        stamp = estimate.header.stamp
-        self._look(estimate.point.x, estimate.point.y,
-                   stamp.sec * 1_000_000_000 + stamp.nanosec)
+        self._look(estimate.point.x, estimate.point.y, from_msg(estimate.header.stamp))
 
     def _search(self) -> None:
         now = self.node.clock.now_ns()

@@ -26,11 +26,10 @@ from __future__ import annotations
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
-from efficient_comm import from_msg, to_msg
+from efficient_comm import from_msg, latched_qos, to_msg
 from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
@@ -38,7 +37,7 @@ from ..errors import SimConfigError
 STANDING, FALLING, FALLEN = "standing", "falling", "fallen"
 LEVELS = {STANDING: DiagnosticStatus.OK, FALLING: DiagnosticStatus.WARN,
           FALLEN: DiagnosticStatus.ERROR}
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 DIAGNOSTICS_PERIOD_S = 1.0
 
 

@@ -31,11 +31,10 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import from_msg, to_msg
+from efficient_comm import from_msg, latched_qos, to_msg
 from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
@@ -43,7 +42,7 @@ from .fall import FALLEN, FALLING, STANDING, rate_rad_s
 from .motion import STANCE
 from .spline import Knot, QuinticSpline
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 PROTECTIONS = ("none", "relax")
 FRONT, BACK = "front", "back"
 

@@ -31,15 +31,13 @@ parameter, changeable between kicks.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import to_msg
-from efficient_comm.handle import NodeHandle, ParameterValue
+from efficient_comm import bind_parameters, latched_qos, to_msg
+from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
 from .fall import STANDING
@@ -47,7 +45,7 @@ from .leg_ik import LegAngles, UnreachableError, foot_pose, leg_ik
 from .motion import STANCE
 from .spline import Knot, QuinticSpline
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 #: ``motion/kick/request`` data -> the kicking leg's side and the sign of its y.
 SIDES = {"left": ("l", 1.0), "right": ("r", -1.0)}
 #: Time step at which a kick's trajectory is checked against the legs' reach.
@@ -228,6 +226,14 @@ class KickMotion:
             raise SimConfigError(f"kick parameters out of the leg's reach: {exc}") from None
 
 
+def _check_kick(parameters: KickParameters) -> None:
+    """SimConfigError (a ValueError, so a change is vetoed) for figures the kick cannot use,
+    including ones that take a foot out of the leg's reach."""
+    parameters.check()
+    for side in SIDES:
+        KickMotion(side, parameters).check_reach()
+
+
 class Kick:
     """The kick component (see the module's docstring for topics and parameters)."""
 
@@ -236,12 +242,9 @@ class Kick:
         rate = node.declare_parameter("rate_hz", 100.0)
         if not 1.0 <= rate <= 1000.0:
             raise SimConfigError(f"need 1 <= rate_hz <= 1000, got {rate}")
-        values = {name: node.declare_parameter(name, default)
-                  for name, default in PARAMETERS.items()}
-        self.p = KickParameters(**values)
-        self.p.check()
-        for side in SIDES:
-            KickMotion(side, self.p).check_reach()
+        self.parameters = bind_parameters(node, KickParameters(), check=_check_kick,
+                                          on_change=self._on_parameters)
+        self.p = self.parameters.value
         self.period_s = 1.0 / rate
         self.motion: KickMotion | None = None
         self.t = 0.0
@@ -256,7 +259,6 @@ class Kick:
         node.create_subscription(String, "motion/state", self._on_motion_state, qos=LATCHED)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
-        node.add_on_parameter_change(self._on_parameters)
         node.create_timer(self.period_s, self.cycle)
         self.active_pub.publish(Bool(data=False))
 
@@ -264,17 +266,9 @@ class Kick:
     def active(self) -> bool:
         return self.motion is not None
 
-    def _on_parameters(self, changed: Mapping[str, ParameterValue]) -> None:
-        """Take new figures for the next kick; one out of range is refused (ValueError)."""
-        known = {f.name for f in fields(KickParameters)}
-        update = {name: float(value) for name, value in changed.items()  # type: ignore[arg-type]
-                  if name in known}
-        if update:
-            parameters = replace(self.p, **update)
-            parameters.check()  # SimConfigError is a ValueError: the change is vetoed
-            for side in SIDES:
-                KickMotion(side, parameters).check_reach()
-            self.p = parameters
+    def _on_parameters(self, parameters: KickParameters) -> None:
+        """Take new figures for the next kick (checked: one out of range was vetoed)."""
+        self.p = parameters
 
     def _refuse(self, why: str) -> None:
         self.refused += 1

@@ -14,14 +14,16 @@ from __future__ import annotations
 from geometry_msgs.msg import Point, PoseStamped
 
 from efficient_comm.handle import NodeHandle
+from soccer_field import KIDSIZE
 
 from ..errors import SimConfigError
 from .world_model import BALL_RADIUS_M
 
-#: The KidSize field (``models/soccer_field.xml``): half length and width, the goals'
-#: half width between the posts' inner faces and the crossbar's lower edge (m).
-HALF_LENGTH, HALF_WIDTH = 4.5, 3.0
-GOAL_HALF_WIDTH, CROSSBAR = 1.3, 1.2
+#: The field (soccer_field's KidSize, which ``models/soccer_field.xml`` is checked against):
+#: half length and width, the goals' half width between the posts' inner faces and the
+#: crossbar's lower edge (m).
+HALF_LENGTH, HALF_WIDTH = KIDSIZE.half_length, KIDSIZE.half_width
+GOAL_HALF_WIDTH, CROSSBAR = KIDSIZE.goal_width / 2, KIDSIZE.goal_height
 #: How far inside the lines a ball out of play is put back (m).
 INSIDE_M = 0.3
 

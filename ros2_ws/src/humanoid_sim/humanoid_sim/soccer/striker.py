@@ -41,6 +41,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
 from efficient_comm.handle import NodeHandle
+from soccer_field import KIDSIZE
 
 from ..errors import SimConfigError
 from .fall import LATCHED, STANDING
@@ -54,7 +55,7 @@ PARAMETERS: dict[str, float | list[float]] = {
     "rate_hz": 10.0,
     "settle_s": 2.0,  # standing still at the start: the servos settle into the stance
     "start_pose": [0.0, 0.0, 0.0],  # x, y, heading on the field at the start
-    "goal": [4.5, 0.0],  # the opponent goal's centre on the field
+    "goal": list(KIDSIZE.opponent_goal),  # the opponent goal's centre on the field
     "kick_distance": 0.16,  # torso origin behind the ball's centre, along the kick
     "foot_offset": 0.045,  # the kicking foot (its hip) beside the torso origin
     "position_tolerance": 0.05,

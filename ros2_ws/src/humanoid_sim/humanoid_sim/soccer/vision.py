@@ -21,10 +21,10 @@ from typing import Any
 import cv2
 import numpy as np
 from geometry_msgs.msg import PointStamped
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo, Image
 
 from debug_probes import CYAN, GREEN, MAGENTA, RED, WHITE, YELLOW, DebugDrawing
+from efficient_comm import latched_qos
 from efficient_comm.handle import NodeHandle, ParameterValue
 
 from ..errors import SimConfigError
@@ -41,9 +41,9 @@ class BallDetector:
     def __init__(self, node: NodeHandle) -> None:
         self.node = node
         self.hue = node.declare_parameter("hue_range", [5, 22])  # OpenCV hue, 0..180
-        self.min_saturation = node.declare_parameter("min_saturation", 120)
-        self.min_value = node.declare_parameter("min_value", 70)
-        self.min_radius_px = node.declare_parameter("min_radius_px", 1.5)
+        self.min_saturation = node.declare_parameter("min_saturation", 120, range=(0, 255))
+        self.min_value = node.declare_parameter("min_value", 70, range=(0, 255))
+        self.min_radius_px = node.declare_parameter("min_radius_px", 1.5, range=(0.0, 100.0))
         _check_hue(self.hue)
         node.add_on_parameter_change(self._on_parameters)
         self.fx = self.fy = self.cx = self.cy = 0.0
@@ -54,7 +54,7 @@ class BallDetector:
         self.drawing = DebugDrawing(node, "ball/debug_markers")
         node.create_subscription(
             CameraInfo, "camera/camera_info", self._on_info,
-            qos=QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+            qos=latched_qos(),
         )
         node.create_subscription(Image, "camera/image_raw", self._on_image, qos=1)
 

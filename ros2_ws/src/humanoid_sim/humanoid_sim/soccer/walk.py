@@ -37,24 +37,22 @@ can be changed while it walks (see :data:`PARAMETERS`).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass
 
 from geometry_msgs.msg import Quaternion, Twist
 from nav_msgs.msg import Odometry
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import to_msg
-from efficient_comm.handle import NodeHandle, ParameterValue
+from efficient_comm import bind_parameters, latched_qos, to_msg
+from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
 from .leg_ik import HIP_OFFSET, SOLE_BELOW_FOOT, leg_ik
 from .motion import STANCE
 from .spline import BUMP, SMOOTH_STEP
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = latched_qos()
 
 
 @dataclass(frozen=True, slots=True)
@@ -292,9 +290,9 @@ class WalkEngine:
         if not 1.0 <= rate <= 1000.0 or not output:
             raise SimConfigError(f"need 1 <= rate_hz <= 1000 and an output_topic, got "
                                  f"{rate}, {output!r}")
-        values = {name: node.declare_parameter(name, default)
-                  for name, default in PARAMETERS.items()}
-        self.gait = Gait(GaitParameters(**values))
+        self.parameters = bind_parameters(node, GaitParameters(), check=GaitParameters.check,
+                                          on_change=self._on_parameters)
+        self.gait = Gait(self.parameters.value)
         self.period_s = 1.0 / rate
         self.standing = True
         self.cycles = 0
@@ -307,18 +305,10 @@ class WalkEngine:
         node.create_subscription(Twist, "cmd_vel", self._on_cmd_vel, qos=10)
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
-        node.add_on_parameter_change(self._on_parameters)
         node.create_timer(self.period_s, self.cycle)
 
-    def _on_parameters(self, changed: Mapping[str, ParameterValue]) -> None:
-        """Apply gait figures at once; a figure out of range is refused (ValueError)."""
-        known = {f.name for f in fields(GaitParameters)}
-        update = {name: float(value) for name, value in changed.items()  # type: ignore[arg-type]
-                  if name in known}
-        if not update:
-            return
-        parameters = replace(self.gait.p, **update)
-        parameters.check()  # SimConfigError is a ValueError: the change is vetoed
+    def _on_parameters(self, parameters: GaitParameters) -> None:
+        """Apply gait figures at once (checked: one out of range was vetoed already)."""
         self.gait.p = parameters
 
     def _on_cmd_vel(self, twist: Twist) -> None:

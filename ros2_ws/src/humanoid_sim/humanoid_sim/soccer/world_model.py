@@ -129,9 +129,8 @@ class BallModel:
             raise SimConfigError(f"need 0 < alpha <= 1 and 0 <= beta < 2, got {alpha}, {beta}")
         self.yaw, self.pitch = _AlphaBeta(alpha, beta), _AlphaBeta(alpha, beta)
         self.distance_m = 0.0
-        self.torso_height = node.declare_parameter("torso_height", TORSO_HEIGHT_M)
-        if not 0.1 <= self.torso_height <= 2.0:
-            raise SimConfigError(f"need 0.1 <= torso_height <= 2.0 m, got {self.torso_height}")
+        self.torso_height = node.declare_parameter("torso_height", TORSO_HEIGHT_M,
+                                                   range=(0.1, 2.0))
         self.orientation: Quaternion | None = None
         #: Neck joints as last reported: stamp (ns), position (rad), velocity (rad/s).
         self.neck: dict[str, tuple[int, float, float]] = {name: (0, 0.0, 0.0) for name in NECK}

@@ -9,12 +9,13 @@ it from the matching ROS 2 type (see :func:`derive_from_ros2`).
 from __future__ import annotations
 
 import hashlib
-import importlib
 import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from efficient_comm import EfficientCommError, import_type, type_name
 
 from ..errors import TranslationError, UnknownTypeError
 
@@ -308,26 +309,20 @@ _ROS1_HEADER = MsgSpec(
 
 
 def ros2_class(name: str) -> type:
-    """Import a ROS 2 message class from ``pkg/msg/Name`` or ``pkg/Name``."""
-    parts = name.split("/")
-    if len(parts) == 2:
-        parts = [parts[0], "msg", parts[1]]
-    if len(parts) != 3 or not all(p.isidentifier() for p in parts):
-        raise UnknownTypeError(f"bad ROS 2 type name {name!r} (expected 'pkg/msg/Name')")
+    """Import a ROS 2 message class from ``pkg/msg/Name`` or ``pkg/Name`` (efficient_comm
+    owns the spelling; the error becomes the bridge's own)."""
     try:
-        module = importlib.import_module(f"{parts[0]}.{parts[1]}")
-        cls = getattr(module, parts[2])
-    except (ImportError, AttributeError):
-        raise UnknownTypeError(f"ROS 2 type {name!r} is not installed") from None
-    if not isinstance(cls, type) or not hasattr(cls, "get_fields_and_field_types"):
-        raise UnknownTypeError(f"{name!r} is not a ROS 2 message type")
-    return cls
+        return import_type(name, kind="msg")
+    except EfficientCommError as exc:
+        raise UnknownTypeError(f"ROS 2 type: {exc}") from exc
 
 
 def ros2_type_name(cls: type) -> str:
     """``pkg/msg/Name`` of a ROS 2 message class."""
-    module = cls.__module__.split(".")
-    return f"{module[0]}/{module[1]}/{cls.__name__}"
+    try:
+        return type_name(cls)
+    except EfficientCommError as exc:
+        raise UnknownTypeError(str(exc)) from exc
 
 
 def ros2_constants(cls: type) -> dict[str, Any]:
