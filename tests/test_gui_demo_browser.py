@@ -69,28 +69,45 @@ def test_demo_serves_three_robots_in_two_domains_and_stops_them_all(
         wait_for_text(browser, re.compile(r"robot3 @ domain \d+\n.*callbacks", re.S),
                       alive=[demo])
         screenshot(browser, "debug_gui_demo")
-        bag = _record_briefly(RobotId(d1, "/robot1"))
-        assert bag.is_absolute() and bag.parent == records / "robot1", bag
         os.killpg(proc.pid, signal.SIGTERM)
         assert proc.wait(timeout=30) == 0, demo.output()
         wait_for(lambda: not any(_alive(p) for p in pids), timeout_s=15,
                  what="every robot to stop")
+
+
+def test_the_demos_recordings_outlive_it_where_it_says(tmp_path: Path) -> None:
+    """Issue 18, 4d: a robot's bag lands under --record-dir (absolute in the recorder's
+    answers, which the recorder view shows) and is still there after the demo stopped."""
+    d1, d2 = isolated_domain_id(), isolated_domain_id()
+    log = tmp_path / "demo.log"
+    cmd = [sys.executable, "-m", "debug_gui.demo", "--robots", "1", "--port", "0",
+           "--domains", f"{d1},{d2}", "--lockstep", "--record-dir", "rec"]
+    with started(cmd, env=ros_env(d1), log=log) as proc:
+        demo = Process(proc=proc, log=log)
+        wait_for(lambda: "at http://" in demo.output(), timeout_s=60, what="the URL",
+                 alive=[demo])
+        records = tmp_path / "rec"
+        assert f"recordings go to {records} (kept after the demo)" in demo.output()
+        bag = _record_briefly(RobotId(d1, "/robot1"), alive=[demo])
+        assert bag.is_absolute() and bag.parent == records / "robot1", bag
+        os.killpg(proc.pid, signal.SIGTERM)
+        assert proc.wait(timeout=30) == 0, demo.output()
     assert list(bag.glob("*.mcap")), f"{bag} went with the demo"
 
 
-def _record_briefly(robot: RobotId) -> Path:
+def _record_briefly(robot: RobotId, *, alive: list[Process]) -> Path:
     """Start and stop the robot's recorder as the recorder view does (its default bag)."""
     policy = AccessPolicy.for_server()
     with Hub(domains=[robot.domain]) as hub:
         model = RecorderModel(hub, robot, policy=policy, token=policy.token)
         wait_for(lambda: model.discover() == ["/robot1/recorder"], timeout_s=60,
-                 what="robot1's recorder")
+                 what="robot1's recorder", alive=alive)
         model.activate()
         try:
             started_ = model.start()
             assert started_.success, started_
             wait_for(lambda: (s := model.states()) and s[0].messages > 0,
-                     what="messages recorded")
+                     what="messages recorded", alive=alive)
             stopped = model.stop()
             assert stopped.success, stopped
         finally:
