@@ -166,6 +166,8 @@ def test_a_switch_sets_a_boolean_and_a_page_without_the_token_cannot_write(
                      what="the switch's outcome", alive=alive)
 
             # Without the token: values shown, every field disabled, forced events ignored.
+            # Another tab: this one would come back with its own working layout.
+            browser.switch_to.new_window("tab")
             browser.get(server.base_url)
             wait_for_text(browser, "read-only", alive=alive)
             choose(browser, f"params-node-{key}", node, timeout_s=60)
