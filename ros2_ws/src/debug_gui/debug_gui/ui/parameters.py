@@ -228,7 +228,11 @@ def build(ctx: ViewContext) -> None:
         if model.node is not None:  # changes made while hidden were not followed
             reload(model.node)
         elif (kept := ctx.text("node")) and node.value is None:
-            chosen = robot.resolve(kept)  # the layout's node: chosen as the user did
+            try:
+                chosen = robot.resolve(kept)  # the layout's node: chosen as the user did
+            except DebugGuiError as exc:
+                status.text = f"the layout's node {kept!r}: {exc}"
+                return
             node.set_options([*(o for o in node.options if o != chosen), chosen],
                              value=chosen)
 
