@@ -164,8 +164,16 @@ def test_a_switch_sets_a_boolean_and_a_page_without_the_token_cannot_write(
             bot.expect("enabled False")
             wait_for(lambda: text_of(browser, f"param-status-{key}-enabled") == "set to false",
                      what="the switch's outcome", alive=alive)
+            # Outside the descriptor's range (shown above): refused before it is sent.
+            enter(browser, f"param-{key}-count", "11")
+            wait_for(lambda: text_of(browser, f"param-status-{key}-count")
+                     == "count must be within 0..10, not 11", what="the range's refusal",
+                     alive=alive)
+            assert bot.last("count") is None  # nothing reached the node
 
             # Without the token: values shown, every field disabled, forced events ignored.
+            # Another tab: this one would come back with its own working layout.
+            browser.switch_to.new_window("tab")
             browser.get(server.base_url)
             wait_for_text(browser, "read-only", alive=alive)
             choose(browser, f"params-node-{key}", node, timeout_s=60)

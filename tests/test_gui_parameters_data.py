@@ -10,7 +10,10 @@ model, and changes made elsewhere are made with ``ros2 param set`` as a user typ
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -18,7 +21,12 @@ import pytest
 from debug_gui import Hub, RobotId, params
 from debug_gui.models.parameters import ParametersModel
 from debug_gui.security import AccessPolicy
-from efficient_comm.testing import isolated_domain_id, ros_env, unique_topic
+from efficient_comm.testing import (
+    isolated_domain_id,
+    ros_env,
+    stop_process_group,
+    unique_topic,
+)
 
 from ._cli import ros2
 from ._gui import Process, started, wait_for
@@ -192,3 +200,88 @@ def test_our_components_in_a_container(tmp_path: Path) -> None:
         assert result.returncode == 0, result.stderr
         wait_for(lambda: model.value("alpha").value == 0.3,  # type: ignore[union-attr]
                  what="the change made with ros2 param set", alive=alive)
+
+
+PARAM_NODE = Path(__file__).with_name("_gui_param_node.py")
+
+
+def test_own_set_shows_setting_then_set_never_changed_elsewhere(tmp_path: Path) -> None:
+    """Issue 18, 4f: a set in flight is ``setting to …``; the node's event of our own
+    change (published before its answer) is not "changed elsewhere"; a change made
+    elsewhere still is. The node (a plain rclpy one, range 0..100 from its descriptor)
+    holds each set until the test lets it go."""
+    domain = isolated_domain_id()
+    log = tmp_path / "tuner.log"
+    with log.open("wb") as out:  # the child holds its own copy
+        proc = subprocess.Popen([sys.executable, str(PARAM_NODE), "--namespace", "/tn"],
+                                env=ros_env(domain), stdin=subprocess.PIPE, stdout=out,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+    node = Process(proc=proc, log=log)
+    alive = [node]
+    assert proc.stdin is not None
+
+    def release() -> None:
+        assert proc.stdin is not None
+        proc.stdin.write(b"go\n")
+        proc.stdin.flush()
+
+    try:
+        wait_for(lambda: "ready" in node.output(), what="the node", alive=alive)
+        with Hub(domains=[domain]) as hub:
+            robot = RobotId(domain, "/tn")
+            model = _model(hub, robot)
+            seen: list[tuple[object, str]] = []  # (value, outcome) after each event
+            follow = model.on_event
+
+            def on_event(event: object) -> None:
+                follow(event)
+                value, outcome = model.value("level"), model.outcome("level")
+                seen.append((value and value.value, outcome.message if outcome else ""))
+
+            model.on_event = on_event  # type: ignore[method-assign]
+            wait_for(lambda: "/tn/tuner" in model.nodes(), what="the node's services",
+                     alive=alive)
+            model.activate()
+            level = {p.name: p for p in model.load("/tn/tuner")}["level"]
+            # The descriptor's range is known, shown and checked before anything is sent.
+            assert level.integer_range == (0, 100, 1)
+            assert "0..100 step 1" in level.constraints()
+            refused = model.set("level", 101)
+            assert (refused.ok, refused.message) == (False, "level must be within 0..100, "
+                                                            "not 101")
+            assert "holding" not in node.output()
+
+            with ThreadPoolExecutor(1) as pool:
+                setting = pool.submit(model.set, "level", 42)
+                wait_for(lambda: "holding level 42" in node.output(),
+                         what="the set to reach the node", alive=alive)
+                pending = model.outcome("level")
+                assert pending is not None and pending.pending and pending.ok, pending
+                assert pending.message == "setting to 42…"
+                release()
+                done = setting.result(timeout=30)
+            assert (done.ok, done.message, done.pending) == (True, "set to 42", False)
+            assert model.value("level").value == 42  # type: ignore[union-attr]
+            # Our own change's event arrived (before or after the answer): never
+            # reported as made elsewhere.
+            wait_for(lambda: any(v == 42 for v, _ in seen), what="the event of our set",
+                     alive=alive)
+            assert not [m for _, m in seen if "elsewhere" in m], seen
+            assert model.outcome("level") == done
+
+            # A change made elsewhere (ros2 param set, held and let go the same way).
+            with ThreadPoolExecutor(1) as pool:
+                other = pool.submit(ros2, "param", "set", "/tn/tuner", "level", "7",
+                                    domain_id=domain)
+                wait_for(lambda: "holding level 7" in node.output(),
+                         what="ros2 param set to reach the node", alive=alive)
+                release()
+                assert other.result(timeout=60).returncode == 0
+            wait_for(lambda: (o := model.outcome("level")) and not o.here,
+                     what="the change made elsewhere", alive=alive)
+            assert model.outcome("level").message == "changed elsewhere to 7"  # type: ignore[union-attr]
+            model.deactivate()
+    finally:
+        stop_process_group(proc)
+        if proc.stdin is not None:
+            proc.stdin.close()

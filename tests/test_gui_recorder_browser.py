@@ -145,7 +145,9 @@ def test_a_recording_started_in_the_browser_writes_a_bag(tmp_path: Path, browser
             f"rb @ domain {domain} recorder: stopped, bag {team_bag}")
         assert sum(_count(team_bag).values()) > 0
 
-        # Without the token: the controls are disabled, and nothing can start.
+        # Without the token: the controls are disabled, and nothing can start. Another
+        # tab: this one would come back with its own working layout.
+        browser.switch_to.new_window("tab")
         browser.get(server.base_url)
         wait_for_text(browser, "read-only", alive=alive)
         _add_recorder_view(browser, alive)

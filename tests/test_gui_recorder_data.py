@@ -27,6 +27,7 @@ from robot_recorder import read_messages
 from ._gui import RobotProcess, fake_robot, started, wait_for
 
 RECORDER_ROBOT = Path(__file__).with_name("_gui_recorder_robot.py")
+PLAIN_ROBOT = Path(__file__).with_name("_gui_plain_robot.py")
 
 
 @contextmanager
@@ -129,6 +130,44 @@ def test_status_start_split_snapshot_selection_and_stop(tmp_path: Path) -> None:
                  what="statuses meanwhile", alive=alive)
         watcher.deactivate()
         assert model.states()[0].statuses == heard
+
+
+def test_a_throttled_topic_of_a_plain_publisher_is_recorded_at_the_asked_rate(
+        tmp_path: Path) -> None:
+    """Issue 18, 4c: a plain rclpy publisher in another process ignores throttle requests;
+    the recorder drops the surplus itself (it used to record nothing, "applied")."""
+    domain = isolated_domain_id()
+    policy = AccessPolicy.for_server()
+    plain_log = tmp_path / "plain.log"
+    with Hub(domains=[domain]) as hub, \
+            recorder_robot(tmp_path, domain_id=domain, namespace="/sub") as proc, \
+            started([sys.executable, PLAIN_ROBOT, "--namespace", "/plainpub"],
+                    env=ros_env(domain), log=plain_log) as plain_proc:
+        plain = RobotProcess(proc=plain_proc, log=plain_log, domain_id=domain,
+                             namespace="/plainpub")
+        alive = [proc, plain]
+        robot = RobotId(domain, "/sub")
+        model = RecorderModel(hub, robot, policy=policy, token=policy.token)
+        wait_for(lambda: model.discover() == ["/sub/recorder"], what="its recorder",
+                 alive=alive)
+        model.activate()
+        wait_for(lambda: "ready" in plain.output(), what="the plain publisher", alive=alive)
+        applied = model.set_topics(["/plainpub/chatter max_rate_hz=4"])  # of 10 Hz
+        assert applied.success, applied
+        bag = tmp_path / "bags" / "plain"
+        assert model.start(bag=str(bag)).success
+        wait_for(lambda: {t.name: t.messages for t in model.states()[0].topics}
+                 .get("/plainpub/chatter", 0) >= 6, what="the plain topic recorded",
+                 alive=alive)
+        assert model.stop().success
+        model.deactivate()
+    stamps = [m.log_time_ns for m in read_messages(bag, topics=["/plainpub/chatter"])]
+    assert len(stamps) >= 6, stamps
+    # At most the asked rate: n samples span at least n - 1 periods of 0.25 s, less the
+    # rate limiter's tolerance (never more than one period). All of the plain 10 Hz
+    # would span about half of that.
+    span_s = (stamps[-1] - stamps[0]) / 1e9
+    assert span_s >= (len(stamps) - 2) * 0.25, (len(stamps), span_s)
 
 
 def test_writes_without_the_token_are_refused_and_change_nothing(tmp_path: Path) -> None:

@@ -10,6 +10,12 @@ The robots play (walk to the ball, kick, get up) in real time. A machine that ca
 simulate them all in real time makes them late, and a late walk falls: ``--lockstep`` runs
 each robot on a manual clock instead, as fast as the machine allows (slower than real
 time on a small machine, but every robot plays as it would on a fast one).
+
+Each robot's recorder writes its bags under ``--record-dir`` (default
+``debug_gui_recordings`` in the current directory), robot K's in ``robotK/``: a folder
+that outlives the demo, printed at start as an absolute path (the recorder view shows the
+bags' absolute paths too). The robots' output goes to ``--log-dir``, by default a
+temporary folder removed on exit.
 """
 
 from __future__ import annotations
@@ -35,6 +41,9 @@ from .server import Options, serve
 #: More robots than this make a two-core machine crawl (each simulates and renders).
 MAX_ROBOTS = 6
 STOP_TIMEOUT_S = 10.0
+#: Where the robots' bags go unless ``--record-dir`` says otherwise (under the current
+#: directory, so recordings outlive the demo and are found where it was started).
+DEFAULT_RECORD_DIR = "debug_gui_recordings"
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,6 +74,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--lockstep", action="store_true",
                         help="robots on manual clocks, as fast as the machine allows "
                              "(slower than real time, but never late)")
+    parser.add_argument("--record-dir", type=Path, default=Path(DEFAULT_RECORD_DIR),
+                        help="where the robots' recorders write bags, one folder per robot "
+                             f"(default ./{DEFAULT_RECORD_DIR}; kept after the demo)")
     parser.add_argument("--log-dir", type=Path, default=None,
                         help="where the robots' output goes (default: a temporary folder)")
     return parser
@@ -81,9 +93,12 @@ def _domains(text: str | None) -> tuple[int, int]:
 
 
 @contextlib.contextmanager
-def robots(planned: Sequence[DemoRobot], log_dir: Path, *, lockstep: bool = False
-           ) -> Iterator[list[subprocess.Popen[bytes]]]:
-    """The robots as processes in sessions of their own; stopped (Ctrl-C, then kill) on exit."""
+def robots(planned: Sequence[DemoRobot], log_dir: Path, *, record_dir: Path,
+           lockstep: bool = False) -> Iterator[list[subprocess.Popen[bytes]]]:
+    """The robots as processes in sessions of their own; stopped (Ctrl-C, then kill) on exit.
+
+    Robot ``/robotK`` records under ``record_dir/robotK`` (absolute: the robot runs in a
+    folder of its own under ``log_dir``)."""
     procs: list[subprocess.Popen[bytes]] = []
     try:
         for robot in planned:
@@ -95,7 +110,9 @@ def robots(planned: Sequence[DemoRobot], log_dir: Path, *, lockstep: bool = Fals
             with open(log_dir / f"{name}.log", "wb") as log:
                 procs.append(subprocess.Popen(
                     [sys.executable, "-m", "humanoid_sim.demo", "--duration", "0",
-                     "--namespace", robot.namespace, *(["--lockstep"] if lockstep else [])],
+                     "--namespace", robot.namespace,
+                     "--bag-dir", str(record_dir.absolute() / name),
+                     *(["--lockstep"] if lockstep else [])],
                     env=env, stdout=log, stderr=subprocess.STDOUT, cwd=workdir,
                     start_new_session=True,
                 ))
@@ -150,7 +167,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         log_dir = args.log_dir or Path(stack.enter_context(
             tempfile.TemporaryDirectory(prefix="debug_gui_demo_")))
         log_dir.mkdir(parents=True, exist_ok=True)
-        procs = stack.enter_context(robots(planned, log_dir, lockstep=args.lockstep))
+        record_dir = args.record_dir.absolute()
+        try:
+            record_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            print(f"debug_gui demo: error: --record-dir {record_dir}: {exc.strerror or exc}",
+                  file=sys.stderr)
+            return 2
+        print(f"debug_gui demo: recordings go to {record_dir} (kept after the demo)",
+              flush=True)
+        procs = stack.enter_context(robots(planned, log_dir, record_dir=record_dir,
+                                           lockstep=args.lockstep))
         for robot, proc in zip(planned, procs, strict=True):
             print(f"debug_gui demo: {robot.namespace} in domain {robot.domain} "
                   f"(pid {proc.pid}, log: {log_dir / robot.namespace.strip('/')}.log)",

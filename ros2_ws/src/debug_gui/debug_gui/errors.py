@@ -5,6 +5,7 @@ Tree (other views append their subclasses at the end, one class per block)::
     DebugGuiError(Exception)
     ├── AccessDenied(PermissionError)      a write without the right token
     ├── InvalidInput(ValueError)           a name, value, option or layout that is malformed
+    │   └── LayoutConflict                 the saved layout changed since this tab loaded it
     ├── RobotUnavailable(LookupError)      no such robot, service or domain (or it went away)
     └── CallFailed                         a service call that timed out or failed
 """
@@ -30,3 +31,8 @@ class RobotUnavailable(DebugGuiError, LookupError):  # noqa: N818 (the views' co
 
 class CallFailed(DebugGuiError):  # noqa: N818 (the views' contract names them)
     """A service call that got no answer in time, or whose answer could not be had."""
+
+
+class LayoutConflict(InvalidInput):
+    """A save that would silently replace a saved layout this tab never saw (another tab,
+    or another server, saved a different one since this tab loaded its own)."""

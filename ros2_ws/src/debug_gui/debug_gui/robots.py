@@ -77,6 +77,13 @@ class RobotId:
             return name
         return f"{self.namespace.rstrip('/')}/{name}"
 
+    def relative(self, name: str) -> str:
+        """``/robot2/recorder`` as ``recorder``: the inverse of :meth:`resolve` for names
+        under the namespace (others stay absolute). Layouts keep names so, which suits every
+        robot of a team panel and a clone."""
+        prefix = self.namespace.rstrip("/") + "/"
+        return name[len(prefix):] if self.namespace != "/" and name.startswith(prefix) else name
+
     @property
     def stats_topic(self) -> str:
         return self.resolve(STATS_SUFFIX)

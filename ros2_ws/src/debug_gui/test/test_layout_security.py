@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from debug_gui import AccessDenied, AccessPolicy, InvalidInput, RobotId
-from debug_gui.layout import MAX_PANELS, Layout, Panel
+from debug_gui.errors import LayoutConflict
+from debug_gui.layout import MAX_PANELS, Layout, Panel, saved_text
 from debug_gui.security import check_name, check_rate, parse_domains
 
 
@@ -19,6 +20,45 @@ def test_a_layout_round_trips_through_its_file(tmp_path: Path) -> None:
     layout.save(path)
     assert Layout.load(path, known_kinds=["components", "image"]) == layout
     assert json.loads(path.read_text())["panels"][1] == {"kind": "components", "team": True}
+
+
+def test_a_panel_keeps_its_views_settings_through_its_file(tmp_path: Path) -> None:
+    """Issue 18, 4b: a layout keeps what each view was set to, not only kind and robot."""
+    params = Panel("parameters", RobotId(5, "/robot2")).with_setting(
+        "node", "ball_detector").with_setting("filter", "sat")
+    image = Panel("image").with_setting("rate_hz", 5)
+    layout = Layout((params, image))
+    path = tmp_path / "layout.json"
+    layout.save(path)
+    again = Layout.load(path, known_kinds=["parameters", "image"])
+    assert again == layout
+    assert again.panels[0].setting("node") == "ball_detector"
+    assert again.panels[1].setting("rate_hz") == 5
+    assert json.loads(path.read_text())["panels"][1] == {
+        "kind": "image", "team": True, "settings": {"rate_hz": 5}}
+    assert params.with_setting("filter", None).settings == (("node", "ball_detector"),)
+    with pytest.raises(InvalidInput, match="at most"):
+        params.with_setting("node", "x" * 600)
+
+
+def test_a_save_never_silently_replaces_a_layout_saved_elsewhere(tmp_path: Path) -> None:
+    """Issue 18, 4b: a tab saves over the file only as it last saw it."""
+    path = tmp_path / "layout.json"
+    mine = Layout((Panel("components"),))
+    seen = mine.save_over(path, seen=None)  # no file yet: nothing to lose
+    assert saved_text(path) == seen
+    theirs = Layout((Panel("image"),))
+    theirs.save(path)  # another tab (or server) saved meanwhile
+    changed = Layout((Panel("components"), Panel("logs")))
+    with pytest.raises(LayoutConflict, match="saved elsewhere since this tab loaded it"):
+        changed.save_over(path, seen=seen)
+    assert Layout.load(path) == theirs  # left alone
+    with pytest.raises(LayoutConflict):
+        changed.save_over(tmp_path / "new.json", seen="a file that went")
+    # Saving what the file holds already is no conflict; seen as it is now, it saves.
+    theirs.save_over(path, seen=seen)
+    seen = changed.save_over(path, seen=saved_text(path))
+    assert Layout.load(path) == changed and saved_text(path) == seen
 
 
 @pytest.mark.parametrize(("text", "error"), [
@@ -33,6 +73,14 @@ def test_a_layout_round_trips_through_its_file(tmp_path: Path) -> None:
     ('{"version": 1, "panels": [{"kind": "components", "robot": {"domain": 1, '
      '"namespace": "../etc"}}]}', "namespace"),
     ('{"version": 1, "panels": [{"kind": "nosuch", "team": true}]}', "no view kind"),
+    ('{"version": 1, "panels": [{"kind": "components", "team": true, "settings": []}]}',
+     "settings are an object"),
+    ('{"version": 1, "panels": [{"kind": "components", "team": true, "settings": '
+     '{"a b": 1}}]}', "identifier"),
+    ('{"version": 1, "panels": [{"kind": "components", "team": true, "settings": '
+     '{"x": [1]}}]}', "text, a number or true/false"),
+    ('{"version": 1, "panels": [{"kind": "components", "team": true, "settings": '
+     '{"x": 1e999}}]}', "finite"),
     ('{"version": 1, "panels": [' + ",".join(['{"kind": "components", "team": true}']
                                              * (MAX_PANELS + 1)) + "]}", "at most"),
 ])

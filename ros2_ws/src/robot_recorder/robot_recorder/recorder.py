@@ -39,7 +39,7 @@ from rosbag2_layout import (
     type_name,
 )
 from rosbag2_layout import UnknownTypeError as BagTypeError
-from throttle_publisher import ThrottledSubscription
+from throttle_publisher import Gate, ThrottledSubscription, ThrottleOptions
 
 from .errors import RecorderConfigError, RecorderError, UnknownTypeError
 from .selection import TopicSelection, parse_selection
@@ -59,6 +59,54 @@ class _Active:
         self.selection = selection
         self.state = state
         self.endpoint = endpoint
+
+
+class _Subsampled:
+    """A throttled selection's endpoints: the throttle request, and the recorder's own
+    subsampling for publishers that do not honour it.
+
+    A ThrottledPublisher sends the recorder its share on a reply topic of its own; a plain
+    publisher ignores the request and would send a throttled recorder nothing at all. So
+    until a throttle-aware publisher answers (:attr:`ThrottledSubscription.answered`), the
+    plain topic is subscribed too and a :class:`~throttle_publisher.Gate` (the same
+    decision a ThrottledPublisher makes) drops the surplus here. :meth:`settle`, called by
+    the recorder's timer, drops the plain subscription once the publisher throttles itself,
+    so the link then carries only the asked rate.
+    """
+
+    def __init__(self, node: NodeHandle, msg_type: type, name: str,
+                 callback: Callable[[Any], None], *, options: ThrottleOptions,
+                 qos: QoSProfile) -> None:
+        self._node = node
+        self._callback = callback
+        self._gate = Gate(options)
+        self.throttled = ThrottledSubscription(node, msg_type, name, callback,
+                                               options=options, qos=qos)
+        self._plain: Subscription | None = None
+        if not self.throttled.answered:
+            self._plain = node.create_subscription(msg_type, name, self._on_plain, qos=qos)
+
+    @property
+    def subsampling(self) -> bool:
+        """Whether the recorder drops the surplus itself (no throttle-aware publisher)."""
+        return self._plain is not None
+
+    def _on_plain(self, msg: Any) -> None:
+        if self.throttled.answered:
+            return  # the publisher now sends this recorder's share on the reply topic
+        if self._gate.offer(self._node.clock.now_ns()):
+            self._callback(msg)
+
+    def settle(self) -> None:
+        if self._plain is not None and self.throttled.answered:
+            self._node.destroy_subscription(self._plain)
+            self._plain = None
+
+    def close(self) -> None:
+        if self._plain is not None:
+            self._node.destroy_subscription(self._plain)
+            self._plain = None
+        self.throttled.close()
 
 
 class Recorder:
@@ -89,8 +137,10 @@ class Recorder:
         self._node = node
         p = node.declare_parameter
         names = p("topics", [""], description="NAME [TYPE] [max_rate_hz=R] [every_nth=N]")
+        # Absolute from the start: the status and the services' answers tell a viewer on
+        # another machine where the bags are, and it cannot know this process's directory.
         self.output_dir = Path(output_dir if output_dir is not None
-                               else p("output_dir", "recordings"))
+                               else p("output_dir", "recordings")).absolute()
         start = p("autostart", False) if autostart is None else autostart
         self.clock_topic = (p("clock_topic", DEFAULT_CLOCK_TOPIC)
                             if clock_topic is None else clock_topic)
@@ -157,7 +207,7 @@ class Recorder:
         Returns a future of the bag path (completed by the writer thread). The path is
         also logged, so a user of the command knows which directory to play back.
         """
-        future = self.writer.start(Path(bag) if bag else self._new_bag_path(""))
+        future = self.writer.start(Path(bag).absolute() if bag else self._new_bag_path(""))
         future.add_done_callback(self._say_started)
         return future
 
@@ -177,7 +227,8 @@ class Recorder:
     def snapshot(self, bag: str | Path | None = None) -> Future[tuple[Path, int]]:
         """Write the ring buffer (the last ``snapshot_seconds``) as bag ``bag`` (default: a
         new ``snapshot_`` directory under ``output_dir``); a future of it and its count."""
-        return self.writer.snapshot(Path(bag) if bag else self._new_bag_path("snapshot_"))
+        return self.writer.snapshot(Path(bag).absolute() if bag
+                                    else self._new_bag_path("snapshot_"))
 
     def set_topics(self, selections: Iterable[TopicSelection]) -> None:
         """Record exactly these topics from now on (throttle options may change).
@@ -269,8 +320,8 @@ class Recorder:
         throttle = selection.throttle()
         endpoint: Any
         if throttle is not None:
-            endpoint = ThrottledSubscription(self._node, msg_type, name, callback,
-                                             options=throttle, qos=qos)
+            endpoint = _Subsampled(self._node, msg_type, name, callback,
+                                   options=throttle, qos=qos)
         else:
             endpoint = self._node.create_subscription(msg_type, name, callback, qos=qos)
         self._active[name] = _Active(selection, state, endpoint)
@@ -315,7 +366,7 @@ class Recorder:
 
     def _unsubscribe(self, name: str) -> None:
         active = self._active.pop(name)
-        if isinstance(active.endpoint, ThrottledSubscription):
+        if isinstance(active.endpoint, _Subsampled):
             active.endpoint.close()
         else:
             sub: Subscription = active.endpoint
@@ -386,6 +437,9 @@ class Recorder:
 
     def _on_timer(self) -> None:
         self._subscribe_known()
+        for active in self._active.values():
+            if isinstance(active.endpoint, _Subsampled):
+                active.endpoint.settle()
         self.publish_status()
 
     def status(self) -> Any:

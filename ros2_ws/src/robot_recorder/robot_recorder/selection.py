@@ -8,7 +8,8 @@ The parameter form is one string per topic, tokens separated by spaces::
 
 The type is optional (the recorder finds it on the graph). ``max_rate_hz`` and ``every_nth``
 make the recorder subscribe through throttle_publisher, so the samples it does not record
-are never sent by a ThrottledPublisher.
+are never sent by a ThrottledPublisher; a plain publisher's surplus the recorder drops
+itself.
 """
 
 from __future__ import annotations

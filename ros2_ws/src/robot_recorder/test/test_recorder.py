@@ -161,6 +161,48 @@ def test_throttled_topic_takes_only_every_nth_from_a_throttled_publisher(tmp_pat
     assert sent == 10  # the other samples never left the publisher
 
 
+def test_throttled_topic_of_a_plain_publisher_is_subsampled_by_the_recorder(
+        tmp_path: Path) -> None:
+    """A plain publisher ignores throttle requests: the recorder drops the surplus itself
+    (issue 18, 4c; it used to record nothing while saying it recorded the topic)."""
+    topic = unique_topic("plain")
+    container = test_container()
+    source = TestHandle("plain", container=container).create_publisher(String, topic)
+    recorder = Recorder(TestHandle("recorder", container=container), output_dir=tmp_path,
+                        topics=[f"{topic} std_msgs/msg/String every_nth=4",
+                                f"{topic}_fast std_msgs/msg/String max_rate_hz=10"])
+    fast = TestHandle("fast", container=container).create_publisher(String, f"{topic}_fast")
+    bag = recorder.start(tmp_path / "bag").result(10)
+    container.advance(0.0)
+    for i in range(40):  # 100 Hz for 0.4 s
+        source.publish(String(data=str(i)))
+        fast.publish(String(data=str(i)))
+        container.advance(0.01)
+    recorder.close()
+    got: dict[str, list[int]] = {}
+    for name, msg in read_rosbags(bag):
+        got.setdefault(name, []).append(int(msg.data))
+    assert got[topic] == list(range(0, 40, 4))
+    assert got[f"{topic}_fast"] == list(range(0, 40, 10))  # 10 Hz of 100 Hz
+
+
+def test_a_relative_output_dir_is_reported_absolute(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """A viewer cannot know the recorder's working directory (issue 18, 4d)."""
+    monkeypatch.chdir(tmp_path)
+    recorder = Recorder(TestHandle("recorder", parameters={"snapshot_bytes": 1 << 16}),
+                        output_dir="rel", topics=[])
+    try:
+        bag = recorder.start().result(10)
+        named = recorder.snapshot("named").result(10)[0]
+        status = recorder.status()
+    finally:
+        recorder.close()
+    assert bag.is_absolute() and bag.parent == tmp_path / "rel", bag
+    assert named == tmp_path / "named"
+    assert status.bag == str(bag)
+
+
 def test_set_topics_changes_what_is_recorded_at_run_time(tmp_path: Path) -> None:
     prefix = unique_topic("robot")
     _, robot, recorder = _compose(tmp_path, prefix, topics=[f"{prefix}/text"])

@@ -47,6 +47,14 @@ class ThrottledSubscription:
     def _send(self) -> None:
         self._requests.publish(request_msg(self.subscriber_id, self.topic_name, self.options))
 
+    @property
+    def answered(self) -> bool:
+        """Whether a throttle-aware publisher hears this subscriber's requests (one
+        subscribes to the request topic). A plain publisher never does and never sends on
+        the reply topic: a subscriber that finds none must take the plain topic's samples
+        and drop the surplus itself (robot_recorder does)."""
+        return self._requests.get_subscription_count() > 0
+
     def update(self, options: ThrottleOptions) -> None:
         """Ask for something else from now on (publishers adapt without restarting)."""
         _check(options)

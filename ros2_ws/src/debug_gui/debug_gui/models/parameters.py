@@ -5,8 +5,11 @@ or rclcpp ones) through :mod:`debug_gui.params`. :meth:`ParametersModel.load` li
 describes and gets a node's parameters; :meth:`ParametersModel.set` validates what the user
 entered against the parameter's type and descriptor, needs the server's token, sends it, and
 records the outcome per parameter: the node's veto reason verbatim, or why it was refused
-before being sent. While active, the model follows ``/parameter_events``, so a change made
-elsewhere (``ros2 param set``, another browser, the node itself) shows up live.
+before being sent. While a set is in flight its outcome is ``setting to …`` (``pending``).
+While active, the model follows ``/parameter_events``, so a change made elsewhere
+(``ros2 param set``, another browser, the node itself) shows up live; the event of the
+model's own set (published by the node before it answers) is recognised by its value and
+never shown as ``changed elsewhere``.
 
 ``load`` and ``set`` block on service calls: a UI calls them off its event loop.
 """
@@ -32,6 +35,8 @@ class Outcome:
     message: str
     #: Set here (True) or seen changed elsewhere (False, ``ok`` is then True).
     here: bool = True
+    #: Sent, no answer yet (``ok`` is then True).
+    pending: bool = False
 
 
 class ParametersModel:
@@ -49,6 +54,9 @@ class ParametersModel:
         self.node: str | None = None
         self._params: dict[str, params.Described] = {}
         self._outcomes: dict[str, Outcome] = {}
+        #: Values this model is setting, by name (sent, not answered yet): their events are
+        #: this model's own changes, not changes made elsewhere.
+        self._pending: dict[str, list[Any]] = {}
         #: Bumped on every change of what :meth:`parameters` returns (the view redraws then).
         self.version = 0
         #: Bumped when parameters appear or go (the view rebuilds its widgets then).
@@ -92,8 +100,9 @@ class ParametersModel:
                 updated = known.with_value(p.value)
                 if updated.value != known.value or updated.type != known.type:
                     self._params[p.name] = updated
-                    self._outcomes[p.name] = Outcome(
-                        True, f"changed elsewhere to {updated.text}", here=False)
+                    if updated.value not in self._pending.get(p.name, ()):
+                        self._outcomes[p.name] = Outcome(
+                            True, f"changed elsewhere to {updated.text}", here=False)
                     self.version += 1
             for p in event.deleted_parameters:
                 if self._params.pop(p.name, None) is not None:
@@ -177,6 +186,22 @@ class ParametersModel:
             raise InvalidInput(f"no parameter {name!r} on the chosen node")
         value = params.parse(raw, param.type)
         params.check(param, value)
+        wanted = params.python_value(value)
+        with self._lock:
+            self._pending.setdefault(name, []).append(wanted)
+            self._outcomes[name] = Outcome(
+                True, f"setting to {params.format_value(wanted)}…", pending=True)
+            self.version += 1
+        try:
+            return self._send(node, name, value)
+        finally:
+            with self._lock:
+                waiting = self._pending.get(name, [])
+                waiting.remove(wanted)
+                if not waiting:
+                    self._pending.pop(name, None)
+
+    def _send(self, node: str, name: str, value: Any) -> Outcome:
         (result,) = params.set_values(self.hub, self.robot, node, {name: value})
         # What the node holds now: the value set, or the old one after a veto.
         now = params.get_values(self.hub, self.robot, node, [name]).get(name)

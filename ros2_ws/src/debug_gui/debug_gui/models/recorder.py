@@ -117,8 +117,7 @@ class ControlResult:
 
 def relative(name: str, robot: RobotId) -> str:
     """``/robot2/recorder`` as ``recorder`` (the robot is shown beside it)."""
-    prefix = robot.namespace.rstrip("/") + "/"
-    return name[len(prefix):] if robot.namespace != "/" and name.startswith(prefix) else name
+    return robot.relative(name)
 
 
 def parse_entries(entries: Iterable[str]) -> list[TopicSelection]:

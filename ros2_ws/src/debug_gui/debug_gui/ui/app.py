@@ -5,6 +5,13 @@ at start, replaced by "save layout"), and its own view instances: a view's model
 long as the tab shows it. A panel is one view kind bound to one robot, or a team panel with
 one instance per robot side by side; robots that appear join team panels live.
 
+A tab's working layout (panels and each panel's settings) is kept in NiceGUI's tab storage
+at every change, so a page that NiceGUI reloads (a lost connection, a failed handshake) or
+the user reloads comes back as it was rather than as the server's layout. "save layout"
+never silently replaces a saved layout this tab did not see: each tab remembers the file's
+text as it last loaded or saved it, and a save over a file that changed since is refused
+with a message; saving again then replaces it.
+
 The binding view (seed Fig. 5.7) lists every panel with a robot selector (rebind), "clone
 for" another robot (Fig. 5.8) and remove; below it a view kind can be added for one robot or
 as a team panel.
@@ -12,6 +19,7 @@ as a team panel.
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -20,9 +28,9 @@ from typing import Any, Literal
 
 from nicegui import Client, app, ui
 
-from ..errors import DebugGuiError, InvalidInput
+from ..errors import DebugGuiError, InvalidInput, LayoutConflict
 from ..hub import Hub
-from ..layout import Layout, Panel
+from ..layout import Layout, Panel, Setting, saved_text
 from ..robots import RobotId
 from ..security import AccessPolicy
 from . import registry
@@ -32,6 +40,8 @@ _log = logging.getLogger(__name__)
 TEAM = "team"
 #: How often the shell looks for robots coming and going.
 ROBOTS_POLL_S = 1.0
+#: The key of a tab's working layout in NiceGUI's tab storage.
+TAB_KEY = "debug_gui_layout"
 
 
 @dataclass
@@ -42,18 +52,26 @@ class Shell:
     policy: AccessPolicy
     layout: Layout
     layout_path: Path | None = None
+    #: The layout file's text when :attr:`layout` was read or written (None: no file).
+    seen: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.layout_path is not None:
+            self.seen = saved_text(self.layout_path)
 
     def default_layout(self) -> Layout:
         kinds = [k.kind for k in registry.kinds()]
         return Layout((Panel(kind="components"),)) if "components" in kinds else Layout()
 
-    def save(self, layout: Layout, token: str | None) -> Path:
+    def save(self, layout: Layout, token: str | None, *, seen: str | None) -> str:
+        """Save ``layout`` unless the file changed since it was ``seen`` (LayoutConflict);
+        the text written, the tab's new ``seen``."""
         self.policy.check_write(token)
         if self.layout_path is None:
             raise InvalidInput("no layout file: start debug_gui with --layout FILE")
-        layout.save(self.layout_path)
+        self.seen = layout.save_over(self.layout_path, seen=seen)
         self.layout = layout
-        return self.layout_path
+        return self.seen
 
     def restore(self) -> Layout:
         if self.layout_path is None:
@@ -61,6 +79,7 @@ class Shell:
         self.layout = Layout.load(
             self.layout_path, known_kinds=[k.kind for k in registry.kinds()]
         )
+        self.seen = saved_text(self.layout_path)
         return self.layout
 
 
@@ -87,11 +106,52 @@ class _Tab:
         self.shell = shell
         self.client = client
         self.token = token
-        self.layout = shell.layout
+        #: The saved layout's text as this tab last loaded or wrote it (see Shell.save).
+        self.seen = shell.seen
+        #: Whether this page looked for its tab's working layout (on its first connect).
+        self.adopted = False
+        self._layout = shell.layout
         self.views: list[_PanelView] = []
         self.robots: list[RobotId] = shell.hub.robots()
         #: Whether this tab has seen a robot: "no robots yet" until then, "no robots" after.
         self.seen_robots = bool(self.robots)
+
+    @property
+    def layout(self) -> Layout:
+        return self._layout
+
+    @layout.setter
+    def layout(self, layout: Layout) -> None:
+        """Every change of the working layout is kept in the tab's storage at once."""
+        self._layout = layout
+        self._keep()
+
+    def _keep(self) -> None:
+        if not self.adopted or not self.client.has_socket_connection:
+            return  # before the first connect there is no tab storage (nor a change)
+        with self.client:
+            app.storage.tab[TAB_KEY] = {"layout": self._layout.to_json(), "seen": self.seen}
+
+    def _adopt(self) -> None:
+        """On this page's first connect: take the tab's working layout if an earlier page
+        of the same tab left one (NiceGUI reloaded it, or the user did)."""
+        if self.adopted:
+            self._keep()
+            return
+        self.adopted = True
+        with self.client:
+            kept = app.storage.tab.get(TAB_KEY)
+        if isinstance(kept, dict) and isinstance(kept.get("layout"), str):
+            try:
+                layout = Layout.from_json(kept["layout"], known_kinds=_kinds())
+            except InvalidInput as exc:
+                _log.warning("the tab's kept layout is not used: %s", exc)
+            else:
+                seen = kept.get("seen")
+                self.seen = seen if isinstance(seen, str) else None
+                if layout != self._layout:
+                    self._set_layout(layout)
+        self._keep()
 
     # -- page --------------------------------------------------------------------------
 
@@ -114,6 +174,7 @@ class _Tab:
         # reconnects gets those of its open panels back.
         self.client.on_delete(self._hide_all)
         self.client.on_disconnect(self._hide_all)
+        self.client.on_connect(self._adopt)
         self.client.on_connect(self._show_open)
 
     def _poll_robots(self) -> None:
@@ -241,7 +302,8 @@ class _Tab:
 
     def _clone(self, panel: Panel, key: str | None) -> None:
         if key:
-            self._add(Panel(kind=panel.kind, robot=self._robot_of(key)))
+            self._add(Panel(kind=panel.kind, robot=self._robot_of(key),
+                            settings=panel.settings))
 
     def _remove(self, index: int) -> None:
         self.layout = self.layout.without(index)
@@ -251,7 +313,8 @@ class _Tab:
         self._render_binding()
 
     def _rebind(self, index: int, key: str) -> None:
-        panel = Panel(kind=self.layout.panels[index].kind, robot=self._robot_of(key))
+        old = self.layout.panels[index]
+        panel = Panel(kind=old.kind, robot=self._robot_of(key), settings=old.settings)
         self.layout = self.layout.replacing(index, panel)
         view = self.views[index]
         view.panel = panel
@@ -260,12 +323,35 @@ class _Tab:
         self._render_binding()
 
     def _save(self) -> None:
-        path = self.shell.save(self.layout, self.token)
-        self._notify(f"layout saved to {path}", kind="positive")
+        try:
+            self.seen = self.shell.save(self.layout, self.token, seen=self.seen)
+        except LayoutConflict:
+            # Told once: the next save replaces the layout the user now knows about.
+            self.seen = saved_text(self.shell.layout_path) if self.shell.layout_path else None
+            self._keep()
+            raise
+        self._keep()
+        self._notify(f"layout saved to {self.shell.layout_path}", kind="positive")
 
     def _restore(self) -> None:
-        self._set_layout(self.shell.restore())
+        layout = self.shell.restore()
+        self.seen = self.shell.seen
+        self._set_layout(layout)
         self._notify("layout restored", kind="positive")
+
+    def _remember(self, view: _PanelView, key: str, value: Setting | None) -> None:
+        """A view's setting changed: into its panel, so layouts and reloads keep it."""
+        index = next((i for i, v in enumerate(self.views) if v is view), None)
+        if index is None:
+            return  # removed meanwhile
+        try:
+            panel = view.panel.with_setting(key, value)
+        except InvalidInput as exc:
+            _log.warning("setting %s of a %s view not kept: %s", key, view.panel.kind, exc)
+            return
+        if panel != view.panel:
+            view.panel = panel
+            self.layout = self.layout.replacing(index, panel)
 
     # -- panels ------------------------------------------------------------------------
 
@@ -329,6 +415,8 @@ class _Tab:
                     ctx = ViewContext(
                         hub=self.shell.hub, robot=robot, robots=list(self.robots),
                         policy=self.shell.policy, token=self.token, app=app,
+                        settings=dict(view.panel.settings),
+                        remember=functools.partial(self._remember, view),
                     )
                     try:
                         kind.build(ctx)

@@ -158,6 +158,9 @@ def build(ctx: ViewContext) -> None:
     assert ctx.robot is not None  # a per-robot kind: the shell binds every instance
     robot = ctx.robot
     model = ImageModel(ctx.hub, robot)
+    kept_rate = ctx.settings.get("rate_hz")
+    if isinstance(kept_rate, int) and not isinstance(kept_rate, bool) and kept_rate in RATES_HZ:
+        model.set_rate(float(kept_rate))  # the panel's layout: the rate the user chose
     key = secrets.token_hex(8)
     client = context.client
     shown = {"yes": False}
@@ -266,7 +269,11 @@ def build(ctx: ViewContext) -> None:
     pause.on_click(toggle_pause)
     prev.on_click(lambda: step(-1))
     nxt.on_click(lambda: step(1))
-    rate.on_value_change(lambda e: model.set_rate(float(e.value)))
+    def on_rate(event: Any) -> None:
+        model.set_rate(float(event.value))
+        ctx.keep("rate_hz", int(event.value))
+
+    rate.on_value_change(on_rate)
     apply.on_click(set_quality)
 
     def start() -> None:

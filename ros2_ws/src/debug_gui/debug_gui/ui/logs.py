@@ -3,7 +3,8 @@
 Statuses show the newest per name, worst first; records newest first. One filter (a
 minimum level and a text matched against names and messages) applies to both, so "what
 is wrong with the servo driver" is one word typed. Entries no robot's namespace claims are
-marked ``shared`` (see :mod:`debug_gui.models.logs`).
+marked ``shared`` (see :mod:`debug_gui.models.logs`). The level and the text are kept in
+the panel's layout (settings ``level`` and ``filter``).
 """
 
 from __future__ import annotations
@@ -52,10 +53,14 @@ def build(ctx: ViewContext) -> None:
     model = LogsModel(ctx.hub, robot)
     key = robot.key
     with ui.row().classes("items-center gap-2"):
-        level = ui.select(list(LEVELS), value="debug", label="at least").props(
+        kept_level = ctx.text("level", "debug")
+        level = ui.select(list(LEVELS), label="at least",
+                          value=kept_level if kept_level in LEVELS else "debug").props(
             f"dense data-testid=logs-level-{key}").classes("w-32")
-        text = ui.input("filter: name or text").props(
+        text = ui.input("filter: name or text", value=ctx.text("filter")).props(
             f"dense clearable data-testid=logs-filter-{key}").classes("w-64")
+        level.on_value_change(lambda e: ctx.keep("level", str(e.value or "")))
+        text.on_value_change(lambda e: ctx.keep("filter", str(e.value or "")))
         problem = ui.label("").classes("text-negative")
     ui.label("Diagnostics").classes("text-bold")
     statuses = ui.table(columns=STATUS_COLUMNS, rows=[], row_key="id", pagination=0).props(

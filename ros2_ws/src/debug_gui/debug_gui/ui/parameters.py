@@ -4,10 +4,14 @@ Pick one of the robot's nodes (type in the select to filter them); each paramete
 widget of its type: a switch for a boolean, a number field for an integer or a double
 (its descriptor's range as the field's limits), a text field for a string, and for arrays
 their text (``[1, 2, 3]``, checked when submitted). Enter (or a switch's flip) sets the
-value on the node; beside the parameter the view then shows ``set to ...`` or the refusal,
-a node's veto in its own words. Read-only parameters are disabled, and without the
+value on the node; beside the parameter the view then shows ``setting to ...…`` until the
+node answers, then ``set to ...`` or the refusal, a node's veto in its own words. A typed
+value outside the descriptor's range (shown under the parameter) is refused before it is
+sent. Read-only parameters are disabled, and without the
 server's token every widget is (the model refuses the write on the server all the same).
-A change made elsewhere shows up live, marked ``changed elsewhere``.
+A change made elsewhere shows up live, marked ``changed elsewhere``. The chosen node and
+the filter are kept in the panel's layout (settings ``node``, relative to the robot, and
+``filter``) and chosen again when the view is rebuilt.
 """
 
 from __future__ import annotations
@@ -47,6 +51,8 @@ def outcome_text(outcome: Outcome | None) -> tuple[str, str]:
         return "", ""
     if not outcome.ok:
         return outcome.message, "text-negative"
+    if outcome.pending:
+        return outcome.message, "text-grey-7"
     return outcome.message, "text-positive" if outcome.here else "text-info"
 
 
@@ -78,7 +84,7 @@ def build(ctx: ViewContext) -> None:
     with ui.row().classes("items-center gap-2"):
         node = ui.select([], label="node", with_input=True).props(
             f"dense data-testid={_testid('params-node', key)}").classes("w-80")
-        name_filter = ui.input("filter parameters").props(
+        name_filter = ui.input("filter parameters", value=ctx.text("filter")).props(
             f"dense clearable data-testid={_testid('params-filter', key)}").classes("w-56")
     status = ui.label("pick a node" + ("" if ctx.can_write else
                                        " (read-only: changes need the server's token)")
@@ -108,6 +114,8 @@ def build(ctx: ViewContext) -> None:
         if row is None:
             return
         raw = row.widget.value
+        # At once, not at the next poll: the set may take a while (a slow node, a veto).
+        _show_outcome(row, Outcome(True, "setting…", pending=True))
         outcome = await run.io_bound(model.set, name, raw)
         if rows.get(name) is not row:
             return  # redrawn meanwhile (another node, a filter): the new row shows it
@@ -212,15 +220,28 @@ def build(ctx: ViewContext) -> None:
 
     def on_node(event: Any) -> None:
         if isinstance(event.value, str) and event.value:
+            ctx.keep("node", robot.relative(event.value))
             reload(event.value)
 
     def on_show() -> None:
         refresh_nodes()
         if model.node is not None:  # changes made while hidden were not followed
             reload(model.node)
+        elif (kept := ctx.text("node")) and node.value is None:
+            try:
+                chosen = robot.resolve(kept)  # the layout's node: chosen as the user did
+            except DebugGuiError as exc:
+                status.text = f"the layout's node {kept!r}: {exc}"
+                return
+            node.set_options([*(o for o in node.options if o != chosen), chosen],
+                             value=chosen)
+
+    def on_filter(_event: Any) -> None:
+        ctx.keep("filter", str(name_filter.value or ""))
+        refresh()
 
     node.on_value_change(on_node)
-    name_filter.on_value_change(lambda _e: refresh())
+    name_filter.on_value_change(on_filter)
     nodes_timer = ui.timer(NODES_POLL_S, refresh_nodes, active=False)
     ctx.follow(model, ui.timer(POLL_S, refresh, active=False), nodes_timer)
     ctx.on_show(on_show)

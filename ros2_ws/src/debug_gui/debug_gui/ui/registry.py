@@ -25,6 +25,7 @@ from typing import Any
 
 from ..errors import InvalidInput
 from ..hub import Hub
+from ..layout import Setting
 from ..robots import RobotId
 from ..security import AccessPolicy
 
@@ -46,9 +47,27 @@ class ViewContext:
     token: str | None
     #: The FastAPI app, for routes of a view's own (e.g. a binary image endpoint).
     app: Any = None
+    #: What this panel's view was set to (its layout's settings): read when building.
+    settings: dict[str, Setting] = field(default_factory=dict)
+    #: Keeps a setting in the panel's layout (None: drop it); see :meth:`keep`.
+    remember: Callable[[str, Setting | None], None] | None = None
     _show: list[Callable[[], None]] = field(default_factory=list)
     _hide: list[Callable[[], None]] = field(default_factory=list)
     shown: bool = False
+
+    def keep(self, key: str, value: Setting | None) -> None:
+        """Remember that the user set ``key`` to ``value`` (a node, a rate, a filter): the
+        panel's layout keeps it, so it survives a reload, a save and a clone. Names of a
+        robot's nodes and topics are kept relative to its namespace (see
+        :meth:`RobotId.relative`), so they suit every robot of a team panel."""
+        self.settings[key] = value if value is not None else ""
+        if self.remember is not None:
+            self.remember(key, value)
+
+    def text(self, key: str, default: str = "") -> str:
+        """Setting ``key`` as text (``default`` when absent or not text)."""
+        value = self.settings.get(key)
+        return value if isinstance(value, str) and value else default
 
     def on_show(self, callback: Callable[[], None]) -> None:
         """Run ``callback`` whenever the view becomes visible (at once if it is)."""

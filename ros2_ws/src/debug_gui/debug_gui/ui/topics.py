@@ -3,6 +3,9 @@ numeric field to plot it over the last 30 s.
 
 The tree is rebuilt from the newest message at the echo rate with every node expanded
 (a message is small; a tree that kept its own expansion state would show stale values).
+The echoed topic (relative to the robot, with its type) and the plotted field are kept in
+the panel's layout (settings ``echo``, ``echo_type``, ``field``) and echoed and plotted
+again whenever the view is shown.
 """
 
 from __future__ import annotations
@@ -63,19 +66,29 @@ def build(ctx: ViewContext) -> None:
                 "series": [{"type": "line", "showSymbol": False, "data": []}],
             }).classes("w-full h-56").props(f"data-testid=topics-plot-{key}")
 
+    #: The kept field, plotted again once the echoed messages offer it.
+    wanted = {"field": ""}
+
+    def echo(name: str, type_name: str) -> bool:
+        try:
+            model.echo(name, type_name)
+        except DebugGuiError as exc:
+            problem.text = str(exc)
+            return False
+        problem.text = ""
+        heading.text = f"{robot.resolve(name)} ({type_name})"
+        return True
+
     def on_row(event: Any) -> None:
         row = event.args[1] if isinstance(event.args, list) and len(event.args) > 1 else {}
         name, type_name = row.get("name"), row.get("type")
         if not isinstance(name, str) or not isinstance(type_name, str):
             return
-        try:
-            model.echo(name, type_name)
-        except DebugGuiError as exc:
-            problem.text = str(exc)
-            return
-        problem.text = ""
-        heading.text = f"{name} ({type_name})"
-        field.set_value(None)
+        if echo(name, type_name):
+            ctx.keep("echo", robot.relative(robot.resolve(name)))
+            ctx.keep("echo_type", type_name)
+            wanted["field"] = ""
+            field.set_value(None)
 
     table.on("rowClick", on_row)
 
@@ -85,6 +98,9 @@ def build(ctx: ViewContext) -> None:
             problem.text = ""
         except DebugGuiError as exc:
             problem.text = str(exc)
+            return
+        if event.value or not wanted["field"]:  # not while the kept one waits for options
+            ctx.keep("field", event.value or None)
 
     field.on_value_change(on_field)
 
@@ -113,6 +129,9 @@ def build(ctx: ViewContext) -> None:
             options = model.fields()
             if options != field.options:
                 field.set_options(options, value=field.value if field.value in options else None)
+            if wanted["field"] in options:
+                field.set_value(wanted["field"])
+                wanted["field"] = ""
         series = model.series()
         chart.options["series"][0]["data"] = [[round(t, 3), v] for t, v in series]
         chart.update()
@@ -124,6 +143,9 @@ def build(ctx: ViewContext) -> None:
         model.activate()
         for t in timers:
             t.activate()
+        kept, kept_type = ctx.text("echo"), ctx.text("echo_type")
+        if model.echo_topic is None and kept and kept_type and echo(kept, kept_type):
+            wanted["field"] = ctx.text("field")
         refresh_list()
 
     def hide() -> None:

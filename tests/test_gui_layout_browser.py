@@ -1,0 +1,155 @@
+"""A tab's layout in a real browser (issue 18, 4b): a reload brings back the tab's working
+layout with each view's settings, and a save never silently replaces a layout saved
+elsewhere since the tab loaded it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from efficient_comm.testing import isolated_domain_id
+
+from ._gui import (
+    Process,
+    by_testid,
+    choose,
+    click,
+    fake_robot,
+    gui,
+    present,
+    text_of,
+    wait_for,
+    wait_for_text,
+)
+from .test_gui_parameters_browser import field, field_value
+
+
+def _add(browser: Any, kind: str, robot: str) -> None:
+    choose(browser, "add-kind", kind)
+    choose(browser, "add-robot", robot)
+    click(browser, "add-view")
+
+
+def _type(browser: Any, testid: str, text: str) -> None:
+    element = field(browser, testid)
+    element.click()
+    element.send_keys(text)
+
+
+def _select_text(browser: Any, testid: str) -> str:
+    """What a NiceGUI select shows as chosen (Quasar puts the test id on its input)."""
+    return str(browser.execute_script(
+        "const el = document.querySelector(`[data-testid=\"${arguments[0]}\"]`);"
+        "return el ? (el.closest('.q-field') || el).innerText : '';", testid))
+
+
+def test_a_reload_keeps_the_tabs_layout_and_each_views_settings(tmp_path: Path,
+                                                                  browser: Any) -> None:
+    domain = isolated_domain_id()
+    key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
+    layout = tmp_path / "layout.json"
+    with fake_robot(tmp_path, domain_id=domain, namespace="/alpha") as bot, \
+            gui(tmp_path, domains=[domain], args=["--layout", str(layout)]) as server:
+        alive: list[Process] = [bot, server]
+        browser.get(server.url)
+        wait_for_text(browser, label, alive=alive)
+        # Unsaved work: a log view with a level and a filter, a parameters view with a
+        # node and a filter.
+        _add(browser, "Diagnostics and log", label)
+        wait_for(lambda: present(browser, f"logs-level-{key}"), what="the log view",
+                 alive=alive)
+        choose(browser, f"logs-level-{key}", "warn")
+        _type(browser, f"logs-filter-{key}", "servo")
+        _add(browser, "Parameters", label)
+        wait_for(lambda: present(browser, f"params-node-{key}"),
+                 what="the parameters view", alive=alive)
+        choose(browser, f"params-node-{key}", "/alpha/fake_robot", timeout_s=60)
+        wait_for(lambda: "use_sim_time" in text_of(browser, f"params-{key}"),
+                 what="the node's parameters", alive=alive)
+        _type(browser, f"params-filter-{key}", "sim")
+        # The server has seen every keystroke once the filtered list shows.
+        wait_for(lambda: field_value(browser, f"logs-filter-{key}") == "servo"
+                 and "use_sim_time" in text_of(browser, f"params-{key}"),
+                 what="the typed filters", alive=alive)
+
+        browser.refresh()  # what NiceGUI does when its handshake or rewind fails
+
+        wait_for(lambda: "Parameters" in text_of(browser, "panel-2"),
+                 what="the tab's three panels after the reload", alive=alive)
+        assert "Diagnostics and log" in text_of(browser, "panel-1")
+        wait_for(lambda: field_value(browser, f"logs-filter-{key}") == "servo",
+                 what="the log filter", alive=alive)
+        assert "warn" in _select_text(browser, f"logs-level-{key}")
+        wait_for(lambda: field_value(browser, f"params-filter-{key}") == "sim"
+                 and "use_sim_time" in text_of(browser, f"params-{key}"),
+                 what="the parameters view's node and filter", alive=alive)
+        assert field_value(browser, f"params-node-{key}") == "/alpha/fake_robot"
+        assert not layout.exists()  # all of it from the tab, nothing saved
+
+        # Saved, the file holds the settings too (names relative to the robot).
+        click(browser, "save-layout")
+        wait_for_text(browser, "layout saved", alive=alive)
+        panels = json.loads(layout.read_text())["panels"]
+        assert panels[1]["settings"] == {"filter": "servo", "level": "warn"}
+        assert panels[2]["settings"] == {"filter": "sim", "node": "fake_robot"}
+
+
+def test_a_save_over_a_layout_saved_elsewhere_is_refused_then_confirmed(
+        tmp_path: Path, browser: Any) -> None:
+    domain = isolated_domain_id()
+    label = f"alpha @ domain {domain}"
+    layout = tmp_path / "layout.json"
+    with fake_robot(tmp_path, domain_id=domain, namespace="/alpha") as bot, \
+            gui(tmp_path, domains=[domain], args=["--layout", str(layout)]) as server:
+        alive: list[Process] = [bot, server]
+        browser.get(server.url)
+        wait_for_text(browser, label, alive=alive)
+        click(browser, "save-layout")
+        wait_for_text(browser, "layout saved", alive=alive)
+        # Another tab or server saves a different layout meanwhile.
+        theirs = {"version": 1, "panels": [{"kind": "image", "team": True}]}
+        layout.write_text(json.dumps(theirs))
+        _add(browser, "Diagnostics and log", label)
+        wait_for(lambda: present(browser, "panel-1"), what="the added panel", alive=alive)
+        click(browser, "save-layout")
+        wait_for_text(browser, "saved elsewhere since this tab loaded it", alive=alive)
+        assert json.loads(layout.read_text()) == theirs  # left alone
+        # Told, the user saves again: now it replaces the other layout.
+        by_testid(browser, "save-layout").click()
+        wait_for(lambda: len(json.loads(layout.read_text())["panels"]) == 2,
+                 what="the confirmed save", alive=alive)
+
+
+def test_a_reload_echoes_and_plots_what_the_topics_view_showed(tmp_path: Path,
+                                                               browser: Any) -> None:
+    from selenium.webdriver.common.by import By
+
+    domain = isolated_domain_id()
+    key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
+    stats = "/alpha/efficient_comm/stats"
+    with fake_robot(tmp_path, domain_id=domain, namespace="/alpha") as bot, \
+            gui(tmp_path, domains=[domain]) as server:
+        alive: list[Process] = [bot, server]
+        browser.get(server.url)
+        wait_for_text(browser, label, alive=alive)
+        _add(browser, "Topics", label)
+        cell = wait_for(
+            lambda: next((td for td in by_testid(browser, f"topics-{key}").find_elements(
+                By.CSS_SELECTOR, "td") if td.text == stats), None)
+            if present(browser, f"topics-{key}") else None,
+            what=f"{stats} in the list", alive=alive)
+        cell.click()
+        wait_for(lambda: "window_ns" in text_of(browser, f"topics-echo-{key}"),
+                 what="the echoed statistics", alive=alive)
+        choose(browser, f"topics-plot-field-{key}", "window_ns")
+        wait_for(lambda: "window_ns" in _select_text(browser, f"topics-plot-field-{key}"),
+                 what="the plotted field", alive=alive)
+
+        browser.refresh()
+
+        wait_for(lambda: stats in text_of(browser, f"topics-echo-title-{key}"),
+                 what="the echoed topic after the reload", alive=alive)
+        wait_for(lambda: "window_ns" in text_of(browser, f"topics-echo-{key}")
+                 and "window_ns" in _select_text(browser, f"topics-plot-field-{key}"),
+                 what="the echo and the plotted field after the reload", alive=alive)
