@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import shutil
 import time
 from collections import Counter
 from pathlib import Path
@@ -23,8 +22,10 @@ from robot_recorder import (
     Recorder,
     RecorderError,
     TopicSelection,
+    mcap_files,
     read_messages,
-    recover,
+    reindex,
+    unfinished_files,
 )
 
 from ._graph import StopSignal
@@ -173,14 +174,14 @@ def _stamp(ns: int) -> str:
 def _metadata(bag: Path) -> dict[str, Any]:
     """rosbag2's metadata of ``bag``: its metadata.yaml, or computed from the MCAP files."""
     meta = bag / "metadata.yaml"
-    if meta.is_file():
+    if meta.is_file() and not unfinished_files(bag):  # else it may not count the last chunks
         try:
             info: dict[str, Any] = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
             return info
         except (yaml.YAMLError, KeyError, TypeError) as exc:
             raise CliError(f"{meta} is not rosbag2 metadata: {exc}") from exc
     info = _metadata_from_messages(bag)
-    info["relative_file_paths"] = sorted(p.name for p in bag.glob("*.mcap"))
+    info["relative_file_paths"] = [p.name for p in mcap_files(bag)]
     return info
 
 
@@ -246,26 +247,18 @@ def _metadata_from_messages(path: Path) -> dict[str, Any]:
 
 
 def _reindex(args: argparse.Namespace) -> int:
-    """Rewrite the bag from every readable message, so its metadata.yaml is complete again.
+    """Rewrite metadata.yaml from the bag's files, as rosbag2's reindex does.
 
-    robot_recorder's ``recover`` writes a complete bag (files cut short by a crash included);
-    the old files are replaced only once the new bag is written.
+    Files whose recorder was killed are finished where they are (robot_recorder's
+    ``reindex``); no file is renamed, so paths to them stay valid.
     """
     _storage(args.storage_id)
     bag = Path(args.bag_path)
     if not bag.is_dir():
         raise CliError(f"No bag directory at '{bag}'")
-    fresh = bag.with_name(bag.name + ".reindex")
-    if fresh.exists():
-        shutil.rmtree(fresh)
     try:
-        count = recover(bag, fresh)
+        count = reindex(bag)
     except RecorderError as exc:
-        shutil.rmtree(fresh, ignore_errors=True)
         raise CliError(str(exc)) from exc
-    old = bag.with_name(bag.name + ".old")
-    bag.rename(old)
-    fresh.rename(bag)
-    shutil.rmtree(old)
     print(f"Reindexed '{bag}': {count} messages")
     return 0

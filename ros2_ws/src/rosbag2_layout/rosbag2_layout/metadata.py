@@ -20,6 +20,7 @@ from typing import Any, TypedDict, cast
 import yaml
 
 from .errors import BagFormatError
+from .msgdefs import type_hash
 
 __all__ = [
     "METADATA_VERSION",
@@ -251,7 +252,8 @@ def bag_metadata(
                     "type": type_name,
                     "serialization_format": "cdr",
                     "offered_qos_profiles": list(qos),
-                    "type_description_hash": "",
+                    "type_description_hash": type_hash(type_name) if "/" in type_name
+                    else "",
                 },
                 "message_count": count,
             }

@@ -152,6 +152,22 @@ class BagReader:
                     add(schemas.get(record.schema_id), record)
         return found
 
+    def unfinished(self) -> list[Path]:
+        """The files without a summary: their writer did not close them (killed, or still
+        writing). They are read in full, but metadata.yaml may not count all they hold."""
+        return [file for file in self.files if _summary(file) is None]
+
+    def file_stats(self, file: Path) -> tuple[int, int, int]:
+        """``(start_ns, end_ns, messages)`` of one of the bag's files, read from its records."""
+        start, end, count = 0, 0, 0
+        with open(file, "rb") as stream:
+            for _, _, message in self._file_records(file, stream, None):
+                stamp = message.log_time
+                start = stamp if not count else min(start, stamp)
+                end = max(end, stamp)
+                count += 1
+        return start, end, count
+
     def topics(self) -> set[str]:
         """Every topic name of the bag."""
         return set(self.topic_records())
