@@ -296,6 +296,6 @@ def read_metadata(bag: str | Path) -> BagMetadata:
         reason = " ".join(str(exc).split())  # YAML errors span lines; one line for a CLI
         raise BagFormatError(f"{path} is not rosbag2 metadata: {reason}") from exc
     storage = info.get("storage_identifier", "mcap")
-    if storage != "mcap":
-        raise BagFormatError(f"{bag} uses storage {storage!r}; only mcap is supported")
+    if storage not in ("mcap", "sqlite3"):
+        raise BagFormatError(f"{bag} uses storage {storage!r}; mcap and sqlite3 are read")
     return cast(BagMetadata, info)
