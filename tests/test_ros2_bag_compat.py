@@ -7,13 +7,19 @@ import re
 import shutil
 import signal
 import sys
+import time
 from pathlib import Path
 
+import rclpy
 import yaml
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from efficient_comm.testing import isolated_domain_id, unique_topic
+from robot_recorder import read_messages
 
 from ._cli import ros2, ros2_path, running
 
@@ -154,3 +160,50 @@ def test_record_regex_and_exclude(tmp_path: Path) -> None:
     info = ros2("bag", "info", str(bag), domain_id=domain_id).stdout
     assert f"Topic: {keep} |" in info, info
     assert f"Topic: {drop} |" not in info, info
+
+
+def _offered_type_hash(topic: str, domain_id: int) -> str:
+    """The type hash the topic's publisher announces in the graph (rclpy's own)."""
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    try:
+        node = Node("hash_probe", context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        deadline = time.monotonic() + 30
+        while not (infos := node.get_publishers_info_by_topic(topic)):
+            assert time.monotonic() < deadline, f"no publisher of {topic} discovered"
+            executor.spin_once(timeout_sec=0.1)  # discovery is handled while it waits
+        return str(infos[0].topic_type_hash)
+    finally:
+        context.try_shutdown()
+
+
+def test_record_says_recording_when_it_records_with_type_hashes_and_no_root_stats(
+        tmp_path: Path) -> None:
+    domain_id = isolated_domain_id()
+    topic = unique_topic("rec")
+    with running([sys.executable, str(PEER), topic], domain_id=domain_id,
+                 log=tmp_path / "peer.log") as peer:
+        peer.wait_for(lambda t: "ready" in t)
+        expected_hash = _offered_type_hash(topic, domain_id)
+        with running([ros2_path(), "bag", "record", "-o", "out", topic], domain_id=domain_id,
+                     log=tmp_path / "record.log", cwd=tmp_path) as rec:
+            text = rec.wait_for(lambda t: "Recording to 'out'" in t)
+            said_ns = time.time_ns()  # the line was printed at most a poll (50 ms) before
+            assert f"Subscribed to topic '{topic}'" in text, text
+            listed = ros2("topic", "list", domain_id=domain_id)
+            assert listed.returncode == 0, listed.stderr
+            assert "/efficient_comm/stats" not in listed.stdout, listed.stdout
+            bag = tmp_path / "out"
+            rec.wait_for(lambda t: any(p.stat().st_size > 3000 for p in bag.glob("*.mcap")),
+                         timeout=60)
+            assert rec.stop(signal.SIGINT) == 0, rec.text()
+    first_ns = next(iter(read_messages(bag))).log_time_ns
+    # The peer publishes every 50 ms: recording from the line on means a message within a
+    # few periods (rosbag2 says so once subscribed; ours said it seconds before).
+    assert first_ns - said_ns < 1_000_000_000, (first_ns - said_ns) / 1e9
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    (entry,) = meta["topics_with_message_count"]
+    assert expected_hash.startswith("RIHS01_")
+    assert entry["topic_metadata"]["type_description_hash"] == expected_hash

@@ -134,15 +134,23 @@ def _record(args: argparse.Namespace) -> int:
         return Recorder(handle, topics=topics, output_dir=out.parent, autostart=False)
 
     try:
-        with Standalone(make, name="rosbag2_recorder", args=ros_args) as node:
+        # stats_period_s=0: a command line tool is not a robot, and its statistics at the
+        # root namespace (/efficient_comm/stats) would be recorded by `record -a` and shown
+        # as a robot by debug_gui.
+        with Standalone(make, name="rosbag2_recorder", args=ros_args,
+                        stats_period_s=0.0) as node:
             recorder = node.component
             recorder.start(out).result(_RECORD_START_S)
-            print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
             known: dict[str, str] = dict.fromkeys(topics, "")
             next_scan = 0.0
+            waiting = {node.node.resolve_topic_name(t) for t in topics}
+            if not waiting:  # -a, -e: what appears is recorded as it appears
+                print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
             with StopSignal() as stop:
                 while not stop.requested:
                     node.spin_once(0.05)
+                    if waiting:
+                        waiting = _subscribe_requested(node, recorder, topics, waiting, out)
                     if scan and time.monotonic() >= next_scan:
                         next_scan = time.monotonic() + 0.5
                         known = _record_all(node, recorder, known, scanned)
@@ -151,6 +159,25 @@ def _record(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from exc
     print(f"Recording stopped: '{out}'", flush=True)
     return 0
+
+
+def _subscribe_requested(node: Standalone, recorder: Recorder, topics: list[str],
+                         waiting: set[str], out: Path) -> set[str]:
+    """Subscribe the requested topics as soon as the graph shows their types, and say
+    "Recording to" once all are subscribed, as rosbag2 says "All requested topics are
+    subscribed": from then on every message published is recorded. Returns the topics
+    still waited for."""
+    subscribed = recorder.topic_states()
+    if not waiting <= subscribed.keys():
+        recorder.set_topics([TopicSelection(name=t) for t in topics])  # looks at the graph
+        subscribed = recorder.topic_states()
+    for name in sorted(waiting & subscribed.keys()):
+        print(f"Subscribed to topic '{name}'", flush=True)
+    left = waiting - subscribed.keys()
+    if not left:
+        print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
+        print("All requested topics are subscribed. Stopping discovery...", flush=True)
+    return left
 
 
 def _record_all(node: Standalone, recorder: Recorder, known: dict[str, str],
@@ -186,7 +213,7 @@ def _play(args: argparse.Namespace) -> int:
                       start_paused=args.start_paused or args.delay > 0)
 
     try:
-        with Standalone(make, name="rosbag2_player", args=["ros2"]) as node:
+        with Standalone(make, name="rosbag2_player", args=["ros2"], stats_period_s=0.0) as node:
             player: Player = node.component
             if args.start_offset > 0:
                 player.seek(player.start_ns + int(args.start_offset * 1e9))
