@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 import shutil
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -21,7 +22,7 @@ from rosbags.typesys import Stores, get_typestore
 from efficient_comm.testing import isolated_domain_id, unique_topic
 from robot_recorder import read_messages
 
-from ._cli import ros2, ros2_path, running
+from ._cli import cli_env, ros2, ros2_path, running
 
 PEER = Path(__file__).with_name("_cli_peer.py")
 STRING = "std_msgs/msg/String"
@@ -207,3 +208,50 @@ def test_record_says_recording_when_it_records_with_type_hashes_and_no_root_stat
     (entry,) = meta["topics_with_message_count"]
     assert expected_hash.startswith("RIHS01_")
     assert entry["topic_metadata"]["type_description_hash"] == expected_hash
+
+
+BURST_PEER = Path(__file__).with_name("_burst_peer.py")
+
+
+def test_messages_dds_loses_are_counted_and_said_at_the_end(tmp_path: Path) -> None:
+    """A reliable publisher of depth 1 sending a burst: DDS drops what the recorder has not
+    acknowledged yet. Every message is either in the bag or counted as lost."""
+    domain_id = isolated_domain_id()
+    topic, count = unique_topic("burst"), 2000
+    peer = subprocess.Popen([sys.executable, str(BURST_PEER), topic, str(count)],
+                            env=cli_env(domain_id), stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    assert peer.stdin is not None and peer.stdout is not None
+    try:
+        with running([ros2_path(), "bag", "record", "-o", "out", topic], domain_id=domain_id,
+                     log=tmp_path / "record.log", cwd=tmp_path) as rec, \
+             running([ros2_path(), "topic", "echo", "/rosbag2_recorder/status",
+                      "robot_recorder_interfaces/msg/RecorderStatus"], domain_id=domain_id,
+                     log=tmp_path / "status.log") as status:
+            rec.wait_for(lambda t: "Recording to 'out'" in t)
+            assert peer.stdout.readline().strip() == "ready"
+            peer.stdin.write("go\n")
+            peer.stdin.flush()
+            assert peer.stdout.readline().strip() == f"published {count}"
+
+            def accounted(text: str) -> bool:  # recorded + reported lost, in one status
+                for block in text.split("---"):
+                    written = re.search(r"^messages: (\d+)$", block, re.MULTILINE)
+                    dropped = re.search(r"^drops: (\d+)$", block, re.MULTILINE)
+                    if written and dropped and int(written[1]) + int(dropped[1]) == count:
+                        return True
+                return False
+
+            status.wait_for(accounted, timeout=60)
+            assert rec.stop(signal.SIGINT) == 0, rec.text()
+            said = rec.text()
+    finally:
+        peer.stdin.close()
+        peer.wait(30)
+        peer.stdout.close()
+    recorded = sum(1 for _ in read_messages(tmp_path / "out"))
+    match = re.search(rf"^Messages of {re.escape(topic)} missing from the bag: (\d+) lost by "
+                      r"DDS before they reached the recorder$", said, re.MULTILINE)
+    assert match, said
+    assert int(match[1]) > 0 and recorded + int(match[1]) == count, (recorded, match[1])

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import datetime
 import re
+import sys
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -155,10 +156,25 @@ def _record(args: argparse.Namespace) -> int:
                         next_scan = time.monotonic() + 0.5
                         known = _record_all(node, recorder, known, scanned)
             recorder.stop().result(_RECORD_START_S)
+            states = recorder.topic_states()
     except (EfficientCommError, RecorderError) as exc:
         raise CliError(str(exc)) from exc
     print(f"Recording stopped: '{out}'", flush=True)
+    _say_losses(states)
     return 0
+
+
+def _say_losses(states: dict[str, Any]) -> None:
+    """What was published but is not in the bag, per topic and why (stderr, like rosbag2's
+    warnings): lost by DDS before it reached the recorder, or dropped by the recorder."""
+    for name, state in sorted(states.items()):
+        reasons = [f"{n} {why}" for n, why in (
+            (state.dds_lost, "lost by DDS before they reached the recorder"),
+            (state.queue_drops, "dropped by the recorder (its queue was full)"),
+            (state.write_drops, "dropped by the recorder (not writable)")) if n]
+        if reasons:
+            print(f"Messages of {name} missing from the bag: {'; '.join(reasons)}",
+                  file=sys.stderr, flush=True)
 
 
 def _subscribe_requested(node: Standalone, recorder: Recorder, topics: list[str],
