@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
+from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -78,3 +79,14 @@ def matching_qos(offered: Sequence[QoSProfile], *, depth: int = 10) -> QoSProfil
         reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
     )
+
+
+def lost_events(on_lost: Callable[[int], None] | None) -> SubscriptionEventCallbacks | None:
+    """rclpy's event callbacks that tell ``on_lost`` how many more messages DDS lost."""
+    if on_lost is None:
+        return None
+
+    def lost(info: QoSMessageLostInfo) -> None:
+        on_lost(int(info.total_count_change))
+
+    return SubscriptionEventCallbacks(message_lost=lost)

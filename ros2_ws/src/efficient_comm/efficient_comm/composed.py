@@ -25,7 +25,7 @@ from ._future import Future
 from ._graph import NodeGraph
 from ._names import Resolver, check_node_name, fully_qualified
 from ._params import LocalParameters, ParameterMethods, RclpyParameters, parameter_type
-from ._qos import is_transient_local, to_profile
+from ._qos import is_transient_local, lost_events, to_profile
 from .bus import LocalPublisher, LocalSubscription
 from .errors import ComponentError
 from .executor import ExecutorTimer
@@ -264,7 +264,8 @@ class ComposedHandle(ParameterMethods):
         return pub
 
     def create_subscription(
-        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
+        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10,
+        on_lost: Callable[[int], None] | None = None,
     ) -> LocalSubscription:
         name = self.resolve_topic_name(topic)
         profile = to_profile(qos)
@@ -278,7 +279,8 @@ class ComposedHandle(ParameterMethods):
             # Only peers in other processes reach this reader (local endpoints are ignored).
             remote = (sub,)
             sub.dds = node.create_subscription(
-                msg_type, name, lambda msg: executor.dispatch(remote, msg, "dds"), profile
+                msg_type, name, lambda msg: executor.dispatch(remote, msg, "dds"), profile,
+                event_callbacks=lost_events(on_lost),
             )
         self._subscriptions.append(sub)
         return sub

@@ -234,8 +234,13 @@ class NodeHandle(Protocol):
     def create_publisher(self, msg_type: type, topic: str, *, qos: QoSLike = 10) -> Publisher: ...
 
     def create_subscription(
-        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
-    ) -> Subscription: ...
+        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10,
+        on_lost: Callable[[int], None] | None = None,
+    ) -> Subscription:
+        """``on_lost(n)``: DDS reports ``n`` more messages of a remote publisher that will
+        never arrive (a reliable KEEP_LAST writer dropped them unacknowledged, or the
+        transport did); called on the executor's thread. In-process delivery loses none."""
+        ...
 
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer: ...
 

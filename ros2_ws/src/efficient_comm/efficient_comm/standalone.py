@@ -35,7 +35,7 @@ from ._failures import failure_outcome, failure_response, report_failure, withou
 from ._future import Future
 from ._graph import NodeGraph
 from ._params import ParameterMethods, RclpyParameters
-from ._qos import to_profile
+from ._qos import lost_events, to_profile
 from ._signals import stop_on_sigterm
 from .config import ComponentSpec, resolve_factory
 from .errors import ComponentError
@@ -155,11 +155,13 @@ class StandaloneHandle(ParameterMethods):
         return self.rclpy_node.create_publisher(msg_type, topic, to_profile(qos))
 
     def create_subscription(
-        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10
+        self, msg_type: type, topic: str, callback: MessageCallback, *, qos: QoSLike = 10,
+        on_lost: Callable[[int], None] | None = None,
     ) -> Subscription:
         name = self.rclpy_node.resolve_topic_name(topic)
         return self.rclpy_node.create_subscription(
-            msg_type, topic, self._timed("subscription", name, callback), to_profile(qos)
+            msg_type, topic, self._timed("subscription", name, callback), to_profile(qos),
+            event_callbacks=lost_events(on_lost),
         )
 
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:

@@ -18,9 +18,12 @@ from rosbag2_layout import BagWriter as BagWriter
 from rosbag2_layout import FileSystem as FileSystem
 
 from .bag import BagMessage as BagMessage
+from .bag import mcap_files as mcap_files
 from .bag import read_messages as read_messages
 from .bag import read_metadata_records as read_metadata_records
 from .bag import recover as recover
+from .bag import reindex as reindex
+from .bag import unfinished_files as unfinished_files
 from .errors import PlaybackError as PlaybackError
 from .errors import RecorderConfigError as RecorderConfigError
 from .errors import RecorderError as RecorderError

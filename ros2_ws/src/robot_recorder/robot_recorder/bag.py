@@ -14,11 +14,12 @@ from pathlib import Path
 from rosbag2_layout import BagMessage, BagReader, QosDict, Rosbag2Error
 from rosbag2_layout import mcap_files as _mcap_files
 from rosbag2_layout import recover as _recover
+from rosbag2_layout import reindex as _reindex
 
 from .errors import PlaybackError
 
 __all__ = ["BagMessage", "mcap_files", "offered_qos", "read_messages", "read_metadata_records",
-           "recover"]
+           "recover", "reindex", "unfinished_files"]
 
 
 @contextlib.contextmanager
@@ -73,3 +74,15 @@ def recover(bag: str | Path, out: str | Path) -> int:
     """
     with _playback_errors():
         return _recover(bag, out)
+
+
+def reindex(bag: str | Path) -> int:
+    """Make bag directory ``bag`` whole where it is (file names kept); returns the count."""
+    with _playback_errors():
+        return _reindex(bag)
+
+
+def unfinished_files(bag: str | Path) -> list[Path]:
+    """The bag's files whose writer did not finish them (killed, or still recording)."""
+    with _playback_errors():
+        return BagReader(Path(bag)).unfinished()

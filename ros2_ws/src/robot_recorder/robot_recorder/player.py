@@ -159,6 +159,14 @@ class Player:
         """Recording time of the next message (-1 at the end)."""
         return self._times[self.position] if self.position < len(self._times) else -1
 
+    def bag_time_ns(self) -> int:
+        """The recording time playback is at now (what ``/clock`` publishes): advancing at
+        ``rate`` while playing, standing still while paused, waiting or finished."""
+        if self.paused or self.finished or self.waiting or self.position >= len(self._times):
+            return self._times[min(self.position, len(self._times) - 1)]
+        elapsed = self._node.clock.now_ns() - self._anchor_clock
+        return self._anchor_log + int(elapsed * self.rate)
+
     def pause(self) -> None:
         self.paused = True
 

@@ -27,7 +27,7 @@ from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
-from rclpy.qos import QoSProfile
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from efficient_comm import matching_qos, to_msg
 from efficient_comm.handle import NodeHandle, Subscription, TimerSchedule
@@ -323,7 +323,12 @@ class Recorder:
             endpoint = _Subsampled(self._node, msg_type, name, callback,
                                    options=throttle, qos=qos)
         else:
-            endpoint = self._node.create_subscription(msg_type, name, callback, qos=qos)
+            def lost(count: int, state: TopicState = state) -> None:
+                if self.writer.accepting:
+                    state.dds_lost += count
+
+            endpoint = self._node.create_subscription(msg_type, name, callback, qos=qos,
+                                                      on_lost=lost)
         self._active[name] = _Active(selection, state, endpoint)
 
     def _own_estimates(self, record: Callable[[Any], None], msg_type: type
@@ -548,7 +553,13 @@ def _record_qos(node: NodeHandle, topic: str) -> tuple[QoSProfile, list[QoSProfi
     all are, so a latched publisher's message from before the recorder started is recorded.
     """
     offered = node.graph.publishers_qos(topic)
-    return matching_qos(offered, depth=100), offered
+    qos = matching_qos(offered, depth=100)
+    if qos.reliability == ReliabilityPolicy.RELIABLE:
+        # KEEP_ALL: the reader never replaces a sample the executor has not taken yet (a
+        # loss nobody would report); a publisher that outruns it is held back by DDS's flow
+        # control, and what its own KEEP_LAST history drops then is reported (on_lost).
+        qos.history = HistoryPolicy.KEEP_ALL
+    return qos, offered
 
 
 def _timer_pacer(node: NodeHandle, before_s: float, after_s: float

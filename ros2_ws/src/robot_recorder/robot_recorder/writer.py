@@ -58,11 +58,14 @@ class TopicState:
     bytes: int = 0  # serialized bytes written (writer thread)
     queue_drops: int = 0  # queue full (callback thread)
     write_drops: int = 0  # could not be serialized or written (writer thread)
+    #: Never received: DDS reported them lost (a reliable KEEP_LAST publisher under load
+    #: drops its oldest unacknowledged samples). Callback thread.
+    dds_lost: int = 0
 
     @property
     def drops(self) -> int:
-        """Messages received but not recorded, for whatever reason."""
-        return self.queue_drops + self.write_drops
+        """Messages published but not recorded, for whatever reason (DDS's losses too)."""
+        return self.queue_drops + self.write_drops + self.dds_lost
 
 
 @dataclass
@@ -155,7 +158,7 @@ class RecordWriter:
         if bag.exists():
             raise RecorderConfigError(f"bag directory {bag} exists already")
         for topic in self.topics.values():
-            topic.queue_drops = 0
+            topic.queue_drops = topic.dds_lost = 0
         self.accepting = True
         return self._command(lambda: self._start(bag))
 

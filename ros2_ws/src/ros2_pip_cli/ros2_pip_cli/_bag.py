@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import shutil
+import re
+import sys
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -23,8 +25,10 @@ from robot_recorder import (
     Recorder,
     RecorderError,
     TopicSelection,
+    mcap_files,
     read_messages,
-    recover,
+    reindex,
+    unfinished_files,
 )
 
 from ._graph import StopSignal
@@ -32,6 +36,7 @@ from ._main import Commands, add_verbs, verb
 from .errors import CliError, UsageError
 
 _RECORD_START_S = 10.0
+_LINGER_S = 0.3
 
 
 def register(commands: Commands) -> None:
@@ -41,7 +46,14 @@ def register(commands: Commands) -> None:
     p.add_argument("topics_positional", nargs="*", metavar="topics",
                    help="List of topics to record")
     p.add_argument("--topics", nargs="+", default=[], help="List of topics to record")
-    p.add_argument("-a", "--all", action="store_true", help="Record all topics")
+    p.add_argument("-a", "--all", "--all-topics", dest="all", action="store_true",
+                   help="Record all topics")
+    p.add_argument("-e", "--regex", default="",
+                   help="Record only topics containing this regular expression")
+    p.add_argument("-x", "--exclude-regex", "--exclude", dest="exclude", default="",
+                   help="Exclude topics containing this regular expression (on top of "
+                        "--all, --topics or --regex)")
+    p.add_argument("--exclude-topics", nargs="+", default=[], help="Topics not to record")
     p.add_argument("-o", "--output", help="Destination of the bagfile to create "
                    "(default: rosbag2_YYYY_MM_DD-HH_MM_SS)")
     p.add_argument("-s", "--storage", default="mcap", help="Storage identifier: mcap only")
@@ -62,28 +74,53 @@ def register(commands: Commands) -> None:
                    help="List of topics to be remapped")
     p.add_argument("--start-offset", type=float, default=0.0,
                    help="Start the playback this many seconds into the bag")
-    p.add_argument("-s", "--storage", default="mcap", help="Storage identifier: mcap only")
+    p.add_argument("--start-paused", action="store_true",
+                   help="Start paused (resume with the player's ~/control service)")
+    p.add_argument("-d", "--delay", type=float, default=0.0,
+                   help="Sleep this many seconds before playing")
+    p.add_argument("--clock", type=float, nargs="?", const=40.0, default=0.0, metavar="HZ",
+                   help="Publish /clock at this frequency (default 40 Hz) with the bag's time")
+    p.add_argument("-s", "--storage", default="", help="Storage identifier: mcap or sqlite3 "
+                   "(read from the bag)")
     p = verb(verbs, "info", "Print information about a bag to the screen", _info)
     p.add_argument("bag_path")
-    p.add_argument("-s", "--storage", default="mcap", help="Storage identifier: mcap only")
+    p.add_argument("-s", "--storage", default="", help="Storage identifier: mcap or sqlite3 "
+                   "(read from the bag)")
     p = verb(verbs, "reindex", "Reconstruct metadata.yaml of a bag from its MCAP files",
              _reindex)
     p.add_argument("bag_path")
     p.add_argument("storage_id", nargs="?", default="mcap", help="mcap only")
 
 
-def _storage(storage: str) -> None:
-    if storage != "mcap":
-        raise UsageError(f"storage {storage!r}: this install reads and writes mcap only "
-                         "(a regular ROS 2 install (ros2cli) has the other storage plug-ins)")
+def _storage(storage: str, *, reading: bool = False) -> None:
+    if storage == "mcap" or (reading and storage in ("", "sqlite3")):
+        return
+    what = "writes mcap only" if not reading else "reads mcap and sqlite3 only"
+    raise UsageError(f"storage {storage!r}: this install {what} "
+                     "(a regular ROS 2 install (ros2cli) has the other storage plug-ins)")
 
 
 def _record(args: argparse.Namespace) -> int:
     _storage(args.storage)
-    topics = [*args.topics_positional, *args.topics]
-    if not topics and not args.all:
-        raise CliError("Need to specify at least one option out of --all, --topics or "
-                       "positional topics")
+    try:
+        include = re.compile(args.regex) if args.regex else None
+        exclude = re.compile(args.exclude) if args.exclude else None
+    except re.error as exc:
+        raise UsageError(f"invalid regular expression: {exc}") from exc
+    excluded = set(args.exclude_topics)
+
+    def wanted(name: str) -> bool:
+        return name not in excluded and not (exclude is not None and exclude.search(name))
+
+    topics = [t for t in [*args.topics_positional, *args.topics] if wanted(t)]
+    scan = args.all or include is not None
+    if not topics and not scan:
+        raise CliError("Need to specify at least one option out of --all, --regex, --topics "
+                       "or positional topics")
+
+    def scanned(name: str) -> bool:
+        return wanted(name) and (args.all or include is None or bool(include.search(name)))
+
     out = Path(args.output or datetime.datetime.now().strftime("rosbag2_%Y_%m_%d-%H_%M_%S"))
     if out.exists():
         raise CliError(f"Output folder '{out}' already exists.")
@@ -98,33 +135,77 @@ def _record(args: argparse.Namespace) -> int:
         return Recorder(handle, topics=topics, output_dir=out.parent, autostart=False)
 
     try:
-        with Standalone(make, name="rosbag2_recorder", args=ros_args) as node:
+        # stats_period_s=0: a command line tool is not a robot, and its statistics at the
+        # root namespace (/efficient_comm/stats) would be recorded by `record -a` and shown
+        # as a robot by debug_gui.
+        with Standalone(make, name="rosbag2_recorder", args=ros_args,
+                        stats_period_s=0.0) as node:
             recorder = node.component
             recorder.start(out).result(_RECORD_START_S)
-            print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
             known: dict[str, str] = dict.fromkeys(topics, "")
             next_scan = 0.0
+            waiting = {node.node.resolve_topic_name(t) for t in topics}
+            if not waiting:  # -a, -e: what appears is recorded as it appears
+                print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
             with StopSignal() as stop:
                 while not stop.requested:
                     node.spin_once(0.05)
-                    if args.all and time.monotonic() >= next_scan:
+                    if waiting:
+                        waiting = _subscribe_requested(node, recorder, topics, waiting, out)
+                    if scan and time.monotonic() >= next_scan:
                         next_scan = time.monotonic() + 0.5
-                        known = _record_all(node, recorder, known)
+                        known = _record_all(node, recorder, known, scanned)
             recorder.stop().result(_RECORD_START_S)
+            states = recorder.topic_states()
     except (EfficientCommError, RecorderError) as exc:
         raise CliError(str(exc)) from exc
     print(f"Recording stopped: '{out}'", flush=True)
+    _say_losses(states)
     return 0
 
 
-def _record_all(node: Standalone, recorder: Recorder, known: dict[str, str]) -> dict[str, str]:
-    """Add the topics that appeared since the last look (``-a``), as rosbag2 does.
+def _say_losses(states: dict[str, Any]) -> None:
+    """What was published but is not in the bag, per topic and why (stderr, like rosbag2's
+    warnings): lost by DDS before it reached the recorder, or dropped by the recorder."""
+    for name, state in sorted(states.items()):
+        reasons = [f"{n} {why}" for n, why in (
+            (state.dds_lost, "lost by DDS before they reached the recorder"),
+            (state.queue_drops, "dropped by the recorder (its queue was full)"),
+            (state.write_drops, "dropped by the recorder (not writable)")) if n]
+        if reasons:
+            print(f"Messages of {name} missing from the bag: {'; '.join(reasons)}",
+                  file=sys.stderr, flush=True)
+
+
+def _subscribe_requested(node: Standalone, recorder: Recorder, topics: list[str],
+                         waiting: set[str], out: Path) -> set[str]:
+    """Subscribe the requested topics as soon as the graph shows their types, and say
+    "Recording to" once all are subscribed, as rosbag2 says "All requested topics are
+    subscribed": from then on every message published is recorded. Returns the topics
+    still waited for."""
+    subscribed = recorder.topic_states()
+    if not waiting <= subscribed.keys():
+        recorder.set_topics([TopicSelection(name=t) for t in topics])  # looks at the graph
+        subscribed = recorder.topic_states()
+    for name in sorted(waiting & subscribed.keys()):
+        print(f"Subscribed to topic '{name}'", flush=True)
+    left = waiting - subscribed.keys()
+    if not left:
+        print(f"Recording to '{out}' (Ctrl-C stops)", flush=True)
+        print("All requested topics are subscribed. Stopping discovery...", flush=True)
+    return left
+
+
+def _record_all(node: Standalone, recorder: Recorder, known: dict[str, str],
+                wanted: Callable[[str], bool]) -> dict[str, str]:
+    """Add the ``wanted`` topics that appeared since the last look (``-a``, ``-e``), as
+    rosbag2 does.
 
     Types are given from the graph, so the recorder need not find them itself.
     """
     own = node.node.get_fully_qualified_name() + "/"
     graph = {name: types[0] for name, types in node.node.get_topic_names_and_types()
-             if types and not name.startswith(own)}
+             if types and not name.startswith(own) and wanted(name)}
     if graph.keys() <= known.keys():
         return known
     known = {**graph, **known}
@@ -133,24 +214,68 @@ def _record_all(node: Standalone, recorder: Recorder, known: dict[str, str]) -> 
 
 
 def _play(args: argparse.Namespace) -> int:
-    _storage(args.storage)
+    _storage(args.storage, reading=True)
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
+    if args.delay < 0 or args.clock < 0:
+        raise CliError("--delay and --clock must be >= 0")
+    bag = args.bag_path
+    if not Path(bag).exists():
+        raise CliError(f"Cannot play '{bag}': no such bag")
+
     def make(handle: Any) -> Player:
-        return Player(handle, bag=args.bag_path, topics=args.topics, remappings=args.remap,
-                      rate=args.rate, loop=args.loop)
+        return Player(handle, bag=bag, topics=args.topics, remappings=args.remap,
+                      rate=args.rate, loop=args.loop,
+                      start_paused=args.start_paused or args.delay > 0)
 
     try:
-        with Standalone(make, name="rosbag2_player", args=["ros2"]) as node:
+        with Standalone(make, name="rosbag2_player", args=["ros2"], stats_period_s=0.0) as node:
             player: Player = node.component
             if args.start_offset > 0:
                 player.seek(player.start_ns + int(args.start_offset * 1e9))
+            if args.clock:
+                _publish_clock(node, player, args.clock)
+            resume_at = time.monotonic() + args.delay if args.delay > 0 else None
             with StopSignal() as stop:
                 while not (player.finished or stop.requested):
                     node.spin_once(0.05)
+                    if resume_at is not None and time.monotonic() >= resume_at:
+                        resume_at = None
+                        if not args.start_paused:
+                            player.resume()
+                # A control call that ended playback (resume, step) still has its answer
+                # to send: a moment of spinning gets it out before the node goes.
+                end = time.monotonic() + _LINGER_S
+                while not stop.requested and time.monotonic() < end:
+                    node.spin_once(0.05)
     except (EfficientCommError, RecorderError) as exc:
-        raise CliError(str(exc).splitlines()[0]) from exc
+        raise CliError(f"Cannot play '{bag}': {_reason(exc)}") from exc
     return 0
+
+
+def _reason(exc: BaseException) -> str:
+    """The user's reason in one line: the recorder's own error where a constructor's
+    failure wraps it (no internal names such as ``_play.<locals>.make``)."""
+    cause: BaseException | None = exc
+    while cause is not None:
+        if isinstance(cause, RecorderError):
+            return str(cause).splitlines()[0] if str(cause) else type(cause).__name__
+        cause = cause.__cause__
+    return str(exc).splitlines()[0]
+
+
+def _publish_clock(node: Standalone, player: Player, hz: float) -> None:
+    """``/clock`` at ``hz`` with the bag's time, as rosbag2's ``--clock`` does."""
+    from rosgraph_msgs.msg import Clock
+
+    from efficient_comm import to_msg
+
+    publisher = node.node.create_publisher(Clock, "/clock", 10)
+
+    def tick() -> None:
+        publisher.publish(Clock(clock=to_msg(player.bag_time_ns())))
+
+    node.node.create_timer(1.0 / hz, tick)
 
 
 def _size(num: float) -> str:
@@ -173,19 +298,19 @@ def _stamp(ns: int) -> str:
 def _metadata(bag: Path) -> dict[str, Any]:
     """rosbag2's metadata of ``bag``: its metadata.yaml, or computed from the MCAP files."""
     meta = bag / "metadata.yaml"
-    if meta.is_file():
+    if meta.is_file() and not unfinished_files(bag):  # else it may not count the last chunks
         try:
             info: dict[str, Any] = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
             return info
         except (yaml.YAMLError, KeyError, TypeError) as exc:
             raise CliError(f"{meta} is not rosbag2 metadata: {exc}") from exc
     info = _metadata_from_messages(bag)
-    info["relative_file_paths"] = sorted(p.name for p in bag.glob("*.mcap"))
+    info["relative_file_paths"] = [p.name for p in mcap_files(bag)]
     return info
 
 
 def _info(args: argparse.Namespace) -> int:
-    _storage(args.storage)
+    _storage(args.storage, reading=True)
     bag = Path(args.bag_path)
     if not bag.exists():
         raise CliError(f"No bag at '{bag}'")
@@ -222,6 +347,8 @@ def _info(args: argparse.Namespace) -> int:
 def _metadata_of_file(path: Path) -> dict[str, Any]:
     info = _metadata_from_messages(path)
     info["relative_file_paths"] = [path.name]
+    if path.suffix == ".db3":
+        info["storage_identifier"] = "sqlite3"
     return info
 
 
@@ -246,26 +373,18 @@ def _metadata_from_messages(path: Path) -> dict[str, Any]:
 
 
 def _reindex(args: argparse.Namespace) -> int:
-    """Rewrite the bag from every readable message, so its metadata.yaml is complete again.
+    """Rewrite metadata.yaml from the bag's files, as rosbag2's reindex does.
 
-    robot_recorder's ``recover`` writes a complete bag (files cut short by a crash included);
-    the old files are replaced only once the new bag is written.
+    Files whose recorder was killed are finished where they are (robot_recorder's
+    ``reindex``); no file is renamed, so paths to them stay valid.
     """
     _storage(args.storage_id)
     bag = Path(args.bag_path)
     if not bag.is_dir():
         raise CliError(f"No bag directory at '{bag}'")
-    fresh = bag.with_name(bag.name + ".reindex")
-    if fresh.exists():
-        shutil.rmtree(fresh)
     try:
-        count = recover(bag, fresh)
+        count = reindex(bag)
     except RecorderError as exc:
-        shutil.rmtree(fresh, ignore_errors=True)
         raise CliError(str(exc)) from exc
-    old = bag.with_name(bag.name + ".old")
-    bag.rename(old)
-    fresh.rename(bag)
-    shutil.rmtree(old)
     print(f"Reindexed '{bag}': {count} messages")
     return 0

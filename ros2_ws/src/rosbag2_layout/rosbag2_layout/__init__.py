@@ -12,7 +12,8 @@ through this package, so both agree on every detail. Where things live (after ro
 * ``msgdefs``   message and service types by name and their complete ``ros2msg``
   definitions;
 * ``cdr``       the exact CDR length of a message (what rclpy's serializer pads);
-* ``recover``   a complete bag from one cut short;
+* ``livefile``  the MCAP file kept valid at every moment while it is written;
+* ``recover``   a complete bag from one cut short; ``reindex`` (metadata.yaml again);
 * ``errors``    :class:`Rosbag2Error` and its tree.
 
 Everything public is re-exported here once.
@@ -37,12 +38,14 @@ from .msgdefs import full_definition as full_definition
 from .msgdefs import import_service as import_service
 from .msgdefs import import_type as import_type
 from .msgdefs import service_definitions as service_definitions
+from .msgdefs import type_hash as type_hash
 from .msgdefs import type_name as type_name
 from .reader import BagMessage as BagMessage
 from .reader import BagReader as BagReader
 from .reader import TopicRecord as TopicRecord
 from .reader import mcap_files as mcap_files
 from .recover import recover as recover
+from .recover import reindex as reindex
 from .writer import BagWriter as BagWriter
 from .writer import FileSystem as FileSystem
 from .writer import TopicInfo as TopicInfo

@@ -20,6 +20,7 @@ from typing import Any, TypedDict, cast
 import yaml
 
 from .errors import BagFormatError
+from .msgdefs import type_hash
 
 __all__ = [
     "METADATA_VERSION",
@@ -251,7 +252,8 @@ def bag_metadata(
                     "type": type_name,
                     "serialization_format": "cdr",
                     "offered_qos_profiles": list(qos),
-                    "type_description_hash": "",
+                    "type_description_hash": type_hash(type_name) if "/" in type_name
+                    else "",
                 },
                 "message_count": count,
             }
@@ -294,6 +296,6 @@ def read_metadata(bag: str | Path) -> BagMetadata:
         reason = " ".join(str(exc).split())  # YAML errors span lines; one line for a CLI
         raise BagFormatError(f"{path} is not rosbag2 metadata: {reason}") from exc
     storage = info.get("storage_identifier", "mcap")
-    if storage != "mcap":
-        raise BagFormatError(f"{bag} uses storage {storage!r}; only mcap is supported")
+    if storage not in ("mcap", "sqlite3"):
+        raise BagFormatError(f"{bag} uses storage {storage!r}; mcap and sqlite3 are read")
     return cast(BagMetadata, info)

@@ -11,6 +11,7 @@ files come from ``share/<pkg>/msg/`` of every prefix on the ament index
 from __future__ import annotations
 
 import functools
+import json
 import os
 import re
 from pathlib import Path
@@ -21,7 +22,7 @@ from efficient_comm import EfficientCommError
 from .errors import UnknownTypeError
 
 __all__ = ["full_definition", "import_service", "import_type", "service_definitions",
-           "type_name"]
+           "type_hash", "type_name"]
 
 DELIMITER = "=" * 80
 _PRIMITIVES = frozenset({
@@ -74,6 +75,34 @@ def _msg_text(package: str, short: str) -> str:
         f"no {package}/msg/{short}.msg under share/ of any AMENT_PREFIX_PATH entry "
         f"({os.environ.get('AMENT_PREFIX_PATH', '')!r}); is the package installed and sourced?"
     )
+
+
+@functools.cache
+def type_hash(name: str) -> str:
+    """The type description hash of ``pkg/msg/Type`` (``RIHS01_...``), or "" if unknown.
+
+    rosbag2 (Jazzy) stores it per topic as ``type_description_hash``. rosidl computes it at
+    build time and installs it beside the .msg file (``share/<pkg>/msg/<Type>.json``, the
+    type description and its ``type_hashes``), which is where rclpy's type support has it
+    from too; a type built without it (before Iron) has none, and "" is what rosbag2 writes.
+    """
+    try:
+        package, short = _split(name)
+    except UnknownTypeError:
+        return ""
+    full = f"{package}/msg/{short}"
+    for prefix in _prefixes():
+        path = prefix / "share" / package / "msg" / f"{short}.json"
+        if path.is_file():
+            try:
+                hashes = json.loads(path.read_text(encoding="utf-8")).get("type_hashes", [])
+            except (OSError, ValueError, AttributeError):
+                return ""
+            for entry in hashes:
+                if isinstance(entry, dict) and entry.get("type_name") == full:
+                    return str(entry.get("hash_string", ""))
+            return ""
+    return ""
 
 
 def _dependencies(package: str, text: str) -> list[tuple[str, str]]:

@@ -32,6 +32,8 @@ from zstandard import ZstdError
 
 from .errors import BagFormatError, BagNotFoundError
 from .metadata import QosDict, parse_qos, read_metadata
+from .sqlite import SUFFIX as SQLITE_SUFFIX
+from .sqlite import sqlite_records, sqlite_topics
 
 __all__ = ["BagMessage", "BagReader", "TopicRecord", "mcap_files"]
 
@@ -68,7 +70,8 @@ class TopicRecord:
 
 
 def mcap_files(bag: str | Path) -> list[Path]:
-    """The MCAP files of a bag in recording order (``[bag]`` for one file)."""
+    """The files of a bag in recording order (``[bag]`` for one file): MCAP files, or
+    rosbag2's sqlite3 files (``.db3``, read only)."""
     path = Path(bag)
     if path.is_file():
         return [path]
@@ -81,19 +84,22 @@ def mcap_files(bag: str | Path) -> list[Path]:
         if missing := [str(p) for p in listed if not p.exists()]:
             raise BagNotFoundError(f"{path}: files listed in metadata.yaml are missing: "
                                    f"{missing}")
-        if compressed := [str(p) for p in listed if p.suffix != ".mcap"]:
+        if compressed := [str(p) for p in listed if p.suffix not in (".mcap", SQLITE_SUFFIX)]:
             raise BagFormatError(f"{path}: file-compressed bags are not supported: "
                                  f"{compressed}")
-    found = sorted(path.glob("*.mcap"), key=_index)
+    suffix = listed[0].suffix if listed else ".mcap"
+    found = sorted(path.glob(f"*{suffix}"), key=_index)
+    if not listed and not found:
+        found = sorted(path.glob(f"*{SQLITE_SUFFIX}"), key=_index)
     files = listed + [p for p in found if p not in listed]
     if not files:
-        raise BagFormatError(f"{path} holds no .mcap file")
+        raise BagFormatError(f"{path} holds no .mcap (or .db3) file")
     return files
 
 
 def _index(path: Path) -> tuple[str, int, str]:
     """Sort key: ``bag_2.mcap`` before ``bag_10.mcap``."""
-    match = re.search(r"^(.*)_(\d+)\.mcap$", path.name)
+    match = re.search(r"^(.*)_(\d+)\.(mcap|db3)$", path.name)
     return (match.group(1), int(match.group(2)), path.name) if match else (path.stem, 0, "")
 
 
@@ -139,6 +145,10 @@ class BagReader:
                     schema, channel)
 
         for file in self.files:
+            if file.suffix == SQLITE_SUFFIX:
+                for schema, channel in sqlite_topics(file).values():
+                    add(schema, channel)
+                continue
             summary = _summary(file)
             if summary is not None:
                 for channel in summary.channels.values():
@@ -152,6 +162,23 @@ class BagReader:
                     add(schemas.get(record.schema_id), record)
         return found
 
+    def unfinished(self) -> list[Path]:
+        """The files without a summary: their writer did not close them (killed, or still
+        writing). They are read in full, but metadata.yaml may not count all they hold."""
+        return [file for file in self.files
+                if file.suffix != SQLITE_SUFFIX and _summary(file) is None]
+
+    def file_stats(self, file: Path) -> tuple[int, int, int]:
+        """``(start_ns, end_ns, messages)`` of one of the bag's files, read from its records."""
+        start, end, count = 0, 0, 0
+        with open(file, "rb") as stream:
+            for _, _, message in self._file_records(file, stream, None):
+                stamp = message.log_time
+                start = stamp if not count else min(start, stamp)
+                end = max(end, stamp)
+                count += 1
+        return start, end, count
+
     def topics(self) -> set[str]:
         """Every topic name of the bag."""
         return set(self.topic_records())
@@ -159,6 +186,8 @@ class BagReader:
     def metadata(self) -> Iterator[tuple[str, dict[str, str]]]:
         """Every MCAP metadata record ``(name, key/values)`` of the bag's files, in order."""
         for file in self.files:
+            if file.suffix == SQLITE_SUFFIX:
+                continue  # sqlite3 bags hold no MCAP metadata records
             with open(file, "rb") as stream:
                 _check_magic(file, stream)
                 try:
@@ -179,6 +208,9 @@ class BagReader:
 
     def _file_records(self, file: Path, stream: IO[bytes], topics: list[str] | None
                       ) -> Iterator[Record]:
+        if file.suffix == SQLITE_SUFFIX:
+            yield from sqlite_records(file, topics)
+            return
         _check_magic(file, stream)
         try:
             reader = SeekingReader(stream, validate_crcs=True)

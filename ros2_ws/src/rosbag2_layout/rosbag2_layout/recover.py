@@ -1,4 +1,5 @@
-"""Recovering a bag cut short: every readable message written again as a complete bag.
+"""Recovering a bag cut short: every readable message written again as a complete bag, or
+the bag made whole where it is (:func:`reindex`).
 
 A recorder killed with SIGKILL (or a machine losing power, or a full disk) leaves its last
 MCAP file without summary and footer. :func:`recover` reads such files up to their last
@@ -8,12 +9,15 @@ profiles and MCAP metadata records (team_clock's clock estimates live there).
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
+from .errors import BagFormatError
+from .metadata import bag_metadata, metadata_text
 from .reader import BagReader
-from .writer import BagWriter
+from .writer import BagWriter, FileSystem
 
-__all__ = ["recover"]
+__all__ = ["recover", "reindex"]
 
 
 def recover(bag: str | Path, out: str | Path) -> int:
@@ -40,3 +44,39 @@ def recover(bag: str | Path, out: str | Path) -> int:
                          publish_time_ns=msg.publish_time_ns, sequence=msg.sequence)
             count += 1
     return count
+
+
+def reindex(bag: str | Path) -> int:
+    """Make bag directory ``bag`` whole where it is, as ``ros2 bag reindex`` does: every
+    file without a summary is rewritten with one (under its own name, replaced only once the
+    new one is written), then ``metadata.yaml`` is written from what the files hold.
+    File names never change. Returns the message count.
+    """
+    path = Path(bag)
+    if not path.is_dir():
+        raise BagFormatError(f"{path} is not a bag directory")
+    reader = BagReader(path)
+    scratch = path.parent / f".{path.name}.reindex"  # beside, so replace() is a rename
+    for file in reader.unfinished():
+        fresh = scratch / file.name
+        with contextlib.suppress(FileNotFoundError):
+            fresh.unlink()
+        try:
+            recover(file, fresh)
+            fresh.replace(file)
+        finally:
+            with contextlib.suppress(OSError):
+                fresh.unlink()
+            with contextlib.suppress(OSError):
+                scratch.rmdir()
+    reader = BagReader(path)
+    files = [(file.name, *reader.file_stats(file)) for file in reader.files]
+    counts: dict[str, int] = {}
+    for message in reader.messages():
+        counts[message.topic] = counts.get(message.topic, 0) + 1
+    topics = [(t.name, t.type, t.qos_profiles, counts.get(t.name, 0))
+              for t in reader.topic_records().values()]
+    metadata = bag_metadata(files=files, topics=topics, custom_data={"reindexed_by":
+                                                                     "rosbag2_layout"})
+    FileSystem().write_text(path / "metadata.yaml", metadata_text(metadata))
+    return sum(f[3] for f in files)

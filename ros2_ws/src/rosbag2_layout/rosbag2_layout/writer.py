@@ -34,6 +34,7 @@ from typing import IO, Any
 from mcap.writer import CompressionType, Writer
 
 from .errors import BagConfigError, BagWriteError
+from .livefile import LiveMcapStream
 from .metadata import QosDict, bag_metadata, dump_qos, metadata_text, parse_qos
 from .msgdefs import full_definition
 
@@ -73,6 +74,7 @@ class TopicInfo:
     schema_encoding: str = "ros2msg"
     messages: int = 0
     bytes: int = 0
+    committed: int = 0  # messages as of the last flush (what metadata.yaml says)
 
 
 @dataclass
@@ -81,13 +83,15 @@ class _FileInfo:
     start_ns: int = 0
     end_ns: int = 0
     messages: int = 0
-    complete: bool = False  # finished with summary and footer: listed in metadata.yaml
+    complete: bool = False  # finished with summary and footer
+    #: ``(start_ns, end_ns, messages)`` as of the last flush: what the file holds for sure.
+    committed: tuple[int, int, int] = (0, 0, 0)
 
 
 @dataclass
 class _OpenFile:
     info: _FileInfo
-    stream: IO[bytes]
+    stream: LiveMcapStream
     writer: Writer
     opened_ns: int
     channels: dict[str, int] = field(default_factory=dict)
@@ -233,6 +237,7 @@ class BagWriter:
             f = None
         if f is None:
             f = self._open_file(log_time_ns)
+        commits = f.stream.commits
         try:
             channel = f.channels.get(topic)
             if channel is None:
@@ -252,6 +257,8 @@ class BagWriter:
         meta.bytes += len(data)
         f.bytes += len(data)
         f.unflushed += 1
+        if f.stream.commits != commits:  # a full chunk, this message in it, is in the file
+            self._committed(f)
         self._since_free_check += len(data)
         if self._since_free_check >= min(_FREE_CHECK_BYTES, self._chunk_bytes):
             self._check_free()
@@ -276,6 +283,11 @@ class BagWriter:
             self._fail(f"writing {f.info.path}: {exc}", exc)
         f.unflushed = 0
         f.flushed_at = time.monotonic()
+        self._committed(f)
+        try:
+            self._write_metadata()  # a bag killed from now on lists this file and its counts
+        except OSError as exc:
+            self._fail(f"writing {self.path}/metadata.yaml: {exc}", exc)
         self._check_free()
 
     def split(self) -> Path | None:
@@ -303,7 +315,7 @@ class BagWriter:
         written bag must not look like a complete one."""
         f, self._open = self._open, None
         if f is not None:
-            _close_quietly(f.stream)
+            _abandon(f.stream)
         self.closed = True
         self._remove_all()
 
@@ -331,16 +343,18 @@ class BagWriter:
         path = self.path if self.single_file \
             else self.path / f"{self.path.name}_{len(self.files)}.mcap"
         try:
-            stream = self._fs.open_new(path)
+            stream = LiveMcapStream(self._fs.open_new(path))
         except OSError as exc:
             self._fail(f"opening {path}: {exc}", exc)
-        writer = Writer(stream, chunk_size=self._chunk_bytes, compression=self._compression)
+        writer = Writer(stream, chunk_size=self._chunk_bytes,  # type: ignore[arg-type]
+                        compression=self._compression)
         info = _FileInfo(path)
         self.files.append(info)
         f = _OpenFile(info, stream, writer, log_time_ns, flushed_at=time.monotonic())
         self._open = f
         try:
             writer.start(profile="ros2", library=self._library)
+            stream.flush()  # a valid, empty MCAP file from the start (livefile)
         except OSError as exc:
             self._fail(f"writing {path}: {exc}", exc)
         return f
@@ -372,16 +386,25 @@ class BagWriter:
                 records.update(self._file_metadata())
             for name, data in records.items():
                 f.writer.add_metadata(name, dict(data))
+            f.stream.finishing = True
             f.writer.finish()  # type: ignore[no-untyped-call]
             f.stream.close()
             f.info.complete = True
+            self._committed(f)
         except OSError as exc:
-            _close_quietly(f.stream)
+            _abandon(f.stream)
             self._fail(f"closing {f.info.path}: {exc}", exc, metadata=True)
         except BaseException:  # unforeseen: still give the file descriptor back
-            _close_quietly(f.stream)
+            _abandon(f.stream)
             raise
         self._write_metadata()
+
+    def _committed(self, f: _OpenFile) -> None:
+        """Everything written to ``f`` so far is in the file (after a flush or close)."""
+        info = f.info
+        info.committed = (info.start_ns, info.end_ns, info.messages)
+        for topic in self.topics.values():
+            topic.committed = topic.messages
 
     def _check_free(self) -> None:
         self._since_free_check = 0
@@ -401,11 +424,13 @@ class BagWriter:
         f, self._open = self._open, None
         if f is not None:
             try:
+                f.stream.finishing = True
                 f.writer.finish()  # type: ignore[no-untyped-call]
                 f.stream.close()
                 f.info.complete = True
+                self._committed(f)
             except OSError:
-                _close_quietly(f.stream)
+                _abandon(f.stream)
         with contextlib.suppress(OSError):
             self._write_metadata()
         self.closed = True
@@ -414,7 +439,7 @@ class BagWriter:
     def _fail(self, message: str, exc: OSError, *, metadata: bool = True) -> Any:
         f, self._open = self._open, None
         if f is not None:
-            _close_quietly(f.stream)
+            _abandon(f.stream)
         if metadata:
             with contextlib.suppress(OSError):
                 self._write_metadata()
@@ -422,21 +447,20 @@ class BagWriter:
         raise BagWriteError(message) from exc
 
     def _write_metadata(self) -> None:
-        # Called when no file is open (at creation, after a close, split or failure). Only
-        # files that were finished are listed: one a write error cut short has no summary,
-        # and rosbag2 and rosbags refuse a listed file without one. Readers here still find
-        # it beside the listed ones, and recover() makes it whole.
+        # At creation, after every flush, close, split or failure. Every file is listed
+        # with what it held at its last flush: the open one is a valid MCAP file at every
+        # moment (livefile), so rosbag2 and rosbags open a bag killed at any point.
         if self.single_file:
             return
         metadata = bag_metadata(
-            files=[(f.path.name, f.start_ns, f.end_ns, f.messages) for f in self.files
-                   if f.complete],
-            topics=[(t.name, t.type, t.qos_profiles, t.messages) for t in self.topics.values()],
+            files=[(f.path.name, *f.committed) for f in self.files],
+            topics=[(t.name, t.type, t.qos_profiles, t.committed)
+                    for t in self.topics.values()],
             custom_data={"writer": self._library, **self._custom_data},
         )
         self._fs.write_text(self.path / "metadata.yaml", metadata_text(metadata))
 
 
-def _close_quietly(stream: IO[bytes]) -> None:
+def _abandon(stream: LiveMcapStream) -> None:
     with contextlib.suppress(OSError):
-        stream.close()
+        stream.abandon()

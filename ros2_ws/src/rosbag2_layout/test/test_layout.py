@@ -7,6 +7,7 @@ from typing import IO, Any
 
 import pytest
 import yaml
+from mcap.reader import make_reader
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosbags.highlevel import AnyReader
@@ -51,8 +52,9 @@ class _Streams(FileSystem):
         return stream
 
 
-def _cut_bag(tmp_path: Path, *, max_file_bytes: int = 0) -> Path:
-    """A bag whose last file was cut mid-way, as SIGKILL leaves it (no summary, no footer)."""
+def _cut_bag(tmp_path: Path, *, max_file_bytes: int = 0, torn: bool = True) -> Path:
+    """A bag whose writer never finished its last file, as SIGKILL leaves it; ``torn``
+    also cuts the file's last bytes, as a machine losing power can (no footer at all)."""
     bag = tmp_path / "cut"
     fs = _Streams()
     writer = BagWriter(bag, min_free_bytes=0, chunk_bytes=256, max_file_bytes=max_file_bytes,
@@ -66,17 +68,32 @@ def _cut_bag(tmp_path: Path, *, max_file_bytes: int = 0) -> Path:
     assert file is not None
     for stream in fs.opened:  # the writer never finishes: dropped as a killed process
         stream.close()
-    size = file.stat().st_size
-    with open(file, "r+b") as f:
-        f.truncate(size - 3)
+    if torn:
+        size = file.stat().st_size
+        with open(file, "r+b") as f:
+            f.truncate(size - 3)
     return bag
 
 
-def test_a_bag_cut_short_has_metadata_yaml_and_rosbags_opens_it(tmp_path: Path) -> None:
+def test_a_bag_whose_writer_was_killed_opens_in_every_reader_with_every_message(
+        tmp_path: Path) -> None:
+    bag = _cut_bag(tmp_path, torn=False)
+    texts = [f"m{i}" for i in range(50)]
+    with Rosbag2Reader(bag) as reader:  # metadata.yaml lists the open file and its counts
+        assert reader.message_count == 50
+    with AnyReader([bag]) as any_reader:
+        decoded: list[Any] = [any_reader.deserialize(raw, conn.msgtype)
+                              for conn, _, raw in any_reader.messages()]
+    assert [m.data for m in decoded] == texts
+    with open(bag / "cut_0.mcap", "rb") as stream:  # mcap's seeking reader
+        assert len(list(make_reader(stream).iter_messages())) == 50
+    reader2 = BagReader(bag)
+    assert len(list(reader2.messages())) == 50
+    assert reader2.truncated == []
+
+
+def test_a_file_cut_mid_record_is_read_up_to_the_cut_by_our_reader(tmp_path: Path) -> None:
     bag = _cut_bag(tmp_path)
-    assert (bag / "metadata.yaml").is_file()
-    with Rosbag2Reader(bag) as reader:  # opens: lists the completed files (none yet)
-        assert reader.message_count == 0
     reader2 = BagReader(bag)
     assert len(list(reader2.messages())) > 0
     assert reader2.truncated == [bag / "cut_0.mcap"]
