@@ -49,7 +49,7 @@ from .errors import CliError, DaemonUnavailableError
 
 #: Bumped whenever requests or answers change: a daemon of another version gets another key.
 PROTOCOL = 1
-DIR_ENV = "ROS2_PIP_CLI_DAEMON_DIR"
+DAEMON_DIR_ENV = "ROS2_PIP_CLI_DAEMON_DIR"
 IDLE_ENV = "ROS2_PIP_CLI_DAEMON_IDLE_S"
 IDLE_S = 2 * 60 * 60
 #: What decides which participants discovery finds, and so which daemon may answer.
@@ -70,7 +70,7 @@ _POLL_S = 0.02
 # -- where ---------------------------------------------------------------------------------
 
 def daemon_dir() -> Path:
-    configured = os.environ.get(DIR_ENV)
+    configured = os.environ.get(DAEMON_DIR_ENV)
     if configured:
         return Path(configured)
     runtime = os.environ.get("XDG_RUNTIME_DIR")
@@ -140,12 +140,16 @@ def _request(paths: _Paths, request: dict[str, Any], *, timeout_s: float = 5.0,
     return _exchange(paths.socket, request, timeout_s=timeout_s)
 
 
+#: How a command starts the daemon (not ``-m``: the package imports this module itself).
+_DAEMON_MAIN = "import sys; from ros2_pip_cli._daemon import main; sys.exit(main(sys.argv[1:]))"
+
+
 def _start(paths: _Paths) -> bool:
     """Start a daemon and wait until it listens. False if it could not be started."""
     log = open(paths.log, "ab")  # noqa: SIM115 - handed to the child, closed below
     try:
         process = subprocess.Popen(
-            [sys.executable, "-m", "ros2_pip_cli._daemon", "--dir", str(paths.socket.parent),
+            [sys.executable, "-c", _DAEMON_MAIN, "--dir", str(paths.socket.parent),
              "--key", paths.socket.name[len("graph-"):-len(".sock")]],
             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=log, cwd="/",
             start_new_session=True)
@@ -236,7 +240,7 @@ def stop() -> bool:
 
 
 def stop_daemons(*, directory: Path) -> int:
-    """Stop every daemon whose socket is in ``directory`` (tests point ``DIR_ENV`` at a
+    """Stop every daemon whose socket is in ``directory`` (tests point ``DAEMON_DIR_ENV`` at a
     folder of their own and call this in teardown); returns how many were stopped."""
     stopped = 0
     for sock in sorted(Path(directory).glob("graph-*.sock")):
@@ -421,12 +425,8 @@ def _serve_requests(server: _Server, stop: threading.Event) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="ros2_pip_cli._daemon")
+    parser = argparse.ArgumentParser(prog="ros2_pip_cli graph daemon")
     parser.add_argument("--dir", required=True, type=Path)
     parser.add_argument("--key", required=True)
     args = parser.parse_args(argv)
     return serve(args.dir, args.key)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
