@@ -133,11 +133,6 @@ def _is_hidden(name: str) -> bool:
     return any(part.startswith("_") for part in name.split("/"))
 
 
-def _topics(node: CliNode, *, include_hidden: bool = True) -> list[tuple[str, list[str]]]:
-    return sorted((n, list(t)) for n, t in node.node.get_topic_names_and_types()
-                  if include_hidden or not _is_hidden(n))
-
-
 def _list(args: argparse.Namespace) -> int:
     topics = graph_view(args, Query()).topics
     return print_names([t for t in topics if args.include_hidden or not _is_hidden(t[0])], args)

@@ -88,8 +88,9 @@ def _tool_node(fqn: str, own: str) -> bool:
 
 
 def _tool_service(name: str, own: str) -> bool:
-    return name.startswith(own + "/") or name.rpartition("/")[0].rpartition("/")[2].startswith(
-        DAEMON_NODE_PREFIX)
+    """A service of the asking command's node or of a daemon's (``/<node>/<service>``)."""
+    owner = name.rpartition("/")[0]
+    return owner == own or owner.rpartition("/")[2].startswith(DAEMON_NODE_PREFIX)
 
 
 def present(node: Node, query: Query) -> bool:
