@@ -209,3 +209,27 @@ def test_endpoints_of_a_killed_process_go_with_its_lease(
     else:
         pytest.fail(f"{doomed_topic} still listed after {calls} calls")
     assert graph.out("topic", "list") == graph.out("topic", "list", "--no-daemon")
+
+
+def _daemon_processes(folder: Path) -> list[int]:
+    """Pids of the processes serving a daemon socket in ``folder``."""
+    pids = []
+    for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+        try:
+            args = cmdline.read_bytes().split(b"\0")
+        except OSError:  # ended meanwhile
+            continue
+        if b"--dir" in args and os.fsencode(folder) in args:
+            pids.append(int(cmdline.parent.name))
+    return pids
+
+
+def test_commands_starting_a_daemon_at_once_end_up_with_one(graph: Graph) -> None:
+    calls = [subprocess.Popen([ros2_path(), "topic", "list"], env=graph.env(),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(3)]
+    outputs = [call.communicate(timeout=90) for call in calls]
+    assert [call.returncode for call in calls] == [0, 0, 0], outputs
+    assert all(graph.topic in out.splitlines() for out, _ in outputs), outputs
+    assert len(_daemon_processes(graph.daemons)) == 1
+    assert graph.out("daemon", "status") == "The daemon is running\n"
