@@ -39,6 +39,7 @@ import sys
 import threading
 import time
 import uuid
+from collections.abc import Mapping
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -93,7 +94,8 @@ def _private_dir() -> Path:
     return folder
 
 
-def environment_key(environ: dict[str, str] | None = None) -> str:
+def environment_key(environ: Mapping[str, str] | None = None) -> str:
+    """The daemon a command with ``environ`` (default: this process's) may ask."""
     env = os.environ if environ is None else environ
     described = json.dumps([PROTOCOL, [env.get(v) for v in KEY_VARIABLES]])
     return hashlib.sha256(described.encode()).hexdigest()[:16]
