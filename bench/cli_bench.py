@@ -1,9 +1,13 @@
 """The ros2 command (ros2_pip_cli): how soon it answers, and whether echo and hz keep up.
 
 1. Graph answers: with three plain rclpy peer processes running (each a node with a topic),
-   the wall time of ``ros2 topic list`` and ``ros2 node list`` against a plain rclpy script
-   that knows what to expect and exits as soon as it has seen it (the best any discovery
-   can do, Python start-up included). Ratio = command / baseline.
+   the wall time of ``ros2 topic list`` and ``ros2 node list --no-daemon`` against a plain
+   rclpy script that knows what to expect and exits as soon as it has seen it (the best any
+   discovery can do, Python start-up included). Ratio = command / baseline.
+   Then the graph daemon: ``topic list``, ``node list``, ``service list``, ``topic info T``
+   and ``topic info`` of a topic nobody has, each timed cold (no daemon running: the call
+   starts one), warm (the next call) and with ``--no-daemon``; ratios against
+   ``--no-daemon`` in the same run. Warm answers are compared with ``--no-daemon`` ones.
 2. Keeping up: a publisher process sends std_msgs/String at 1 kHz, or 1 MiB
    sensor_msgs/Image at 30 Hz, numbering each message; ``ros2 topic hz`` reports a rate
    (ratio to the rate sent) and ``ros2 topic echo`` prints messages (ratio of the numbers
@@ -30,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from efficient_comm.testing import isolated_domain_id, stop_process_group  # noqa: E402
+from ros2_pip_cli import DAEMON_DIR_ENV, stop_daemons  # noqa: E402
 from tests._cli import cli_env, ros2_path  # noqa: E402
 
 LISTEN_S = 6.0
@@ -122,16 +127,49 @@ def graph_answers(env: dict[str, str]) -> dict[str, float]:
         out["baseline_s"] = time.perf_counter() - t0
         for verb in ("topic", "node"):
             t0 = time.perf_counter()
-            result = subprocess.run([ros2_path(), verb, "list"], env=env, capture_output=True,
-                                    text=True, timeout=60)
+            result = subprocess.run([ros2_path(), verb, "list", "--no-daemon"], env=env,
+                                    capture_output=True, text=True, timeout=60)
             out[f"{verb}_list_s"] = time.perf_counter() - t0
             expected = topics if verb == "topic" else ["/" + n for n in names]
             out[f"{verb}_list_complete"] = float(
                 set(expected) <= set(result.stdout.split()))
+        out.update(daemon_answers(env, topics[0]))
         return out
     finally:
         for p in peers:
             stop_process_group(p)
+
+
+#: What the daemon part times: a label and the command's arguments.
+DAEMON_CASES = {
+    "topic_list": ["topic", "list"],
+    "node_list": ["node", "list"],
+    "service_list": ["service", "list"],
+    "topic_info": ["topic", "info", "{topic}"],
+    "unknown_topic": ["topic", "info", "/bench_nobody_has_this"],
+}
+
+
+def _timed(args: list[str], env: dict[str, str]) -> tuple[float, str]:
+    t0 = time.perf_counter()
+    result = subprocess.run([ros2_path(), *args], env=env, capture_output=True, text=True,
+                            timeout=60)
+    return time.perf_counter() - t0, f"{result.returncode}\n{result.stdout}{result.stderr}"
+
+
+def daemon_answers(env: dict[str, str], topic: str) -> dict[str, float]:
+    """Cold, warm and --no-daemon wall times per case (and whether warm == --no-daemon)."""
+    out: dict[str, float] = {}
+    stop = [ros2_path(), "daemon", "stop"]
+    for case, template in DAEMON_CASES.items():
+        args = [a.format(topic=topic) for a in template]
+        subprocess.run(stop, env=env, capture_output=True, timeout=60, check=True)
+        out[f"{case}_cold_s"], _ = _timed(args, env)
+        out[f"{case}_warm_s"], warm = _timed(args, env)
+        out[f"{case}_no_daemon_s"], direct = _timed([*args, "--no-daemon"], env)
+        out[f"{case}_same"] = float(warm == direct)
+    subprocess.run(stop, env=env, capture_output=True, timeout=60, check=True)
+    return out
 
 
 def keeping_up(env: dict[str, str], kind: str, rate: float, tmp: Path,
@@ -182,14 +220,29 @@ def main() -> int:
                         help=f"seconds each rate measurement publishes (default: {LISTEN_S})")
     args = parser.parse_args()
     runs: list[dict[str, Any]] = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for i in range(args.repeat):
-            env = cli_env(isolated_domain_id())
-            run: dict[str, Any] = {"graph": graph_answers(env)}
-            run["string_1khz"] = keeping_up(env, "string", 1000.0, Path(tmp), args.listen)
-            run["image_30hz_1mib"] = keeping_up(env, "image", 30.0, Path(tmp), args.listen)
-            runs.append(run)
-            print(f"run {i + 1}: {json.dumps(run)}", file=sys.stderr, flush=True)
+    with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as daemons:
+        try:
+            runs = _runs(args, Path(tmp), Path(daemons))
+        finally:
+            stop_daemons(directory=Path(daemons))
+    _report(runs, args.out)
+    return 0
+
+
+def _runs(args: argparse.Namespace, tmp: Path, daemons: Path) -> list[dict[str, Any]]:
+    runs: list[dict[str, Any]] = []
+    for i in range(args.repeat):
+        env = cli_env(isolated_domain_id())
+        env[DAEMON_DIR_ENV] = str(daemons)
+        run: dict[str, Any] = {"graph": graph_answers(env)}
+        run["string_1khz"] = keeping_up(env, "string", 1000.0, tmp, args.listen)
+        run["image_30hz_1mib"] = keeping_up(env, "image", 30.0, tmp, args.listen)
+        runs.append(run)
+        print(f"run {i + 1}: {json.dumps(run)}", file=sys.stderr, flush=True)
+    return runs
+
+
+def _report(runs: list[dict[str, Any]], out: str) -> None:
 
     def med(section: str, key: str) -> float:
         return float(statistics.median(r[section][key] for r in runs))
@@ -201,7 +254,8 @@ def main() -> int:
     for verb in ("topic", "node"):
         value = med("graph", f"{verb}_list_s")
         complete = sum(r["graph"][f"{verb}_list_complete"] for r in runs)
-        print(f"| `ros2 {verb} list` ({complete:.0f}/{len(runs)} complete) | {value:.2f} s | "
+        print(f"| `ros2 {verb} list --no-daemon` ({complete:.0f}/{len(runs)} complete) | "
+              f"{value:.2f} s | "
               f"{value / base:.2f} |")
     for section, label in (("string_1khz", "String 1 kHz"),
                            ("image_30hz_1mib", "Image 1 MiB 30 Hz")):
@@ -211,9 +265,19 @@ def main() -> int:
         print(f"| `ros2 topic echo`, {label}: messages printed / sent while listening | "
               f"{med(section, 'echo_printed'):.0f} / {med(section, 'echo_window'):.0f} | "
               f"{med(section, 'echo_ratio'):.3f} |")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(runs, indent=1))
-    return 0
+    print()
+    print(f"| graph daemon (median of {len(runs)}) | cold | warm | --no-daemon | "
+          "warm / --no-daemon | cold / --no-daemon | warm == --no-daemon |")
+    print("|---|---|---|---|---|---|---|")
+    for case, template in DAEMON_CASES.items():
+        cold, warm, direct = (med("graph", f"{case}_{k}_s")
+                              for k in ("cold", "warm", "no_daemon"))
+        same = sum(r["graph"][f"{case}_same"] for r in runs)
+        shown = " ".join(template).replace("{topic}", "T")
+        print(f"| `ros2 {shown}` | {cold:.2f} s | {warm:.2f} s | {direct:.2f} s | "
+              f"{warm / direct:.3f} | {cold / direct:.2f} | {same:.0f}/{len(runs)} |")
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    Path(out).write_text(json.dumps(runs, indent=1))
 
 
 if __name__ == "__main__":

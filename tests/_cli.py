@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from efficient_comm.testing import ros_env, stop_process_group
+from ros2_pip_cli import DAEMON_DIR_ENV, stop_daemons
 
 ROOT = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
@@ -24,6 +25,23 @@ def cli_env(domain_id: int) -> dict[str, str]:
     env["PATH"] = f"{VENV_BIN}{os.pathsep}{env.get('PATH', '')}"
     env["PYTHONUNBUFFERED"] = "1"
     return env
+
+
+@contextmanager
+def daemons_in_tmp(directory: Path) -> Iterator[Path]:
+    """Point the ``ros2`` command's graph daemons (of this process's children) at
+    ``directory`` (made private, as the command requires) and stop them all on exit."""
+    directory.chmod(0o700)
+    previous = os.environ.get(DAEMON_DIR_ENV)
+    os.environ[DAEMON_DIR_ENV] = str(directory)
+    try:
+        yield directory
+    finally:
+        if previous is None:
+            del os.environ[DAEMON_DIR_ENV]
+        else:
+            os.environ[DAEMON_DIR_ENV] = previous
+        stop_daemons(directory=directory)
 
 
 def ros2_path() -> str:

@@ -1,7 +1,8 @@
 """The ros2 command's benchmark runs end to end (one short run).
 
 It asserts what the benchmark exists to show, not timings: the list verbs' answers are
-complete, and hz and echo see the messages sent (loosely: the machine is shared).
+complete, the graph daemon's answers equal those without it, and hz and echo see the
+messages sent (loosely: the machine is shared).
 """
 
 from __future__ import annotations
@@ -26,6 +27,9 @@ def test_cli_bench_smoke(tmp_path: Path) -> None:
     run = json.loads(out.read_text())[0]
     assert run["graph"]["topic_list_complete"] == 1.0
     assert run["graph"]["node_list_complete"] == 1.0
+    assert "| `ros2 topic info T` |" in result.stdout
+    for case in ("topic_list", "node_list", "service_list", "topic_info", "unknown_topic"):
+        assert run["graph"][f"{case}_same"] == 1.0, case  # the daemon answers as without it
     for section in ("string_1khz", "image_30hz_1mib"):
         assert run[section]["hz_seen"] > 0.5 * run[section]["hz_sent"]
         assert run[section]["echo_ratio"] > 0.5

@@ -9,14 +9,20 @@ Where things live:
 
 * ``_main``      the command line: commands, verbs, the error for what is not offered;
 * ``_graph``     a daemon-free node that waits for discovery until the graph is stable;
+* ``_view``      what the graph verbs print, from the daemon or from the command's own node;
+* ``_daemon``    the per-user graph daemon (its process, socket and ``ros2 daemon``);
 * ``_messages``  messages as YAML (``topic echo``) and from YAML (``topic pub``, calls);
 * ``_pkg``, ``_node``, ``_topic``, ``_service``, ``_param``, ``_interface``,
   ``_component``, ``_bag``: one module per command.
 
-The public API is :func:`main` and the error tree in ``errors``. What other tools share
-with ``topic echo`` (type names, messages as plain trees) is efficient_comm's.
+The public API is :func:`main` and the error tree in ``errors``, and for tests:
+:data:`DAEMON_DIR_ENV` (the variable naming the daemons' folder) and :func:`stop_daemons`
+(stop every daemon in a folder). What other tools share with ``topic echo`` (type names,
+messages as plain trees) is efficient_comm's.
 """
 
+from ._daemon import DAEMON_DIR_ENV as DAEMON_DIR_ENV
+from ._daemon import stop_daemons as stop_daemons
 from ._main import main as main
 from .errors import CliError as CliError
 from .errors import UsageError as UsageError

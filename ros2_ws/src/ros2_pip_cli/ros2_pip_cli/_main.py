@@ -7,6 +7,7 @@ parser sets ``run`` to a function of the parsed arguments returning an exit code
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import re
 import sys
@@ -94,16 +95,55 @@ def print_names(names: list[tuple[str, list[str]]], args: argparse.Namespace) ->
     return 0
 
 
-def build_parser() -> Parser:
-    from . import _bag, _component, _interface, _node, _param, _pkg, _service, _topic
+#: The verbs that take ros2cli's ``--no-daemon`` (those of ros2cli that do; verbs this
+#: install lacks are skipped). Only the graph verbs use the daemon (see _view); the others
+#: accept the option so that scripts written for ros2cli run.
+NO_DAEMON_VERBS = {
+    "topic": ("list", "info", "type", "echo", "find"),
+    "node": ("list", "info"),
+    "service": ("list", "type", "find", "info", "echo"),
+    "param": ("list", "get", "set", "dump", "load", "describe", "delete"),
+    "component": ("list", "load", "unload"),
+}
 
+
+def _add_no_daemon(commands: Commands) -> None:
+    for command, names in NO_DAEMON_VERBS.items():
+        verbs = _subparsers(commands.choices[command]) if command in commands.choices else None
+        for name in names:
+            if verbs is not None and name in verbs.choices:
+                verbs.choices[name].add_argument(
+                    "--no-daemon", action="store_true",
+                    help="Do not spawn nor use an already running daemon")
+
+
+def _subparsers(parser: argparse.ArgumentParser) -> Commands | None:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action
+    return None
+
+
+#: The commands and the module of each, imported only when its command is used: a graph
+#: verb answered by the daemon then loads what it needs, not every command's dependencies
+#: (``bag`` alone imports the recorder), which would be most of its run time.
+COMMAND_MODULES = {"bag": "_bag", "component": "_component", "daemon": "_daemon",
+                   "interface": "_interface", "node": "_node", "param": "_param",
+                   "pkg": "_pkg", "service": "_service", "topic": "_topic"}
+
+
+def build_parser(command: str | None = None) -> Parser:
+    """The parser of ``command`` only, if it is one of :data:`COMMAND_MODULES`; else of
+    all commands (for help and for the error that lists what is offered)."""
     parser = Parser(prog="ros2", description=(
         "The ros2 command of the pip install of ROS 2: the verbs most used, with ros2cli's "
         f"arguments and output formats; {HINT}."))
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                      parser_class=Parser)
-    for module in (_bag, _component, _interface, _node, _param, _pkg, _service, _topic):
-        module.register(commands)
+    names = [command] if command in COMMAND_MODULES else list(COMMAND_MODULES)
+    for name in names:
+        importlib.import_module(f".{COMMAND_MODULES[name]}", __package__).register(commands)
+    _add_no_daemon(commands)
     return parser
 
 
@@ -115,7 +155,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             from ._pkg import run_command
 
             return run_command(args_in[1:])
-        args, unknown = build_parser().parse_known_args(args_in)
+        args, unknown = build_parser(args_in[0] if args_in else None).parse_known_args(
+            args_in)
         if unknown:
             raise UsageError(offered_message(
                 args.parser, f"unrecognized arguments: {' '.join(unknown)}"))

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ._graph import absolute, cli_node
+from ._graph import absolute
 from ._main import Commands, add_spin_time, add_verbs, verb
+from ._view import Query, graph_view
 from .errors import CliError
 
 
@@ -24,11 +25,8 @@ def register(commands: Commands) -> None:
 
 
 def _list(args: argparse.Namespace) -> int:
-    with cli_node() as node:
-        node.settle(min_s=args.spin_time)
-        names = node.node_names(include_hidden=args.all)
-        own = node.node.get_fully_qualified_name()
-    names = [n for n in names if n != own]
+    names = [n for n in graph_view(args, Query()).nodes
+             if args.all or not n.rpartition("/")[2].startswith("_")]
     if args.count_nodes:
         print(len(names))
     else:
@@ -43,27 +41,20 @@ def _hidden(name: str) -> bool:
 
 def _info(args: argparse.Namespace) -> int:
     fqn = absolute(args.node_name)
-    with cli_node() as cli:
-        name, namespace = cli.require_node(fqn)
-        cli.settle(min_s=0.0)
-        count = cli.node_names(include_hidden=True).count(fqn)
-        if count > 1:
-            print(f"There are {count} nodes in the graph with the exact name \"{fqn}\". You are "
-                  "seeing information about only one of them.", file=sys.stderr)
-        node = cli.node
-        try:
-            sections = [
-                ("Subscribers", node.get_subscriber_names_and_types_by_node(name, namespace)),
-                ("Publishers", node.get_publisher_names_and_types_by_node(name, namespace)),
-                ("Service Servers", node.get_service_names_and_types_by_node(name, namespace)),
-                ("Service Clients", node.get_client_names_and_types_by_node(name, namespace)),
-            ]
-        except Exception as exc:  # the node left between the two queries
-            raise CliError(f"Unable to find node '{fqn}': {exc}") from exc
+    view = graph_view(args, Query(wait_kind="node", wait_name=fqn, settle_after_wait=True,
+                                  node=fqn))
+    count = view.nodes.count(fqn)
+    if not count:
+        raise CliError(f"Node not found: {fqn}")
+    if view.node_error:
+        raise CliError(f"Unable to find node '{fqn}': {view.node_error}")
+    if count > 1:
+        print(f"There are {count} nodes in the graph with the exact name \"{fqn}\". You are "
+              "seeing information about only one of them.", file=sys.stderr)
     print(fqn)
-    for title, entries in [*sections, ("Action Servers", []), ("Action Clients", [])]:
+    for title, entries in [*view.node_sections, ("Action Servers", []), ("Action Clients", [])]:
         print(f"  {title}:")
-        for topic, types in sorted(entries):
+        for topic, types in entries:
             if args.include_hidden or not _hidden(topic):
                 print(f"    {topic}: {', '.join(types)}")
     return 0

@@ -8,6 +8,7 @@ import time
 from ._graph import CliNode, cli_node
 from ._main import Commands, add_list_verb, add_verbs, print_names, verb
 from ._messages import import_interface, parse_values, set_message_fields
+from ._view import Query, graph_view
 from .errors import CliError
 
 
@@ -32,11 +33,8 @@ def _hidden(name: str) -> bool:
 
 
 def _list(args: argparse.Namespace) -> int:
-    with cli_node() as node:
-        node.settle(min_s=args.spin_time)
-        services = sorted((n, list(t)) for n, t in node.node.get_service_names_and_types()
-                          if args.include_hidden or not _hidden(n))
-    return print_names(services, args)
+    services = graph_view(args, Query()).services
+    return print_names([s for s in services if args.include_hidden or not _hidden(s[0])], args)
 
 
 def _types(node: CliNode, service: str) -> list[str]:
@@ -52,9 +50,12 @@ def _types(node: CliNode, service: str) -> list[str]:
 
 
 def _type(args: argparse.Namespace) -> int:
-    with cli_node() as node:
-        for name in _types(node, args.service_name):
-            print(name)
+    service = args.service_name
+    types = graph_view(args, Query(wait_kind="service", wait_name=service)).service_types(service)
+    if not types:
+        raise CliError(f"Unknown service '{service}'")
+    for name in types:
+        print(name)
     return 0
 
 

@@ -25,6 +25,7 @@ from rclpy.serialization import deserialize_message
 from ._graph import CliNode, StopSignal, cli_node
 from ._main import Commands, add_list_verb, add_verbs, print_names, verb
 from ._messages import import_interface, message_to_yaml, parse_values, set_message_fields
+from ._view import Query, graph_view
 from .errors import CliError
 
 HZ_WINDOW = 10000
@@ -132,16 +133,9 @@ def _is_hidden(name: str) -> bool:
     return any(part.startswith("_") for part in name.split("/"))
 
 
-def _topics(node: CliNode, *, include_hidden: bool = True) -> list[tuple[str, list[str]]]:
-    return sorted((n, list(t)) for n, t in node.node.get_topic_names_and_types()
-                  if include_hidden or not _is_hidden(n))
-
-
 def _list(args: argparse.Namespace) -> int:
-    with cli_node() as node:
-        node.settle(min_s=args.spin_time)
-        topics = _topics(node, include_hidden=args.include_hidden)
-    return print_names(topics, args)
+    topics = graph_view(args, Query()).topics
+    return print_names([t for t in topics if args.include_hidden or not _is_hidden(t[0])], args)
 
 
 def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) -> list[str]:
@@ -158,26 +152,30 @@ def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) ->
 
 
 def _info(args: argparse.Namespace) -> int:
-    with cli_node() as node:
-        types = topic_types(node, args.topic_name)
-        node.settle(min_s=0.0)
-        types = dict(node.node.get_topic_names_and_types()).get(args.topic_name, types)
-        end = "\n\n" if args.verbose else "\n"
-        print(f"Type: {types[0] if len(types) == 1 else types}", end=end)
-        print(f"Publisher count: {node.node.count_publishers(args.topic_name)}", end=end)
-        if args.verbose:
-            for info in node.node.get_publishers_info_by_topic(args.topic_name):
-                print(info, end=end)
-        print(f"Subscription count: {node.node.count_subscribers(args.topic_name)}", end=end)
-        if args.verbose:
-            for info in node.node.get_subscriptions_info_by_topic(args.topic_name):
-                print(info, end=end)
+    topic = args.topic_name
+    view = graph_view(args, Query(wait_kind="topic", wait_name=topic, settle_after_wait=True,
+                                  topic=topic))
+    types = view.topic_types(topic)
+    if not types:
+        raise CliError(f"Unknown topic '{topic}'")
+    end = "\n\n" if args.verbose else "\n"
+    print(f"Type: {types[0] if len(types) == 1 else types}", end=end)
+    print(f"Publisher count: {view.publisher_count}", end=end)
+    if args.verbose:
+        for info in view.publishers:
+            print(info, end=end)
+    print(f"Subscription count: {view.subscription_count}", end=end)
+    if args.verbose:
+        for info in view.subscriptions:
+            print(info, end=end)
     return 0
 
 
 def _type(args: argparse.Namespace) -> int:
-    with cli_node() as node:
-        types = topic_types(node, args.topic_name)
+    topic = args.topic_name
+    types = graph_view(args, Query(wait_kind="topic", wait_name=topic)).topic_types(topic)
+    if not types:
+        raise CliError(f"Unknown topic '{topic}'")
     for name in types:
         print(name)
     return 0
