@@ -29,6 +29,9 @@ def _names_an_interface_module(text: ast.expr) -> bool:
     ``".".join(namespaces)`` of a rosidl type."""
     if isinstance(text, ast.Call) and isinstance(text.func, ast.Attribute):
         return text.func.attr == "join" and getattr(text.func.value, "value", None) == "."
+    if (isinstance(text, ast.JoinedStr) and text.values and isinstance(text.values[0], ast.Constant)
+            and str(text.values[0].value).startswith(".")):
+        return False  # a relative import: a module of the package itself, never a rosidl one
     return isinstance(text, ast.JoinedStr) and any(
         (isinstance(v, ast.Constant) and re.search(r"\.(msg|srv|action)$", str(v.value)))
         or (isinstance(v, ast.FormattedValue) and isinstance(v.value, ast.Subscript))
