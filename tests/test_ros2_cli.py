@@ -149,6 +149,20 @@ def test_service_verbs(peer: Peer) -> None:
     assert len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
 
 
+def test_service_call_converts_the_request_by_the_fields_type(peer: Peer) -> None:
+    srv = "efficient_comm_interfaces/srv/UnloadComponent"
+    out = run(peer, "service", "call", "/cli_peer/check", srv, "{unique_id: '7'}")
+    assert "success=True, error_message='got 7'" in out
+    piped = ros2("service", "call", "--stdin", "/cli_peer/check", srv,
+                 domain_id=peer.domain_id, stdin="unique_id: 7\n")
+    assert "success=True, error_message='got 7'" in piped.stdout, piped.stderr
+    for bad in ("{unique_id: seven}", "{unique_id: -1}"):
+        result = ros2("service", "call", "/cli_peer/check", srv, bad, domain_id=peer.domain_id)
+        assert result.returncode == 1 and "unique_id" in result.stderr, result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1 and "making request" not in \
+            result.stdout
+
+
 def test_run_and_pkg() -> None:
     domain_id = isolated_domain_id()
     prefix = ros2("pkg", "prefix", "efficient_comm", domain_id=domain_id).stdout.strip()
@@ -177,8 +191,8 @@ def test_interface_verbs() -> None:
 
 @pytest.mark.parametrize("args, offered", [
     (["launch", "x"], "bag, component"),
-    (["topic", "find", "x"], "list, info, type, echo, hz, bw, pub"),
-    (["topic", "echo", "/x", "--csv"], "--once"),
+    (["topic", "delay", "x"], "list, info, type, echo, hz, bw, pub"),
+    (["topic", "echo", "/x", "--no-lost-messages"], "--once"),
 ])
 def test_what_is_not_offered_says_what_is(args: list[str], offered: str) -> None:
     result = ros2(*args, domain_id=isolated_domain_id())

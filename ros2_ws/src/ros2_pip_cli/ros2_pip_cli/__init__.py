@@ -9,7 +9,8 @@ Where things live:
 
 * ``_main``      the command line: commands, verbs, the error for what is not offered;
 * ``_graph``     a daemon-free node that waits for discovery until the graph is stable;
-* ``_messages``  messages as YAML (``topic echo``) and from YAML (``topic pub``, calls);
+* ``_messages``  messages as YAML and CSV (``topic echo``);
+* ``_fill``      YAML values into messages by the fields' types (``topic pub``, calls);
 * ``_pkg``, ``_node``, ``_topic``, ``_service``, ``_param``, ``_interface``,
   ``_component``, ``_bag``: one module per command.
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import time
 
+from ._fill import parse_values, read_values, set_message_fields
 from ._graph import CliNode, cli_node
 from ._main import Commands, add_list_verb, add_verbs, print_names, verb
-from ._messages import import_interface, parse_values, set_message_fields
+from ._messages import import_interface
 from .errors import CliError
 
 
@@ -21,8 +22,9 @@ def register(commands: Commands) -> None:
     p.add_argument("service_type", nargs="?",
                    help="Type of the ROS service (e.g. 'std_srvs/srv/Empty'); "
                         "looked up in the graph when left out")
-    p.add_argument("values", nargs="?", default="{}",
+    p.add_argument("values", nargs="?", default=None,
                    help="Values to fill the request with in YAML format, e.g. '{a: 1, b: 2}'")
+    p.add_argument("--stdin", action="store_true", help="Read values from standard input")
     p.add_argument("-r", "--rate", type=float, metavar="N",
                    help="Repeat the call at a specific rate in Hz")
 
@@ -68,7 +70,7 @@ def _call(args: argparse.Namespace) -> int:
         type_name = args.service_type or _types(node, args.service_name)[0]
         srv = import_interface(type_name, "srv")
         request = srv.Request()
-        set_message_fields(request, parse_values(args.values))
+        set_message_fields(request, parse_values(read_values(args)))
         client = node.node.create_client(srv, args.service_name)
         if not client.service_is_ready():
             print("waiting for service to become available...", flush=True)

@@ -22,9 +22,10 @@ from rclpy.qos import (
 )
 from rclpy.serialization import deserialize_message
 
+from ._fill import parse_values, read_values, set_message_fields
 from ._graph import CliNode, StopSignal, cli_node
 from ._main import Commands, add_list_verb, add_verbs, print_names, verb
-from ._messages import import_interface, message_to_yaml, parse_values, set_message_fields
+from ._messages import import_interface, message_to_csv, message_to_yaml
 from .errors import CliError
 
 HZ_WINDOW = 10000
@@ -58,6 +59,11 @@ def register(commands: Commands) -> None:
     p.add_argument("--no-str", action="store_true", help="Don't print string fields")
     p.add_argument("--flow-style", action="store_true", help="Print collections in flow style")
     p.add_argument("--raw", action="store_true", help="Echo the raw binary representation")
+    p.add_argument("--csv", action="store_true",
+                   help="Output all recursive fields separated by commas (e.g. for plotting)")
+    p.add_argument("--filter", dest="filter_expr",
+                   help="Python expression to filter messages that are printed. Expression "
+                        "can use Python builtins as well as m (the message).")
     p.add_argument("--once", action="store_true",
                    help="Print the first message received and then exit")
     p.add_argument("--timeout", type=float, metavar="N",
@@ -78,8 +84,10 @@ def register(commands: Commands) -> None:
     p = verb(verbs, "pub", "Publish a message to a topic", _pub)
     p.add_argument("topic_name")
     p.add_argument("message_type", help="Type of the ROS message (e.g. 'std_msgs/String')")
-    p.add_argument("values", nargs="?", default="{}",
-                   help="Values to fill the message with in YAML format, e.g. 'data: Hello'")
+    p.add_argument("values", nargs="?", default=None,
+                   help="Values to fill the message with in YAML format, e.g. 'data: Hello' "
+                        "('header: auto' and 'stamp: now' put the time of each publish)")
+    p.add_argument("--stdin", action="store_true", help="Read values from standard input")
     _add_qos_arguments(p, "default")
     p.add_argument("-r", "--rate", type=float, default=1.0, metavar="N",
                    help="Publishing rate in Hz (default: 1)")
@@ -223,6 +231,7 @@ def _echo(args: argparse.Namespace) -> int:
     if args.field is not None and not fields:
         raise CliError(f"Invalid field value '{args.field}'")
     truncate = None if args.full_length else args.truncate_length
+    keep = _message_filter(args.filter_expr)
     deadline = time.monotonic() + args.timeout if args.timeout else None
     with cli_node() as node:
         wait = None if deadline is None else max(0.0, deadline - time.monotonic())
@@ -237,16 +246,23 @@ def _echo(args: argparse.Namespace) -> int:
             nonlocal done
             if done:
                 return
-            if args.raw:
-                out.write(f"{data!r}\n---\n")
-            else:
-                value: Any = deserialize_message(data, msg_class)
+            value: Any = data
+            if not args.raw:
+                value = deserialize_message(data, msg_class)
                 for field in fields:
                     try:
                         value = getattr(value, field)
                     except AttributeError as exc:
                         raise CliError(f"Invalid field '{args.field}': {exc}") from exc
-                if hasattr(value, "get_fields_and_field_types"):
+            if keep is not None and not keep(value):
+                return
+            if args.raw:
+                out.write(f"{data!r}\n---\n")
+            else:
+                if args.csv and hasattr(value, "get_fields_and_field_types"):
+                    out.write(message_to_csv(value, truncate_length=truncate,
+                                             no_arr=args.no_arr, no_str=args.no_str) + "\n")
+                elif hasattr(value, "get_fields_and_field_types"):
                     out.write(message_to_yaml(value, truncate_length=truncate,
                                               no_arr=args.no_arr, no_str=args.no_str,
                                               flow_style=args.flow_style) + "---\n")
@@ -262,6 +278,26 @@ def _echo(args: argparse.Namespace) -> int:
                                                     or time.monotonic() < deadline):
                 node.spin_once(0.1)
     return 0
+
+
+def _message_filter(expression: str | None) -> Any:
+    """ros2cli's ``--filter``: a Python expression of ``m`` (the message, or the field given
+    with ``--field``); a message is printed when it is true. Compiled once, so a syntax error
+    is one line before anything is received."""
+    if expression is None:
+        return None
+    try:
+        code = compile(expression, "--filter", "eval")
+    except SyntaxError as exc:
+        raise CliError(f"Invalid --filter expression {expression!r}: {exc.msg}") from exc
+
+    def keep(m: Any) -> bool:
+        try:
+            return bool(eval(code, {"m": m}))  # the user's own expression, as ros2cli
+        except Exception as exc:
+            raise CliError(f"--filter {expression!r} failed on a message: {exc!r}") from exc
+
+    return keep
 
 
 class _Rate:
@@ -364,9 +400,9 @@ def _bw(args: argparse.Namespace) -> int:
 
 def _pub(args: argparse.Namespace) -> int:
     msg_class = import_interface(args.message_type)
-    values = parse_values(args.values)
+    values = parse_values(read_values(args))
     msg = msg_class()
-    set_message_fields(msg, values)
+    stamps = set_message_fields(msg, values, expand_stamps=True)
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
     times = 1 if args.once else args.times
@@ -398,6 +434,10 @@ def _pub(args: argparse.Namespace) -> int:
                     continue
                 next_at += period
                 count += 1
+                if stamps:
+                    now = node.node.get_clock().now().to_msg()
+                    for set_stamp in stamps:
+                        set_stamp(now)
                 if args.print and count % args.print == 0:
                     print(f"publishing #{count}: {msg!r}\n", flush=True)
                 pub.publish(msg)
