@@ -18,9 +18,12 @@ from typing import Any
 
 import rclpy
 from rclpy.context import Context
+from rclpy.exceptions import NameValidationException
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.expand_topic_name import expand_topic_name
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from .errors import CliError
 
@@ -124,6 +127,20 @@ class CliNode:
             return future.result()
         finally:
             self.node.destroy_client(client)
+
+    def resolve(self, name: str, *, kind: str = "topic") -> str:
+        """A topic or service name as the graph spells it: ``chatter`` -> ``/chatter``.
+
+        ros2cli resolves the names it is given as rclpy does for its own node (relative to
+        the root namespace, ``~`` to the command's node); an invalid name is one line."""
+        try:
+            expanded = expand_topic_name(name, self.node.get_name(),
+                                         self.node.get_namespace())
+            validate_full_topic_name(expanded, is_service=kind == "service")
+        except (ValueError, NameValidationException) as exc:
+            raise CliError(f"Invalid {kind} name {name!r}: "
+                           f"{str(exc).splitlines()[0].split(', at /')[0]}") from exc
+        return expanded
 
     # -- graph queries shared by several commands ------------------------------------------
 

@@ -55,7 +55,7 @@ def _types(node: CliNode, service: str) -> list[str]:
 
 def _type(args: argparse.Namespace) -> int:
     with cli_node() as node:
-        for name in _types(node, args.service_name):
+        for name in _types(node, node.resolve(args.service_name, kind="service")):
             print(name)
     return 0
 
@@ -67,11 +67,12 @@ def _call(args: argparse.Namespace) -> int:
     if args.rate is not None and not args.rate > 0:
         raise CliError("--rate must be > 0")
     with cli_node() as node:
-        type_name = args.service_type or _types(node, args.service_name)[0]
+        service = node.resolve(args.service_name, kind="service")
+        type_name = args.service_type or _types(node, service)[0]
         srv = import_interface(type_name, "srv")
         request = srv.Request()
         set_message_fields(request, parse_values(read_values(args)))
-        client = node.node.create_client(srv, args.service_name)
+        client = node.node.create_client(srv, service)
         if not client.service_is_ready():
             print("waiting for service to become available...", flush=True)
             node.wait_for(client.service_is_ready, timeout_s=float("inf"))

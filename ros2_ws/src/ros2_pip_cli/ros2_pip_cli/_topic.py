@@ -1,4 +1,4 @@
-"""``ros2 topic list|info|type|echo|hz|bw|pub``, printing what ros2cli prints.
+"""``ros2 topic list|info|find|type|echo|hz|bw|pub``, printing what ros2cli prints.
 
 ``hz`` and ``bw`` subscribe raw (serialized bytes, never deserialized) so they keep up with
 fast and large topics; ``echo`` deserializes only what it prints.
@@ -24,7 +24,7 @@ from rclpy.serialization import deserialize_message
 
 from ._fill import parse_values, read_values, set_message_fields
 from ._graph import CliNode, StopSignal, cli_node
-from ._main import Commands, add_list_verb, add_verbs, print_names, verb
+from ._main import Commands, add_list_verb, add_spin_time, add_verbs, print_names, verb
 from ._messages import import_interface, message_to_csv, message_to_yaml
 from .errors import CliError
 
@@ -39,9 +39,19 @@ def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "topic", "Various topic related sub-commands")
     add_list_verb(verbs, "topic", _list)
     p = verb(verbs, "info", "Print information about a topic", _info)
+    add_spin_time(p)
     p.add_argument("topic_name")
     p.add_argument("-v", "--verbose", action="store_true",
                    help="Print detailed information like QoS of the endpoints")
+    p = verb(verbs, "find", "Output a list of available topics of a given type", _find)
+    add_spin_time(p)
+    p.add_argument("topic_type",
+                   help="Name of the ROS topic type to filter for (e.g. 'std_msgs/msg/String')")
+    p.add_argument("-c", "--count-topics", dest="count", action="store_true",
+                   help="Only display the number of topics discovered")
+    p.add_argument("--include-hidden-topics", action="store_true",
+                   help="Consider hidden topics as well")
+    p.set_defaults(show_types=False)
     p = verb(verbs, "type", "Print a topic's type", _type)
     p.add_argument("topic_name")
     p = verb(verbs, "echo", "Output messages from a topic", _echo)
@@ -152,6 +162,15 @@ def _list(args: argparse.Namespace) -> int:
     return print_names(topics, args)
 
 
+def _find(args: argparse.Namespace) -> int:
+    """ros2cli's ``topic find``: the topics with exactly this type among their types."""
+    with cli_node() as node:
+        node.settle(min_s=args.spin_time)
+        topics = _topics(node, include_hidden=args.include_hidden_topics)
+    return print_names([(name, types) for name, types in topics if args.topic_type in types],
+                       args)
+
+
 def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) -> list[str]:
     """The types of ``topic`` once it has appeared in the graph; CliError if it does not."""
     found: list[str] = []
@@ -167,25 +186,30 @@ def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) ->
 
 def _info(args: argparse.Namespace) -> int:
     with cli_node() as node:
-        types = topic_types(node, args.topic_name)
-        node.settle(min_s=0.0)
-        types = dict(node.node.get_topic_names_and_types()).get(args.topic_name, types)
+        topic = node.resolve(args.topic_name)
+        types = topic_types(node, topic)
+        # A topic's endpoints live in many processes, each announcing itself on its own
+        # schedule: the first one seen says nothing about the others, so listen as the list
+        # verbs do (one announcement period, then until the graph is stable).
+        node.settle(min_s=args.spin_time)
+        types = dict(node.node.get_topic_names_and_types()).get(topic, types)
         end = "\n\n" if args.verbose else "\n"
         print(f"Type: {types[0] if len(types) == 1 else types}", end=end)
-        print(f"Publisher count: {node.node.count_publishers(args.topic_name)}", end=end)
+        print(f"Publisher count: {node.node.count_publishers(topic)}", end=end)
         if args.verbose:
-            for info in node.node.get_publishers_info_by_topic(args.topic_name):
+            for info in node.node.get_publishers_info_by_topic(topic):
                 print(info, end=end)
-        print(f"Subscription count: {node.node.count_subscribers(args.topic_name)}", end=end)
+        print(f"Subscription count: {node.node.count_subscribers(topic)}", end=end)
         if args.verbose:
-            for info in node.node.get_subscriptions_info_by_topic(args.topic_name):
+            for info in node.node.get_subscriptions_info_by_topic(topic):
                 print(info, end=end)
     return 0
 
 
 def _type(args: argparse.Namespace) -> int:
     with cli_node() as node:
-        types = topic_types(node, args.topic_name)
+        topic = node.resolve(args.topic_name)
+        types = topic_types(node, topic)
     for name in types:
         print(name)
     return 0
@@ -234,11 +258,12 @@ def _echo(args: argparse.Namespace) -> int:
     keep = _message_filter(args.filter_expr)
     deadline = time.monotonic() + args.timeout if args.timeout else None
     with cli_node() as node:
+        topic = node.resolve(args.topic_name)
         wait = None if deadline is None else max(0.0, deadline - time.monotonic())
-        msg_class = _message_class(node, args.topic_name, args.message_type, wait)
+        msg_class = _message_class(node, topic, args.message_type, wait)
         # Publishers of a topic are often discovered a little after the topic itself.
-        node.wait_for(lambda: node.node.count_publishers(args.topic_name) > 0, timeout_s=0.5)
-        qos = _subscription_qos(node, args.topic_name, args)
+        node.wait_for(lambda: node.node.count_publishers(topic) > 0, timeout_s=0.5)
+        qos = _subscription_qos(node, topic, args)
         done = False
         out = sys.stdout
 
@@ -272,7 +297,7 @@ def _echo(args: argparse.Namespace) -> int:
             if args.once:
                 done = True
 
-        node.node.create_subscription(msg_class, args.topic_name, on_message, qos, raw=True)
+        node.node.create_subscription(msg_class, topic, on_message, qos, raw=True)
         with StopSignal() as stop:
             while not (done or stop.requested) and (deadline is None
                                                     or time.monotonic() < deadline):
@@ -335,6 +360,7 @@ class _Rate:
 def _raw_monitor(args: argparse.Namespace, topic: str, on_message: Any, report: Any) -> int:
     """Subscribe raw to ``topic`` (waiting for it to appear) and print ``report()`` each second."""
     with cli_node() as node:
+        topic = node.resolve(topic)
         msg_class = None
         warned = False
         while msg_class is None:
