@@ -50,11 +50,11 @@ def ros2_path() -> str:
     return found
 
 
-def ros2(*args: str, domain_id: int, timeout: float = 60,
-         cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    """``ros2 ARGS`` to completion."""
+def ros2(*args: str, domain_id: int, timeout: float = 60, cwd: Path | None = None,
+         stdin: str = "") -> subprocess.CompletedProcess[str]:
+    """``ros2 ARGS`` to completion (``stdin`` is what it reads on standard input)."""
     return subprocess.run([ros2_path(), *args], env=cli_env(domain_id), capture_output=True,
-                          text=True, timeout=timeout, cwd=cwd)
+                          text=True, timeout=timeout, cwd=cwd, input=stdin)
 
 
 class Running:

@@ -1,9 +1,10 @@
 """A plain rclpy node (no efficient_comm) for the ros2 command's tests.
 
 ``python tests/_cli_peer.py TOPIC`` publishes std_msgs/String ``hello N`` on TOPIC at 20 Hz,
-subscribes to TOPIC + "_in" and prints what it receives, declares parameters of each kind,
-offers a service ``~/check`` (efficient_comm_interfaces/srv/UnloadComponent: success when the
-id is 7) and prints ``ready`` once all of that exists.
+subscribes to TOPIC + "_in" and prints what it receives, declares parameters of each kind
+(``scratch`` dynamically typed, so it can be deleted), offers a service ``~/check``
+(efficient_comm_interfaces/srv/UnloadComponent: success when the id is 7) and prints
+``ready`` once all of that exists.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import contextlib
 import sys
 
 import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -28,6 +30,7 @@ def main() -> None:
     node.declare_parameter("enabled", True)
     node.declare_parameter("ids", [1, 2, 3])
     node.declare_parameter("nested.depth", 2)
+    node.declare_parameter("scratch", "x", ParameterDescriptor(dynamic_typing=True))
     pub = node.create_publisher(String, topic, 10)
     sequence = [0]
 

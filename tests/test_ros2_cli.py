@@ -131,6 +131,82 @@ def test_param_verbs(peer: Peer, tmp_path: Path) -> None:
     assert described.startswith("Parameter name: count\n  Type: integer\n")
 
 
+def test_param_load_takes_the_wildcard_and_unslashed_node_names(peer: Peer,
+                                                                 tmp_path: Path) -> None:
+    def load(text: str) -> str:
+        file = tmp_path / "params.yaml"
+        file.write_text(text)
+        return run(peer, "param", "load", "/cli_peer", str(file))
+
+    def get(name: str) -> str:
+        return run(peer, "param", "get", "/cli_peer", name)
+
+    assert "Set parameter label successful\n" in load(
+        "/**:\n  ros__parameters:\n    label: from_wildcard\n")
+    assert get("label") == "String value is: from_wildcard\n"
+    load("cli_peer:\n  ros__parameters:\n    gain: 2.5\n")
+    assert get("gain") == "Double value is: 2.5\n"
+    # Both: the wildcard first, the node's own section wins; other nodes' sections are not
+    # the node's business when it has its own.
+    load("/**:\n  ros__parameters:\n    label: wild\n    count: 21\n"
+         "/cli_peer:\n  ros__parameters:\n    label: own\n"
+         "/other:\n  ros__parameters:\n    gain: 9.0\n")
+    assert (get("label"), get("count"), get("gain")) == (
+        "String value is: own\n", "Integer value is: 21\n", "Double value is: 2.5\n")
+    file = tmp_path / "wild.yaml"
+    file.write_text("/**:\n  ros__parameters:\n    label: x\n")
+    refused = ros2("param", "load", "/cli_peer", str(file), "--no-use-wildcard",
+                   domain_id=peer.domain_id)
+    assert refused.returncode == 1 and len(refused.stderr.strip().splitlines()) == 1
+
+
+def test_param_delete(peer: Peer) -> None:
+    assert run(peer, "param", "delete", "cli_peer", "scratch") == \
+        "Deleted parameter successfully\n"
+    assert "  scratch" not in run(peer, "param", "list", "/cli_peer").splitlines()
+    static = ros2("param", "delete", "/cli_peer", "count", domain_id=peer.domain_id)
+    assert static.returncode == 1 and static.stderr.startswith("Deleting parameter failed")
+    missing = ros2("param", "delete", "/nobody", "x", "--timeout", "1",
+                   domain_id=peer.domain_id)
+    assert missing.returncode == 1 and missing.stderr == "error: Node not found\n"
+
+
+def test_relative_names_resolve_against_the_root_namespace(peer: Peer, tmp_path: Path) -> None:
+    relative = peer.topic.lstrip("/")
+    assert run(peer, "topic", "type", relative) == "std_msgs/msg/String\n"
+    assert re.fullmatch(r"data: hello \d+\n---\n", run(peer, "topic", "echo", "--once",
+                                                        relative))
+    out = run(peer, "service", "call", "cli_peer/check",
+              "efficient_comm_interfaces/srv/UnloadComponent", "{unique_id: 7}")
+    assert "success=True" in out
+    with running([ros2_path(), "topic", "hz", relative], domain_id=peer.domain_id,
+                 log=tmp_path / "hz.log") as hz:
+        hz.wait_for(lambda t: "window:" in t)
+    bad = ros2("topic", "echo", "a b", domain_id=peer.domain_id)
+    assert bad.returncode == 1 and bad.stderr.startswith("error: Invalid topic name 'a b'")
+    assert len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_topic_find(peer: Peer) -> None:
+    found = run(peer, "topic", "find", "std_msgs/msg/String").splitlines()
+    assert found == sorted([peer.topic, peer.topic + "_in"])
+    assert run(peer, "topic", "find", "-c", "--spin-time", "1", "std_msgs/msg/Bool") == "0\n"
+
+
+def test_echo_csv_and_filter(peer: Peer) -> None:
+    csv = run(peer, "topic", "echo", "--once", "--csv", peer.topic)
+    assert re.fullmatch(r"hello \d+\n", csv), csv
+    kept = run(peer, "topic", "echo", "--once", "--filter", "m.data.endswith('7')", peer.topic)
+    assert re.fullmatch(r"data: hello \d*7\n---\n", kept), kept
+    field = run(peer, "topic", "echo", "--once", "--field", "data", "--filter",
+                "m.endswith('3')", peer.topic)
+    assert re.fullmatch(r"hello \d*3\n---\n", field), field
+    bad = ros2("topic", "echo", "--once", "--filter", "m.data ==", peer.topic,
+               domain_id=peer.domain_id)
+    assert bad.returncode == 1 and "--filter" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1
+
+
 def test_service_verbs(peer: Peer) -> None:
     listed = run(peer, "service", "list", "-t").splitlines()
     assert "/cli_peer/check [efficient_comm_interfaces/srv/UnloadComponent]" in listed
@@ -147,6 +223,20 @@ def test_service_verbs(peer: Peer) -> None:
                domain_id=peer.domain_id)
     assert bad.returncode == 1 and "unique" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
+
+
+def test_service_call_converts_the_request_by_the_fields_type(peer: Peer) -> None:
+    srv = "efficient_comm_interfaces/srv/UnloadComponent"
+    out = run(peer, "service", "call", "/cli_peer/check", srv, "{unique_id: '7'}")
+    assert "success=True, error_message='got 7'" in out
+    piped = ros2("service", "call", "--stdin", "/cli_peer/check", srv,
+                 domain_id=peer.domain_id, stdin="unique_id: 7\n")
+    assert "success=True, error_message='got 7'" in piped.stdout, piped.stderr
+    for bad in ("{unique_id: seven}", "{unique_id: -1}"):
+        result = ros2("service", "call", "/cli_peer/check", srv, bad, domain_id=peer.domain_id)
+        assert result.returncode == 1 and "unique_id" in result.stderr, result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1 and "making request" not in \
+            result.stdout
 
 
 def test_run_and_pkg() -> None:
@@ -177,8 +267,8 @@ def test_interface_verbs() -> None:
 
 @pytest.mark.parametrize("args, offered", [
     (["launch", "x"], "bag, component"),
-    (["topic", "find", "x"], "list, info, type, echo, hz, bw, pub"),
-    (["topic", "echo", "/x", "--csv"], "--once"),
+    (["topic", "delay", "x"], "list, info, find, type, echo, hz, bw, pub"),
+    (["topic", "echo", "/x", "--no-lost-messages"], "--once"),
 ])
 def test_what_is_not_offered_says_what_is(args: list[str], offered: str) -> None:
     result = ros2(*args, domain_id=isolated_domain_id())

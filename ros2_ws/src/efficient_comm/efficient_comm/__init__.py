@@ -47,6 +47,7 @@ from .errors import TopicTypeError as TopicTypeError
 from .errors import UnknownTypeError as UnknownTypeError
 from .executor import ConsecutiveExecutor as ConsecutiveExecutor
 from .handle import NodeHandle as NodeHandle
+from .plain import abbreviate_array as abbreviate_array
 from .plain import element_type as element_type
 from .plain import is_message as is_message
 from .plain import to_plain as to_plain

@@ -11,7 +11,7 @@ from __future__ import annotations
 import array
 from typing import Any
 
-__all__ = ["element_type", "is_message", "to_plain"]
+__all__ = ["abbreviate_array", "element_type", "is_message", "to_plain"]
 
 
 def is_message(value: Any) -> bool:
@@ -39,7 +39,7 @@ def to_plain(value: Any, *, truncate_length: int | None = None, no_arr: bool = F
         return _cut_str(value, truncate_length)
     if isinstance(value, (list, tuple, array.array)) or type(value).__name__ == "ndarray":
         if no_arr:
-            return f"<sequence type: {element_type(field_type)}, length: {len(value)}>"
+            return abbreviate_array(value, field_type)
         cut = truncate_length is not None and len(value) > truncate_length
         items = value[:truncate_length] if cut else value
         out = [to_plain(v, truncate_length=truncate_length, no_arr=no_arr, no_str=no_str)
@@ -64,6 +64,18 @@ def element_type(field_type: str) -> str:
         package, name = inner.split("/", 1)
         return f"{package}/msg/{name}"
     return inner or "unknown"
+
+
+def abbreviate_array(value: Any, field_type: str) -> str:
+    """What ``--no-arr`` prints instead of an array field, as rosidl_runtime_py words it."""
+    element = element_type(field_type)
+    if field_type.startswith("sequence<"):
+        bound = field_type[len("sequence<"):].rsplit(">", 1)[0].partition(",")[2].strip()
+        if bound:
+            return f"<sequence type: {element}[{bound}], length: {len(value)}>"
+        return f"<sequence type: {element}, length: {len(value)}>"
+    size = field_type.rsplit("[", 1)[-1].rstrip("]")
+    return f"<array type: {element}[{size}]>"
 
 
 def _cut_str(text: str, truncate_length: int | None) -> str:

@@ -11,7 +11,8 @@ Where things live:
 * ``_graph``     a daemon-free node that waits for discovery until the graph is stable;
 * ``_view``      what the graph verbs print, from the daemon or from the command's own node;
 * ``_daemon``    the per-user graph daemon (its process, socket and ``ros2 daemon``);
-* ``_messages``  messages as YAML (``topic echo``) and from YAML (``topic pub``, calls);
+* ``_messages``  messages as YAML and CSV (``topic echo``);
+* ``_fill``      YAML values into messages by the fields' types (``topic pub``, calls);
 * ``_pkg``, ``_node``, ``_topic``, ``_service``, ``_param``, ``_interface``,
   ``_component``, ``_bag``: one module per command.
 

@@ -18,9 +18,12 @@ from typing import Any
 
 import rclpy
 from rclpy.context import Context
+from rclpy.exceptions import NameValidationException
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.expand_topic_name import expand_topic_name
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from .errors import CliError
 
@@ -125,6 +128,10 @@ class CliNode:
         finally:
             self.node.destroy_client(client)
 
+    def resolve(self, name: str, *, kind: str = "topic") -> str:
+        """A topic or service name as the graph spells it (see :func:`resolve_name`)."""
+        return resolve_name(name, kind=kind, node_name=self.node.get_name())
+
     # -- graph queries shared by several commands ------------------------------------------
 
     def node_names(self, *, include_hidden: bool = False) -> list[str]:
@@ -155,6 +162,21 @@ def absolute(name: str) -> str:
 
 def full_name(name: str, namespace: str) -> str:
     return (namespace.rstrip("/") + "/" + name) if namespace != "/" else "/" + name
+
+
+def resolve_name(name: str, *, kind: str = "topic", node_name: str | None = None) -> str:
+    """A topic or service name as the graph spells it: ``chatter`` -> ``/chatter``.
+
+    ros2cli resolves the names it is given as rclpy does for its own node (relative to
+    the root namespace, ``~`` to the command's node); an invalid name is one line. No node
+    is needed, so a verb answered by the daemon resolves the same way."""
+    try:
+        expanded = expand_topic_name(name, node_name or f"_ros2cli_{os.getpid()}", "/")
+        validate_full_topic_name(expanded, is_service=kind == "service")
+    except (ValueError, NameValidationException) as exc:
+        raise CliError(f"Invalid {kind} name {name!r}: "
+                       f"{str(exc).splitlines()[0].split(', at /')[0]}") from exc
+    return expanded
 
 
 @contextmanager

@@ -1,25 +1,21 @@
-"""Messages as YAML, and from YAML: what ``topic echo`` prints and ``topic pub`` reads.
+"""Messages as text: what ``topic echo`` prints (YAML, or CSV with ``--csv``).
 
 The wheels have no rosidl_runtime_py, so this follows its ``message_to_yaml`` and
-``set_message_fields`` (the formats people script against): fields in definition order,
+``message_to_csv`` (the formats people script against): fields in definition order,
 strings and arrays longer than ``truncate_length`` cut with ``'...'``, block style by
-default, and YAML values converted to the field's type (an int given for a float field).
+default. The other direction (YAML values into a message) is ``_fill``.
 """
 
 from __future__ import annotations
 
-import re
-from collections.abc import Mapping
+import array
 from typing import Any
 
 import yaml
 
-from efficient_comm import EfficientCommError, import_type, to_plain
+from efficient_comm import EfficientCommError, abbreviate_array, import_type, is_message, to_plain
 
 from .errors import CliError
-
-_INT_RE = re.compile(r"^(u?int\d+|byte|char|octet)$")
-_FLOAT_RE = re.compile(r"^(float\d+|double)$")
 
 
 def import_interface(name: str, kind: str = "msg") -> Any:
@@ -49,86 +45,35 @@ _DUMPER: Any = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 _WIDTH = 2**31 - 1
 
 
-def parse_values(text: str | None) -> dict[str, Any]:
-    """The YAML dictionary of ``topic pub`` and ``service call``; ``{}`` when none."""
-    if text is None or not text.strip():
-        return {}
-    try:
-        values = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise CliError(f"The passed value is not valid YAML: {exc}".splitlines()[0]) from exc
-    if values is None:
-        return {}
-    if not isinstance(values, dict):
-        raise CliError("The passed value needs to be a dictionary in YAML format")
-    return values
+def message_to_csv(msg: Any, *, truncate_length: int | None = 128, no_arr: bool = False,
+                   no_str: bool = False) -> str:
+    """The line ``ros2 topic echo --csv`` prints for one message: every field, nested ones
+    flattened, in definition order, separated by commas (values are not quoted)."""
+    return ",".join(
+        _csv_value(getattr(msg, field), field_type, truncate_length, no_arr, no_str)
+        for field, field_type in msg.get_fields_and_field_types().items())
 
 
-def set_message_fields(msg: Any, values: Mapping[str, Any]) -> None:
-    """Fill ``msg`` from a dictionary; CliError naming the field when a value does not fit."""
-    fields = msg.get_fields_and_field_types()
-    for key, value in values.items():
-        if key not in fields:
-            raise CliError(f"Failed to populate field: {type(msg).__name__!r} has no field "
-                           f"{key!r} (fields: {', '.join(fields) or 'none'})")
-        try:
-            _set_field(msg, key, fields[key], value)
-        except CliError:
-            raise
-        except (AssertionError, TypeError, ValueError, AttributeError) as exc:
-            raise CliError(f"Failed to populate field {key!r} ({fields[key]}) with {value!r}: "
-                           f"{exc or 'wrong type'}") from exc
-
-
-def _set_field(msg: Any, key: str, field_type: str, value: Any) -> None:
-    element, is_sequence = _element_type(field_type)
-    if "/" in element:  # nested message(s)
-        cls = import_interface(element)
-        if is_sequence:
-            if not isinstance(value, list):
-                raise CliError(f"Failed to populate field {key!r}: expected a list")
-            items = []
-            for item in value:
-                sub = cls()
-                set_message_fields(sub, item or {})
-                items.append(sub)
-            setattr(msg, key, items)
-        else:
-            if not isinstance(value, Mapping):
-                raise CliError(f"Failed to populate field {key!r}: expected a dictionary "
-                               f"of {element}")
-            set_message_fields(getattr(msg, key), value)
-        return
-    if is_sequence:
-        if not isinstance(value, list):
-            raise CliError(f"Failed to populate field {key!r}: expected a list")
-        value = [_scalar(element, v) for v in value]
-    else:
-        value = _scalar(element, value)
-    setattr(msg, key, value)
-
-
-def _scalar(element: str, value: Any) -> Any:
-    if _FLOAT_RE.match(element) and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    if element in ("string", "wstring") or element.startswith(("string<", "wstring<")):
-        return value if isinstance(value, str) else str(value)
-    if element == "byte" and isinstance(value, int):
-        return bytes([value])
-    if element == "char" and isinstance(value, str) and len(value) == 1:
-        return ord(value)
-    return value
-
-
-def _element_type(field_type: str) -> tuple[str, bool]:
-    """``sequence<geometry_msgs/Point, 3>`` -> (``geometry_msgs/msg/Point``, True)."""
-    seq = False
-    t = field_type
-    if t.startswith("sequence<"):
-        t, seq = t[len("sequence<"):-1].split(",")[0].strip(), True
-    elif t.endswith("]"):
-        t, seq = t[: t.index("[")], True
-    if "/" in t and t.count("/") == 1:
-        pkg, name = t.split("/")
-        t = f"{pkg}/msg/{name}"
-    return t, seq
+def _csv_value(value: Any, field_type: str | None, truncate_length: int | None,
+               no_arr: bool, no_str: bool) -> str:
+    if isinstance(value, (list, tuple, array.array)) or type(value).__name__ == "ndarray":
+        if no_arr and field_type is not None:
+            return abbreviate_array(value, field_type)
+        parts = []
+        for i, item in enumerate(value):
+            if truncate_length is not None and i >= truncate_length:
+                parts.append("...")
+                break
+            parts.append(_csv_value(item, None, truncate_length, no_arr, no_str))
+        return ",".join(parts)
+    if is_message(value):
+        return message_to_csv(value, truncate_length=truncate_length, no_arr=no_arr,
+                              no_str=no_str)
+    if isinstance(value, str) and no_str:
+        return f"<string length: <{len(value)}>>"
+    if truncate_length is not None and isinstance(value, str) and len(value) > truncate_length:
+        value = value[:truncate_length] + "..."
+    if truncate_length is not None and isinstance(value, bytes) \
+            and len(value) > truncate_length:
+        value = value[:truncate_length] + b"..."
+    return str(value)

@@ -1,4 +1,4 @@
-"""``ros2 param list|get|set|dump|load|describe``, through the nodes' parameter services.
+"""``ros2 param list|get|set|delete|dump|load|describe``, through the nodes' parameter services.
 
 Every rclpy (and rclcpp) node offers the ``rcl_interfaces`` parameter services, so these
 work against any node; the printed lines are ros2cli's (``Integer value is: 5``).
@@ -17,7 +17,7 @@ from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
 from rclpy.parameter import Parameter, parameter_dict_from_yaml_file, parameter_value_to_python
 
-from ._graph import CliNode, absolute, cli_node
+from ._graph import WAIT_S, CliNode, absolute, cli_node
 from ._main import Commands, add_spin_time, add_verbs, verb
 from .errors import CliError
 
@@ -51,6 +51,15 @@ def register(commands: Commands) -> None:
     p.add_argument("node_name")
     p.add_argument("parameter_name")
     p.add_argument("value", help="Value of the parameter (YAML: 5, 1.5, true, '[1, 2]', text)")
+    p = verb(verbs, "delete", "Delete parameter", _delete)
+    p.add_argument("node_name")
+    p.add_argument("parameter_name")
+    p.add_argument("--include-hidden-nodes", action="store_true",
+                   help="accepted for compatibility: any node can be named")
+    p.add_argument("--timeout", type=float, default=WAIT_S, metavar="N",
+                   help=f"Wait for N seconds until the node becomes available (default: "
+                        f"{WAIT_S:g}; without a daemon, discovery takes longer than ros2cli's "
+                        "1 s)")
     p = verb(verbs, "dump", "Show all of the parameters of a node in a YAML file format", _dump)
     p.add_argument("node_name")
     p = verb(verbs, "load", "Load parameter file for a node", _load)
@@ -169,6 +178,23 @@ def _set(args: argparse.Namespace) -> int:
     return 1
 
 
+def _delete(args: argparse.Namespace) -> int:
+    """ros2cli's ``param delete``: set the parameter to NOT_SET, which undeclares it (a
+    statically typed parameter refuses, and the node's reason is printed)."""
+    node = absolute(args.node_name)
+    with cli_node() as cli:
+        if not cli.wait_for(lambda: cli.has_node(node), timeout_s=args.timeout):
+            raise CliError("Node not found")
+        result = cli.call(SetParameters, f"{node}/set_parameters", SetParameters.Request(
+            parameters=[ParameterMsg(name=args.parameter_name)])).results[0]
+    reason = f": {result.reason}" if result.reason else ""
+    if result.successful:
+        print(f"Deleted parameter successfully{reason}")
+        return 0
+    print(f"Deleting parameter failed{reason}", file=sys.stderr)
+    return 1
+
+
 def _dump(args: argparse.Namespace) -> int:
     node = absolute(args.node_name)
     with cli_node() as cli:
@@ -187,11 +213,28 @@ def _dump(args: argparse.Namespace) -> int:
     return 0
 
 
+def _file_parameters(path: str, node: str, *, use_wildcard: bool) -> dict[str, Any]:
+    """The parameters of a params file for ``node``, read by rclpy's own loader.
+
+    As ``ros2 param load`` (rclpy's ``load_parameter_file``): ``/**`` first unless
+    ``--no-use-wildcard``, then the node's own section, whose values win. The section may be
+    spelled with or without the leading slash (``talker:``). A file with no section for the
+    node loads all of its sections, as ros2cli does (a file dumped from one node loads into
+    another)."""
+    with open(path) as f:
+        document = yaml.safe_load(f)
+    if not isinstance(document, dict):
+        raise CliError(f"{path}: not a parameter file (expected a dictionary of node names)")
+    own = [key for key in document if isinstance(key, str) and key != "/**"
+           and absolute(key) == node]
+    return parameter_dict_from_yaml_file(path, use_wildcard, target_nodes=own or None)
+
+
 def _load(args: argparse.Namespace) -> int:
     node = absolute(args.node_name)
     try:
-        params = parameter_dict_from_yaml_file(args.parameter_file,
-                                               not args.no_use_wildcard, target_nodes=[node])
+        params = _file_parameters(args.parameter_file, node,
+                                  use_wildcard=not args.no_use_wildcard)
     except FileNotFoundError as exc:
         raise CliError(f"no parameter file {args.parameter_file}") from exc
     except (RuntimeError, yaml.YAMLError, ValueError, TypeError, AttributeError) as exc:

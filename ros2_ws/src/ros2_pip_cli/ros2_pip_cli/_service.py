@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import time
 
-from ._graph import CliNode, cli_node
+from ._fill import parse_values, read_values, set_message_fields
+from ._graph import CliNode, cli_node, resolve_name
 from ._main import Commands, add_list_verb, add_verbs, print_names, verb
-from ._messages import import_interface, parse_values, set_message_fields
+from ._messages import import_interface
 from ._view import Query, graph_view
 from .errors import CliError
 
@@ -22,8 +23,9 @@ def register(commands: Commands) -> None:
     p.add_argument("service_type", nargs="?",
                    help="Type of the ROS service (e.g. 'std_srvs/srv/Empty'); "
                         "looked up in the graph when left out")
-    p.add_argument("values", nargs="?", default="{}",
+    p.add_argument("values", nargs="?", default=None,
                    help="Values to fill the request with in YAML format, e.g. '{a: 1, b: 2}'")
+    p.add_argument("--stdin", action="store_true", help="Read values from standard input")
     p.add_argument("-r", "--rate", type=float, metavar="N",
                    help="Repeat the call at a specific rate in Hz")
 
@@ -50,7 +52,7 @@ def _types(node: CliNode, service: str) -> list[str]:
 
 
 def _type(args: argparse.Namespace) -> int:
-    service = args.service_name
+    service = resolve_name(args.service_name, kind="service")
     types = graph_view(args, Query(wait_kind="service", wait_name=service)).service_types(service)
     if not types:
         raise CliError(f"Unknown service '{service}'")
@@ -66,11 +68,12 @@ def _call(args: argparse.Namespace) -> int:
     if args.rate is not None and not args.rate > 0:
         raise CliError("--rate must be > 0")
     with cli_node() as node:
-        type_name = args.service_type or _types(node, args.service_name)[0]
+        service = node.resolve(args.service_name, kind="service")
+        type_name = args.service_type or _types(node, service)[0]
         srv = import_interface(type_name, "srv")
         request = srv.Request()
-        set_message_fields(request, parse_values(args.values))
-        client = node.node.create_client(srv, args.service_name)
+        set_message_fields(request, parse_values(read_values(args)))
+        client = node.node.create_client(srv, service)
         if not client.service_is_ready():
             print("waiting for service to become available...", flush=True)
             node.wait_for(client.service_is_ready, timeout_s=float("inf"))

@@ -1,4 +1,4 @@
-"""``ros2 topic list|info|type|echo|hz|bw|pub``, printing what ros2cli prints.
+"""``ros2 topic list|info|find|type|echo|hz|bw|pub``, printing what ros2cli prints.
 
 ``hz`` and ``bw`` subscribe raw (serialized bytes, never deserialized) so they keep up with
 fast and large topics; ``echo`` deserializes only what it prints.
@@ -22,9 +22,10 @@ from rclpy.qos import (
 )
 from rclpy.serialization import deserialize_message
 
-from ._graph import CliNode, StopSignal, cli_node
-from ._main import Commands, add_list_verb, add_verbs, print_names, verb
-from ._messages import import_interface, message_to_yaml, parse_values, set_message_fields
+from ._fill import parse_values, read_values, set_message_fields
+from ._graph import CliNode, StopSignal, cli_node, resolve_name
+from ._main import Commands, add_list_verb, add_spin_time, add_verbs, print_names, verb
+from ._messages import import_interface, message_to_csv, message_to_yaml
 from ._view import Query, graph_view
 from .errors import CliError
 
@@ -39,9 +40,19 @@ def register(commands: Commands) -> None:
     verbs = add_verbs(commands, "topic", "Various topic related sub-commands")
     add_list_verb(verbs, "topic", _list)
     p = verb(verbs, "info", "Print information about a topic", _info)
+    add_spin_time(p)
     p.add_argument("topic_name")
     p.add_argument("-v", "--verbose", action="store_true",
                    help="Print detailed information like QoS of the endpoints")
+    p = verb(verbs, "find", "Output a list of available topics of a given type", _find)
+    add_spin_time(p)
+    p.add_argument("topic_type",
+                   help="Name of the ROS topic type to filter for (e.g. 'std_msgs/msg/String')")
+    p.add_argument("-c", "--count-topics", dest="count", action="store_true",
+                   help="Only display the number of topics discovered")
+    p.add_argument("--include-hidden-topics", action="store_true",
+                   help="Consider hidden topics as well")
+    p.set_defaults(show_types=False)
     p = verb(verbs, "type", "Print a topic's type", _type)
     p.add_argument("topic_name")
     p = verb(verbs, "echo", "Output messages from a topic", _echo)
@@ -59,6 +70,11 @@ def register(commands: Commands) -> None:
     p.add_argument("--no-str", action="store_true", help="Don't print string fields")
     p.add_argument("--flow-style", action="store_true", help="Print collections in flow style")
     p.add_argument("--raw", action="store_true", help="Echo the raw binary representation")
+    p.add_argument("--csv", action="store_true",
+                   help="Output all recursive fields separated by commas (e.g. for plotting)")
+    p.add_argument("--filter", dest="filter_expr",
+                   help="Python expression to filter messages that are printed. Expression "
+                        "can use Python builtins as well as m (the message).")
     p.add_argument("--once", action="store_true",
                    help="Print the first message received and then exit")
     p.add_argument("--timeout", type=float, metavar="N",
@@ -79,8 +95,10 @@ def register(commands: Commands) -> None:
     p = verb(verbs, "pub", "Publish a message to a topic", _pub)
     p.add_argument("topic_name")
     p.add_argument("message_type", help="Type of the ROS message (e.g. 'std_msgs/String')")
-    p.add_argument("values", nargs="?", default="{}",
-                   help="Values to fill the message with in YAML format, e.g. 'data: Hello'")
+    p.add_argument("values", nargs="?", default=None,
+                   help="Values to fill the message with in YAML format, e.g. 'data: Hello' "
+                        "('header: auto' and 'stamp: now' put the time of each publish)")
+    p.add_argument("--stdin", action="store_true", help="Read values from standard input")
     _add_qos_arguments(p, "default")
     p.add_argument("-r", "--rate", type=float, default=1.0, metavar="N",
                    help="Publishing rate in Hz (default: 1)")
@@ -138,6 +156,13 @@ def _list(args: argparse.Namespace) -> int:
     return print_names([t for t in topics if args.include_hidden or not _is_hidden(t[0])], args)
 
 
+def _find(args: argparse.Namespace) -> int:
+    """ros2cli's ``topic find``: the topics with exactly this type among their types."""
+    topics = graph_view(args, Query()).topics
+    return print_names([(name, types) for name, types in topics if args.topic_type in types
+                        and (args.include_hidden_topics or not _is_hidden(name))], args)
+
+
 def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) -> list[str]:
     """The types of ``topic`` once it has appeared in the graph; CliError if it does not."""
     found: list[str] = []
@@ -152,7 +177,10 @@ def topic_types(node: CliNode, topic: str, *, timeout_s: float | None = None) ->
 
 
 def _info(args: argparse.Namespace) -> int:
-    topic = args.topic_name
+    topic = resolve_name(args.topic_name)
+    # A topic's endpoints live in many processes, each announcing itself on its own
+    # schedule: the first one seen says nothing about the others, so a command listening
+    # for itself listens as the list verbs do (graph_view: --spin-time, then until stable).
     view = graph_view(args, Query(wait_kind="topic", wait_name=topic, settle_after_wait=True,
                                   topic=topic))
     types = view.topic_types(topic)
@@ -172,7 +200,7 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _type(args: argparse.Namespace) -> int:
-    topic = args.topic_name
+    topic = resolve_name(args.topic_name)
     types = graph_view(args, Query(wait_kind="topic", wait_name=topic)).topic_types(topic)
     if not types:
         raise CliError(f"Unknown topic '{topic}'")
@@ -221,13 +249,15 @@ def _echo(args: argparse.Namespace) -> int:
     if args.field is not None and not fields:
         raise CliError(f"Invalid field value '{args.field}'")
     truncate = None if args.full_length else args.truncate_length
+    keep = _message_filter(args.filter_expr)
     deadline = time.monotonic() + args.timeout if args.timeout else None
     with cli_node() as node:
+        topic = node.resolve(args.topic_name)
         wait = None if deadline is None else max(0.0, deadline - time.monotonic())
-        msg_class = _message_class(node, args.topic_name, args.message_type, wait)
+        msg_class = _message_class(node, topic, args.message_type, wait)
         # Publishers of a topic are often discovered a little after the topic itself.
-        node.wait_for(lambda: node.node.count_publishers(args.topic_name) > 0, timeout_s=0.5)
-        qos = _subscription_qos(node, args.topic_name, args)
+        node.wait_for(lambda: node.node.count_publishers(topic) > 0, timeout_s=0.5)
+        qos = _subscription_qos(node, topic, args)
         done = False
         out = sys.stdout
 
@@ -235,16 +265,23 @@ def _echo(args: argparse.Namespace) -> int:
             nonlocal done
             if done:
                 return
-            if args.raw:
-                out.write(f"{data!r}\n---\n")
-            else:
-                value: Any = deserialize_message(data, msg_class)
+            value: Any = data
+            if not args.raw:
+                value = deserialize_message(data, msg_class)
                 for field in fields:
                     try:
                         value = getattr(value, field)
                     except AttributeError as exc:
                         raise CliError(f"Invalid field '{args.field}': {exc}") from exc
-                if hasattr(value, "get_fields_and_field_types"):
+            if keep is not None and not keep(value):
+                return
+            if args.raw:
+                out.write(f"{data!r}\n---\n")
+            else:
+                if args.csv and hasattr(value, "get_fields_and_field_types"):
+                    out.write(message_to_csv(value, truncate_length=truncate,
+                                             no_arr=args.no_arr, no_str=args.no_str) + "\n")
+                elif hasattr(value, "get_fields_and_field_types"):
                     out.write(message_to_yaml(value, truncate_length=truncate,
                                               no_arr=args.no_arr, no_str=args.no_str,
                                               flow_style=args.flow_style) + "---\n")
@@ -254,12 +291,32 @@ def _echo(args: argparse.Namespace) -> int:
             if args.once:
                 done = True
 
-        node.node.create_subscription(msg_class, args.topic_name, on_message, qos, raw=True)
+        node.node.create_subscription(msg_class, topic, on_message, qos, raw=True)
         with StopSignal() as stop:
             while not (done or stop.requested) and (deadline is None
                                                     or time.monotonic() < deadline):
                 node.spin_once(0.1)
     return 0
+
+
+def _message_filter(expression: str | None) -> Any:
+    """ros2cli's ``--filter``: a Python expression of ``m`` (the message, or the field given
+    with ``--field``); a message is printed when it is true. Compiled once, so a syntax error
+    is one line before anything is received."""
+    if expression is None:
+        return None
+    try:
+        code = compile(expression, "--filter", "eval")
+    except SyntaxError as exc:
+        raise CliError(f"Invalid --filter expression {expression!r}: {exc.msg}") from exc
+
+    def keep(m: Any) -> bool:
+        try:
+            return bool(eval(code, {"m": m}))  # the user's own expression, as ros2cli
+        except Exception as exc:
+            raise CliError(f"--filter {expression!r} failed on a message: {exc!r}") from exc
+
+    return keep
 
 
 class _Rate:
@@ -297,6 +354,7 @@ class _Rate:
 def _raw_monitor(args: argparse.Namespace, topic: str, on_message: Any, report: Any) -> int:
     """Subscribe raw to ``topic`` (waiting for it to appear) and print ``report()`` each second."""
     with cli_node() as node:
+        topic = node.resolve(topic)
         msg_class = None
         warned = False
         while msg_class is None:
@@ -362,9 +420,9 @@ def _bw(args: argparse.Namespace) -> int:
 
 def _pub(args: argparse.Namespace) -> int:
     msg_class = import_interface(args.message_type)
-    values = parse_values(args.values)
+    values = parse_values(read_values(args))
     msg = msg_class()
-    set_message_fields(msg, values)
+    stamps = set_message_fields(msg, values, expand_stamps=True)
     if not args.rate > 0:
         raise CliError("--rate must be > 0")
     times = 1 if args.once else args.times
@@ -396,6 +454,10 @@ def _pub(args: argparse.Namespace) -> int:
                     continue
                 next_at += period
                 count += 1
+                if stamps:
+                    now = node.node.get_clock().now().to_msg()
+                    for set_stamp in stamps:
+                        set_stamp(now)
                 if args.print and count % args.print == 0:
                     print(f"publishing #{count}: {msg!r}\n", flush=True)
                 pub.publish(msg)

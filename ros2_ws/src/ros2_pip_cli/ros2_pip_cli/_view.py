@@ -141,7 +141,8 @@ def build_view(node: Node, query: Query) -> View:
 def graph_view(args: argparse.Namespace, query: Query) -> View:
     """Ask the daemon (started if need be) unless ``--no-daemon``; without an answer from
     it, listen for oneself: ``--spin-time`` first for whole-graph answers, else until
-    what the query waits for has appeared (then until the graph is quiet, if asked)."""
+    what the query waits for has appeared (then ``--spin-time`` and until the graph is
+    quiet, if asked: one endpoint seen says nothing of the other processes' endpoints)."""
     if not getattr(args, "no_daemon", False):
         from ._daemon import ask_view
 
@@ -149,8 +150,10 @@ def graph_view(args: argparse.Namespace, query: Query) -> View:
         if answer is not None:
             return answer
     with cli_node() as cli:
-        if not query.wait_kind:
+        # Whole-graph answers listen --spin-time first; answers about one thing wait for it
+        # (and, for counts, listen as long too once it has appeared).
+        waited = not query.wait_kind or (cli.wait_for(lambda: present(cli.node, query))
+                                         and query.settle_after_wait)
+        if waited:
             cli.settle(min_s=getattr(args, "spin_time", ANNOUNCE_S))
-        elif cli.wait_for(lambda: present(cli.node, query)) and query.settle_after_wait:
-            cli.settle(min_s=0.0)
         return build_view(cli.node, query)
