@@ -230,6 +230,11 @@ def build(ctx: ViewContext) -> None:
             pause.text = "resume"
         model.step(delta)
 
+    def gone() -> bool:
+        """The tab or the view went while a call was out (closed, removed, the server
+        stopping): its elements must not be touched then."""
+        return client.is_deleted or quality.is_deleted
+
     async def set_quality() -> None:
         kind: Literal["positive", "negative"]
         try:
@@ -249,12 +254,12 @@ def build(ctx: ViewContext) -> None:
         try:
             value = await run.io_bound(model.quality)
         except DebugGuiError as exc:  # no compressor on this robot: say so, keep the view
-            if not client.is_deleted:
+            if not gone():
                 quality.disable()
                 apply.disable()
                 quality_note.text = f"JPEG quality cannot be set: {exc}"
             return
-        if not client.is_deleted:
+        if not gone():
             quality.value = value
             quality.enable()
             apply.enable()
