@@ -92,6 +92,16 @@ window.debugGuiImage = window.debugGuiImage || {
 """
 
 
+def live_state(*, online: bool, position: tuple[int, int] | None, fps: float,
+               asked: float) -> str:
+    """What the status line says the picture is: a robot that has gone is not "live"."""
+    if not online:
+        return "robot gone: its last frame"
+    if position is not None:
+        return f"paused at frame {position[0] + 1} of {position[1]}"
+    return f"live, {fps:.1f} fps received (asked {asked:g})"
+
+
 def frame_message(model: ImageModel) -> tuple[tuple[Any, ...], bytes] | None:
     """What to send for the frame shown now: (what identifies it, the binary message)."""
     shown = model.current()
@@ -192,7 +202,7 @@ def build(ctx: ViewContext) -> None:
     status = ui.label("waiting for the camera…").classes("text-caption").props(
         f"data-testid=image-status-{robot.key}")
     boxes: dict[str, Any] = {}
-    counts = {"received": 0, "at": 0.0}
+    counts: dict[str, Any] = {"received": 0, "at": 0.0, "online": True}
 
     def refresh() -> None:
         for layer in model.layers():
@@ -208,8 +218,16 @@ def build(ctx: ViewContext) -> None:
         counts["received"], counts["at"] = model.received, loop_now
         position = model.position()
         shown_now = model.current()
-        where = (f"paused at frame {position[0] + 1} of {position[1]}" if position is not None
-                 else f"live, {fps:.1f} fps received (asked {model.rate_hz:g})")
+        online = robot in ctx.hub.robots()
+        where = live_state(online=online, position=position, fps=fps, asked=model.rate_hz)
+        if online != counts["online"]:
+            counts["online"] = online
+            if not online:
+                quality.disable()
+                apply.disable()
+                quality_note.text = "JPEG quality cannot be set: the robot has gone"
+            elif ctx.can_write:
+                background_tasks.create(read_quality(), name=f"image quality {key}")
         stamp = f"stamp {shown_now[0].stamp_ns / 1e9:.3f} s" if shown_now else "no frame yet"
         status.text = f"{where}; {stamp}; {model.received} frames, " \
                       f"{model.drawings_received} drawings"
