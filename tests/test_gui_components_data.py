@@ -32,3 +32,22 @@ def test_the_model_fills_while_active_and_lets_go_when_not(tmp_path: Path) -> No
                  alive=[proc])
         assert model.messages == heard
         assert hub.counters()[(robot, "/m/efficient_comm/stats")].messages <= counted + 1
+
+
+def test_the_status_line_changes_only_when_what_it_says_does() -> None:
+    """A line that counted seconds made every robot's table panel redraw every second."""
+    from debug_gui.ui.components import STALE_S, status_text
+    from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
+
+    now = [100.0]
+    model = ComponentsModel(None, RobotId(0, "/s"), clock=lambda: now[0])  # type: ignore[arg-type]
+    model.on_stats(ExecutorStats(process_name="p", hostname="h", pid=1, callbacks=[
+        CallbackStats(node="/s/a", kind="timer", name="/s/t", rate_hz=10.0, mean_ns=1000,
+                      p95_ns=1000, max_ns=1000, period_ns=100_000_000)]))
+    lines = set()
+    for age in (0.2, 1.0, 2.5, STALE_S - 0.5):
+        now[0] = 100.0 + age
+        lines.add(status_text(model))
+    assert lines == {"1 callbacks, 0 over their period"}
+    now[0] = 100.0 + STALE_S + 2
+    assert "no statistics for 7 s" in status_text(model)

@@ -13,7 +13,10 @@ endpoint serves the same Hub.
 
 Thread rule: feed callbacks and ``on_robots_changed`` callbacks run on a domain's executor
 thread; every public method may be called from any other thread. :meth:`Hub.call` blocks,
-so a UI calls it off its event loop.
+so a UI calls it off its event loop. Subscriptions and publishers are destroyed on the
+domain's executor thread, between its waits: rclpy's executor reads the handles of the
+node's entities after each wait, and an entity another thread destroys meanwhile makes it
+raise ``InvalidHandle`` (what closing browser tabs did).
 """
 
 from __future__ import annotations
@@ -164,7 +167,7 @@ class Feed:
             )
             plain, self._plain = self._plain, None
         if plain is not None:
-            self._handle.destroy_subscription(plain)
+            self._domain.on_thread(lambda: self._handle.destroy_subscription(plain))
         return True
 
     @property
@@ -198,18 +201,17 @@ class Feed:
                 self._throttled.update(_options(rate_hz))
 
     def close(self) -> None:
-        """Stop receiving; a throttle-aware publisher stops sending at once."""
+        """Stop receiving at once; the subscription goes on the domain's thread (within a
+        spin, about 50 ms), and a throttle-aware publisher stops sending then."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
-            try:
-                if self._throttled is not None:
-                    self._throttled.close()
-                elif self._plain is not None:
-                    self._handle.destroy_subscription(self._plain)
-            except Exception:  # the domain may be closing under us
-                _log.debug("closing feed %s", self.topic, exc_info=True)
+            throttled, plain = self._throttled, self._plain
+        if throttled is not None:
+            self._domain.on_thread(throttled.close)
+        elif plain is not None:
+            self._domain.on_thread(lambda: self._handle.destroy_subscription(plain))
         self._hub._forget(self)
 
 
@@ -237,15 +239,45 @@ class _Domain:
             self.context.try_shutdown()
             raise
         self.thread: threading.Thread | None = None
+        self._pending: list[Callable[[], None]] = []
+        self._pending_lock = threading.Lock()
+        # Triggered by on_thread: wakes the executor, whose thread then runs the pending work.
+        self._wake = self.node.create_guard_condition(self.run_pending)
         self.robots: set[RobotId] = set()
         self.last_seen: dict[RobotId, float] = {}
         self.clients: dict[tuple[str, type], Any] = {}
         self.clients_lock = threading.Lock()
 
+    def on_thread(self, work: Callable[[], None]) -> None:
+        """Run ``work`` (destroying an entity) on the executor thread between its waits, or
+        now if this is that thread or it does not run (any more)."""
+        thread = self.thread
+        if thread is None or thread is threading.current_thread() or not thread.is_alive():
+            self._run(work)
+            return
+        with self._pending_lock:
+            self._pending.append(work)
+        with contextlib.suppress(Exception):  # shut down meanwhile: close() runs it
+            self._wake.trigger()
+
+    def run_pending(self) -> None:
+        with self._pending_lock:
+            pending, self._pending = self._pending, []
+        for work in pending:
+            self._run(work)
+
+    def _run(self, work: Callable[[], None]) -> None:
+        try:
+            work()
+        except Exception:  # the context may be shut down under us: the node goes anyway
+            if self.context.ok():
+                _log.exception("domain %d: destroying an entity failed", self.domain)
+
     def close(self) -> None:
         self.context.try_shutdown()
         if self.thread is not None and self.thread is not threading.current_thread():
             self.thread.join(timeout=5.0)
+        self.run_pending()  # what was queued while the thread stopped
         self.executor.shutdown()
         with contextlib.suppress(Exception):
             self.node.destroy_node()
@@ -320,9 +352,9 @@ class Hub:
 
     def close(self) -> None:
         """Close every feed and leave every domain."""
-        self._stop.set()
         for feed in list(self._feeds):
             feed.close()
+        self._stop.set()
         with self._lock:
             domains = list(self._domains.values())
             self._domains.clear()
@@ -354,6 +386,7 @@ class Hub:
                 if not dom.context.ok() or self._stop.is_set():
                     break  # closing under us: rclpy raises on a context shut down mid-wait
                 _log.exception("domain %d: executor or discovery failed", dom.domain)
+        dom.run_pending()
 
     def _discover(self, dom: _Domain) -> None:
         now = time.monotonic()

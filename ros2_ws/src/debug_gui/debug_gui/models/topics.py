@@ -33,6 +33,8 @@ ECHO_HZ = 5.0
 PLOT_HZ = 20.0
 TRUNCATE = 32
 WINDOW_S = 30.0
+#: A received rate at least this fraction of the rate asked for is taken as capped by it.
+CAPPED_FRACTION = 0.8
 #: Arrival times kept for the measured rate.
 RATE_SAMPLES = 50
 
@@ -125,7 +127,10 @@ class TopicsModel:
 
         ``rate_source`` is "robot" (its subscriptions' call rate) or "received" (the echoed
         topic as it arrives here: at most the echo or plot rate, since the GUI asks for no
-        more)."""
+        more). ``rate_capped`` is True where that received rate is the cap itself: the
+        topic may well be faster, and the view must not pass the cap off as its rate."""
+        feed = self._echo_feed
+        cap = None if feed is None else feed.rate_hz
         with self._lock:
             rates = dict(self._stats_rates)
             echo, measured = self.echo_topic, self._measured_rate()
@@ -141,8 +146,11 @@ class TopicsModel:
             rate, source = rates.get(name), "robot"
             if rate is None and name == echo and measured is not None:
                 rate, source = measured, "received"
+            capped = (source == "received" and rate is not None and cap is not None
+                      and rate >= CAPPED_FRACTION * cap)
             out.append({"name": name, "types": types, "rate_hz": rate,
-                        "rate_source": source if rate is not None else ""})
+                        "rate_source": source if rate is not None else "",
+                        "rate_capped": capped})
         return out
 
     # -- echo and plot -------------------------------------------------------------------

@@ -28,6 +28,7 @@ import functools
 import math
 import threading
 import time
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -48,9 +49,12 @@ FIELD = {
     "penalty_mark": KIDSIZE.penalty_mark_distance, "centre_circle": KIDSIZE.centre_circle_diameter,
     "border": KIDSIZE.border_strip_width, "goal_width": KIDSIZE.goal_width,
 }
-#: A ball estimate older than this (seconds, GUI clock) no longer counts for the team ball.
+#: A ball estimate older than this (seconds, by message stamps) no longer counts for the
+#: team ball; the view fades it from here on.
 FRESH_S = 1.0
-#: Distinct colours, one per robot in the order robots are bound.
+#: A ball estimate older than this is not drawn at all: a belief of 14 s ago is no belief.
+STALE_S = 3.0
+#: Distinct colours; each robot's is chosen by its name (see :func:`colours_for`).
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
 TOPICS = ("odom", "ball/estimate", "ground_truth/robot", "ground_truth/ball", "motion/state")
 #: Latched state topics: a view opened later still learns the current state at once.
@@ -81,6 +85,22 @@ class RobotState:
     true_ball: tuple[float, float] | None
     #: Which motion owns the joints ("" until the robot says).
     motion: str = ""
+
+
+def colours_for(robots: list[RobotId]) -> dict[RobotId, str]:
+    """Each robot's colour, from its name: a robot keeps its colour when others come and
+    go (colours by position changed every robot's colour when one appeared). Two names
+    that hash alike: the one first in name order keeps it, the next takes the next free
+    colour."""
+    out: dict[RobotId, str] = {}
+    for robot in sorted(set(robots), key=lambda r: (r.namespace, r.domain)):
+        slot = zlib.crc32(robot.namespace.encode()) % len(COLOURS)
+        for step in range(len(COLOURS)):
+            colour = COLOURS[(slot + step) % len(COLOURS)]
+            if colour not in out.values() or len(out) >= len(COLOURS):
+                break
+        out[robot] = colour
+    return out
 
 
 def yaw_of(q: Any) -> float:
@@ -120,10 +140,28 @@ class _Robot:
         self.anchor: Pose2D | None = None
         self.ball: tuple[float, float] | None = None  # torso frame
         self.ball_heard: float | None = None
+        self.ball_stamp_ns = 0
+        #: The newest stamp of any of the robot's messages: its "now", on its own clock
+        #: (simulated time under lockstep), against which the ball estimate ages.
+        self.newest_ns = 0
         self.true_pose: Pose2D | None = None
         self.true_ball: tuple[float, float] | None = None
         self.motion = ""
         self.feeds: list[Feed] = []
+
+    def heard(self, stamp: Any) -> int:
+        ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+        self.newest_ns = max(self.newest_ns, ns)
+        return ns
+
+    def ball_age_s(self, now: float) -> float | None:
+        """By stamps where the robot stamps its messages (its clock, not the GUI's: under
+        lockstep they differ), else since the GUI heard it."""
+        if self.ball_heard is None:
+            return None
+        if self.ball_stamp_ns:
+            return max(0.0, (self.newest_ns - self.ball_stamp_ns) / 1e9)
+        return now - self.ball_heard
 
     def anchor_if_possible(self) -> None:
         """Fix the odometry frame on the field where odometry and truth first meet."""
@@ -146,7 +184,8 @@ class WorldModel:
         self.rate_hz = rate_hz
         self._clock = clock
         self._lock = threading.Lock()
-        self._robots = [_Robot(r, COLOURS[i % len(COLOURS)]) for i, r in enumerate(robots)]
+        colours = colours_for(robots)
+        self._robots = [_Robot(r, colours[r]) for r in robots]
         self.active = False
 
     # -- feeds ---------------------------------------------------------------------------
@@ -196,6 +235,7 @@ class WorldModel:
         p = msg.pose.pose
         with self._lock:
             r = self._get(robot)
+            r.heard(msg.header.stamp)
             r.odom = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
             r.anchor_if_possible()
 
@@ -203,20 +243,24 @@ class WorldModel:
         local = ball_in_torso(msg)
         with self._lock:
             r = self._get(robot)
+            stamp = r.heard(msg.header.stamp)
             if local is not None:
-                r.ball, r.ball_heard = local, self._clock()
+                r.ball, r.ball_heard, r.ball_stamp_ns = local, self._clock(), stamp
 
     def on_true_robot(self, robot: RobotId, msg: Any) -> None:
         p = msg.pose
         pose = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
         with self._lock:
             r = self._get(robot)
+            r.heard(msg.header.stamp)
             r.true_pose = pose
             r.anchor_if_possible()
 
     def on_true_ball(self, robot: RobotId, msg: Any) -> None:
         with self._lock:
-            self._get(robot).true_ball = (msg.pose.position.x, msg.pose.position.y)
+            r = self._get(robot)
+            r.heard(msg.header.stamp)
+            r.true_ball = (msg.pose.position.x, msg.pose.position.y)
 
     def on_motion(self, robot: RobotId, msg: Any) -> None:
         with self._lock:
@@ -238,10 +282,11 @@ class WorldModel:
                 else:
                     pose, source = None, ""
                 ball = None
-                if r.ball is not None and pose is not None:
+                age = r.ball_age_s(now)
+                if r.ball is not None and pose is not None and age is not None \
+                        and age <= STALE_S:
                     b = compose(pose, Pose2D(r.ball[0], r.ball[1], 0.0))
                     ball = (b.x, b.y)
-                age = None if r.ball_heard is None else now - r.ball_heard
                 out.append(RobotState(r.robot, r.colour, pose, source, ball, age,
                                       r.true_pose, r.true_ball, r.motion))
         return out

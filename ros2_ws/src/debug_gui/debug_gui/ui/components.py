@@ -7,6 +7,8 @@ at which robots publish their statistics by default.
 
 from __future__ import annotations
 
+import os
+import time
 from typing import Any
 
 from nicegui import ui
@@ -16,6 +18,15 @@ from ..robots import RobotId
 from .registry import ViewContext, register
 
 POLL_S = 1.0
+#: The table is redrawn at most this often, and only when a statistics message came: the
+#: figures are read by a person, and a redrawn table of a few dozen rows per robot costs
+#: the browser's main thread more than anything else on the page (docs/BENCHMARKS.md).
+UPDATE_S = 3.0
+#: The status line says how old the statistics are only beyond this.
+STALE_S = 5.0
+#: ``every-second`` restores the policy before issue 18 (every table rebuilt every second,
+#: whether anything changed or not): what bench/gui_page_bench.py compares against.
+POLICY_VARIABLE = "DEBUG_GUI_UPDATE_POLICY"
 NO_STATISTICS = ("this robot publishes no efficient_comm statistics (a plain ROS 2 robot): "
                  "nothing to show here; its parameters and topics are in those views")
 #: Long names (services, parameter events) are cut with an ellipsis; the full name shows on
@@ -104,20 +115,36 @@ def build(ctx: ViewContext) -> None:
     table.add_slot("body-cell-history", r"""
         <q-td :props="props" style="font-family: monospace">{{ props.value }}</q-td>""")
 
+    pushed: dict[str, Any] = {"messages": -1, "at": -UPDATE_S, "rows": None}
+    every_second = os.environ.get(POLICY_VARIABLE) == "every-second"
+
     def refresh() -> None:
         if not model.active:
             return
-        rows = model.rows()
-        table.rows = [table_row(r, robot) for r in rows]
-        table.update()
-        age = model.age_s()
-        flagged = sum(r.over_period for r in rows)
-        if age is None and not model.statistics_published():
-            status.text = NO_STATISTICS
-        elif age is not None:
-            status.text = (
-                f"{len(rows)} callbacks, {flagged} over their period; "
-                f"updated {age:.0f} s ago"
-            )
+        now = time.monotonic()
+        if every_second or (model.messages != pushed["messages"]
+                            and now - pushed["at"] >= UPDATE_S):
+            rows = model.rows()
+            shown = [table_row(r, robot) for r in rows]
+            pushed["messages"], pushed["at"] = model.messages, now
+            if every_second or shown != pushed["rows"]:
+                pushed["rows"] = shown
+                table.rows = shown
+                table.update()
+        text = status_text(model)
+        if text != status.text:
+            status.text = text
 
     ctx.follow(model, ui.timer(POLL_S, refresh, active=False))
+
+
+def status_text(model: ComponentsModel) -> str:
+    """The line above the table; it changes only when what it says does (a counter of
+    seconds would make the page redraw every second for nothing)."""
+    age = model.age_s()
+    if age is None:
+        return "waiting for the robot's statistics…" if model.statistics_published() \
+            else NO_STATISTICS
+    rows = model.rows()
+    text = f"{len(rows)} callbacks, {sum(r.over_period for r in rows)} over their period"
+    return text if age < STALE_S else f"{text}; no statistics for {age:.0f} s"

@@ -94,6 +94,16 @@ window.debugGuiImage = window.debugGuiImage || {
 """
 
 
+def live_state(*, online: bool, position: tuple[int, int] | None, fps: float,
+               asked: float) -> str:
+    """What the status line says the picture is: a robot that has gone is not "live"."""
+    if not online:
+        return "robot gone: its last frame"
+    if position is not None:
+        return f"paused at frame {position[0] + 1} of {position[1]}"
+    return f"live, {fps:.1f} fps received (asked {asked:g})"
+
+
 def frame_message(model: ImageModel) -> tuple[tuple[Any, ...], bytes] | None:
     """What to send for the frame shown now: (what identifies it, the binary message)."""
     shown = model.current()
@@ -198,7 +208,7 @@ def build(ctx: ViewContext) -> None:
     status = ui.label("waiting for the camera…").classes("text-caption").props(
         f"data-testid=image-status-{robot.key}")
     boxes: dict[str, Any] = {}
-    counts = {"received": 0, "at": 0.0}
+    counts: dict[str, Any] = {"received": 0, "at": 0.0, "online": True}
 
     def refresh() -> None:
         for layer in model.layers():
@@ -214,8 +224,16 @@ def build(ctx: ViewContext) -> None:
         counts["received"], counts["at"] = model.received, loop_now
         position = model.position()
         shown_now = model.current()
-        where = (f"paused at frame {position[0] + 1} of {position[1]}" if position is not None
-                 else f"live, {fps:.1f} fps received (asked {model.rate_hz:g})")
+        online = robot in ctx.hub.robots()
+        where = live_state(online=online, position=position, fps=fps, asked=model.rate_hz)
+        if online != counts["online"]:
+            counts["online"] = online
+            if not online:
+                quality.disable()
+                apply.disable()
+                quality_note.text = "JPEG quality cannot be set: the robot has gone"
+            elif ctx.can_write:
+                background_tasks.create(read_quality(), name=f"image quality {key}")
         stamp = f"stamp {shown_now[0].stamp_ns / 1e9:.3f} s" if shown_now else "no frame yet"
         status.text = f"{where}; {stamp}; {model.received} frames, " \
                       f"{model.drawings_received} drawings"
@@ -236,6 +254,11 @@ def build(ctx: ViewContext) -> None:
             pause.text = "resume"
         model.step(delta)
 
+    def gone() -> bool:
+        """The tab or the view went while a call was out (closed, removed, the server
+        stopping): its elements must not be touched then."""
+        return client.is_deleted or quality.is_deleted
+
     async def set_quality() -> None:
         kind: Literal["positive", "negative"]
         try:
@@ -255,12 +278,12 @@ def build(ctx: ViewContext) -> None:
         try:
             value = await run.io_bound(model.quality)
         except DebugGuiError as exc:  # no compressor on this robot: say so, keep the view
-            if not client.is_deleted:
+            if not gone():
                 quality.disable()
                 apply.disable()
                 quality_note.text = f"JPEG quality cannot be set: {exc}"
             return
-        if not client.is_deleted:
+        if not gone():
             quality.value = value
             quality.enable()
             apply.enable()

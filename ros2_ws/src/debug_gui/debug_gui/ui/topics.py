@@ -112,6 +112,8 @@ def build(ctx: ViewContext) -> None:
             rate = t["rate_hz"]
             shown = "" if rate is None else f"{rate:.1f}" + (
                 " (received)" if t["rate_source"] == "received" else "")
+            if rate is not None and t["rate_capped"]:
+                shown = f"≥ {rate:.1f} (the echo's rate: the topic's is unknown)"
             rows.append({"name": t["name"], "type": ", ".join(t["types"]), "rate": shown})
         table.rows = rows
         table.update()

@@ -17,7 +17,7 @@ from html import escape
 
 from nicegui import ui
 
-from ..models.world import FIELD, RobotState, WorldModel
+from ..models.world import FIELD, FRESH_S, STALE_S, RobotState, WorldModel
 from .registry import ViewContext, register
 
 POLL_S = 0.1
@@ -88,8 +88,16 @@ def _robot_svg(s: RobotState) -> str:
     if s.ball is not None:
         x, y = _pt(*s.ball)
         out.append(f'<circle data-testid="world-ball-{key}" cx="{x}" cy="{y}" r="6" '
-                   f'fill="none" stroke="{s.colour}" stroke-width="3"/>')
+                   f'fill="none" stroke="{s.colour}" stroke-width="3" '
+                   f'opacity="{ball_opacity(s.ball_age_s):.2f}"/>')
     return "".join(out)
+
+
+def ball_opacity(age_s: float | None) -> float:
+    """Full while fresh, fading to a fifth until the estimate is too old to be drawn."""
+    if age_s is None or age_s <= FRESH_S:
+        return 1.0
+    return max(0.2, 1.0 - 0.8 * (age_s - FRESH_S) / (STALE_S - FRESH_S))
 
 
 def world_svg(states: list[RobotState], team_ball: tuple[float, float] | None) -> str:
