@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import math
 import termios
+from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -123,6 +124,10 @@ class ServoDriver:
         self.cycles = 0
         self.comm_errors = 0
         self._port: PortHandler | None = None
+        #: Makes the port from its name: dynamixel-sdk's PortHandler. The seam through which
+        #: a lockstep simulation hands the SDK a port whose reply timeout does not depend on
+        #: the wall clock (``PtyBus.idle_port``); on a robot nothing sets it.
+        self.port_factory: Callable[[str], PortHandler] = PortHandler
         self._packets = PacketHandler(2.0)
         self._last_retry_ns = -RETRY_NS
         self._last_diag_ns = -RETRY_NS
@@ -135,7 +140,7 @@ class ServoDriver:
     # -- connection -----------------------------------------------------------------------
 
     def _connect(self) -> None:
-        port = PortHandler(self.port_name)
+        port = self.port_factory(self.port_name)
         try:
             opened = port.openPort() and port.setBaudRate(self.baud)
         except Exception as exc:  # pyserial raises for a missing device

@@ -53,7 +53,7 @@ from efficient_comm.standalone import standalone_main
 from throttle_publisher import ThrottledPublisher
 
 from .dynamixel.bus import Bus
-from .dynamixel.pty import PtyBus
+from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus
 from .errors import SimConfigError
 from .mujoco_plant import JOINTS, MujocoPlant
 from .render import OffscreenCamera
@@ -120,7 +120,11 @@ class Simulator:
                 self.camera = OffscreenCamera(self.model, camera=CAMERA, width=width,
                                               height=height)
                 opened.callback(self.camera.close)
-            self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed)
+            # In lockstep nothing may depend on wall time: no packet is dropped for being
+            # slow to complete (a loaded machine may split a write by any time).
+            self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed,
+                              packet_timeout_s=None if node.clock_kind == "manual"
+                              else PACKET_TIMEOUT_S)
             opened.callback(self.pty.close)
             self.port = self.pty.port
             if port_link:
