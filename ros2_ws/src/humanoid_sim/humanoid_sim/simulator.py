@@ -62,7 +62,10 @@ CAMERA = "head_camera"
 BALL_RADIUS_M = 0.07
 #: Where kicked balls go: in front of the robot, where its head can follow them.
 KICK_AREA = ((0.8, 2.5), (-1.2, 1.2))
-KICK_SECONDS = 2.0
+#: How fast the field slows a rolling ball (m/s²): the ball's rolling friction in
+#: ``models/soccer_field.xml`` (``test_field.py`` measures it); a kick that should reach a
+#: point rolls the ball off with the speed that stops it there.
+ROLLING_DECELERATION = 0.8
 MAX_CATCH_UP = 4
 #: How long a push that arrives as an impulse on the ``push`` topic lasts.
 PUSH_SECONDS = 0.1
@@ -280,7 +283,10 @@ class Simulator:
     def _kick(self) -> None:
         (x0, x1), (y0, y1) = KICK_AREA
         target = np.array([self._rng.uniform(x0, x1), self._rng.uniform(y0, y1)])
-        velocity = (target - self.ball_position()[:2]) / KICK_SECONDS
+        way = target - self.ball_position()[:2]
+        distance = float(np.linalg.norm(way))
+        speed = math.sqrt(2 * ROLLING_DECELERATION * distance)  # rolls to rest there
+        velocity = way / distance * speed if distance > 0 else way
         self.roll_ball(velocity=(float(velocity[0]), float(velocity[1])))
 
     # -- the loop -------------------------------------------------------------------------
