@@ -180,7 +180,9 @@ class IdlePortHandler(PortHandler):  # type: ignore[misc]  # the SDK is untyped
     reply has timed out when it can no longer come: the emulator has handled every byte
     written before (:meth:`PtyBus.sync`) and every byte it sent has reached this side of
     the pty, and still the SDK lacks bytes (a silent servo, a garbled length). That takes
-    as long as the emulator needs, and gives the same answer at any load.
+    as long as the emulator needs, and gives the same answer at any load. Likewise
+    ``clearPort`` (the SDK's discarding of stale input before each request) discards
+    every byte the emulator sent so far, never just those that happened to have arrived.
     """
 
     def __init__(self, port_name: str, bus: PtyBus) -> None:
@@ -198,14 +200,26 @@ class IdlePortHandler(PortHandler):  # type: ignore[misc]  # the SDK is untyped
         self._read += len(data)
         return data
 
-    def isPacketTimeout(self) -> bool:  # noqa: N802
+    def _all_arrived(self) -> None:
+        """Wait until the emulator has handled every byte written before and every byte it
+        sent has reached this side (the kernel hands pty data over through a work queue)."""
         if not self._bus.sync():
-            return True  # the emulator has stopped: nothing more will come
-        # Everything the emulator sent is on its way: wait until it has arrived (the
-        # kernel hands pty data over through a work queue), then nothing more will come.
-        while not self.ser.in_waiting:
-            if self._read >= self._bus.sent_bytes or self._bus.closed:
-                self.packet_timeout = 0
-                return True
-            select.select([self.ser.fileno()], [], [], 0.1)  # until they arrive
-        return False  # bytes to read first: the SDK reads them and asks again
+            return  # the emulator has stopped: nothing more will come
+        while (self._read + self.ser.in_waiting < self._bus.sent_bytes
+               and not self._bus.closed):
+            select.select([self.ser.fileno()], [], [], 0.01)
+
+    def clearPort(self) -> None:  # noqa: N802
+        # The SDK discards what has arrived before each request: on a wall clock that
+        # depends on how far a late reply got. Here it is always every byte sent so far.
+        self._all_arrived()
+        super().clearPort()
+        self._read = self._bus.sent_bytes
+
+    def isPacketTimeout(self) -> bool:  # noqa: N802
+        if not self.ser.in_waiting:
+            self._all_arrived()
+        if self.ser.in_waiting:
+            return False  # bytes to read first: the SDK reads them and asks again
+        self.packet_timeout = 0
+        return True
