@@ -31,4 +31,4 @@ def test_motion_bench_smoke(tmp_path: Path) -> None:
     assert kick["completed"] and kick["ball_speed"] > 0.3  # the ball was kicked
     assert 0 < kick["distance_m"] < 10 and abs(kick["angle_deg"]) < 90
     assert 0 < max(summary["peak_torque"].values()) < 10  # N m: the servos were read
-    assert "success (>= 2 m" in result.stdout and "peak servo use" in result.stdout
+    assert "success (>= 0.3 m" in result.stdout and "peak servo use" in result.stdout

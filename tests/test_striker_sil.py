@@ -23,7 +23,7 @@ ROBOT_POSE = [-1.0, 0.5, 0.6]
 BALL = [1.0, 0.5]
 #: Kicked towards the goal: the ball ends at least this much closer to the goal's centre,
 #: and its path leaves within this angle of the line from where it lay to the goal.
-CLOSER_M = 1.5
+CLOSER_M = 0.3  # one kick rolls about 0.5 m on turf-like rolling friction
 DIRECTION_DEG = 20.0
 #: Time for walking there and kicking (simulated s); the run stops earlier once the ball
 #: kicked has come to rest or left the field (a goal: the referee would put it back).

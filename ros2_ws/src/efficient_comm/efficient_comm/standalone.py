@@ -331,10 +331,24 @@ def run_standalone(
 
 
 def standalone_main(factory: Callable[[Any], Any], *, name: str) -> Callable[[], int]:
-    """A console-script ``main`` that runs ``factory`` as node ``name``."""
+    """A console-script ``main`` that runs ``factory`` as node ``name``.
 
-    def main() -> int:
-        return run_standalone(factory, name=name)
+    Its command line takes ``--ros-args ...`` and ``--help``, nothing else: ``--help``
+    prints what the node is and how to configure it and exits 0 before anything starts;
+    an argument of another kind is refused with one line and exit status 2 (argparse's).
+    """
+
+    def main(argv: Sequence[str] | None = None) -> int:
+        args = list(sys.argv if argv is None else [name, *argv])
+        doc = (sys.modules[factory.__module__].__doc__ or factory.__doc__ or "").strip()
+        parser = argparse.ArgumentParser(
+            prog=name, usage=f"{name} [-h] [--ros-args ...]",
+            description=doc.split("\n\n")[0] if doc else None,
+            epilog="ROS arguments: --ros-args -p NAME:=VALUE (parameters), -r FROM:=TO "
+            "(remapping), --params-file FILE.",
+        )
+        parser.parse_args(remove_ros_args(args)[1:])
+        return run_standalone(factory, name=name, args=args)
 
     return main
 

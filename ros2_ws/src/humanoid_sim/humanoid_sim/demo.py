@@ -8,7 +8,8 @@ servo driver (dynamixel-sdk, unchanged) and the soccer software (camera -> ball 
 ball model -> head behaviour and striker -> walk, kick, get-up -> motion arbiter), passing
 messages by reference on one thread; a referee (ground truth) counts goals and puts the
 ball back on the centre mark. The robot starts at ``--robot-pose``, the ball at
-``--ball``; nothing but the robot moves the ball. Every ``--stats-period`` seconds it prints
+``--ball``; without them ``--seed`` draws the start (:func:`start_positions`); nothing but
+the robot moves the ball. Every ``--stats-period`` seconds it prints
 rates, tracking error, distance walked, kicks, goals and falls; at the end (after
 ``--duration`` or on Ctrl-C/SIGTERM) it writes a short Markdown report.
 
@@ -19,8 +20,11 @@ processes (one robot each, in separate DDS domains and/or namespaces) can be tol
 a debugging tool such as debug_gui.
 
 ``--lockstep`` runs on a manual clock as fast as the machine allows, the same run for the
-same ``--seed``; by default the simulation runs in real time. ``--push-at`` shoves the robot
-from behind at that simulated second (``--push-newtons`` for 0.1 s; 40 N fells it).
+same ``--seed``; by default the simulation runs in real time. ``--push-at`` pushes the robot
+along the field's +x (towards the opponent goal) at that simulated second
+(``--push-newtons`` for 0.1 s; 40 N fells it).
+
+A bad argument is refused with one line and exit status 2 (:class:`DemoArguments`).
 
 Exit status: 0 the robot played (falls it got up from included); 1 a bug (the ball was
 never detected, a callback raised, or the servo bus emulator raised); 3 the robot fell and
@@ -31,21 +35,30 @@ from __future__ import annotations
 
 import argparse
 import math
+import random
 import sys
 import time
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import NoReturn
 
 from rclpy.validate_namespace import validate_namespace
 
 from efficient_comm import Container, ManualClock, format_stats, stop_on_sigterm
 from robot_recorder import Recorder
 
+from .errors import HumanoidSimError
 from .soccer.compose import SoccerRobot, compose
 from .soccer.monitor import Figures
+from .soccer.referee import HALF_LENGTH, HALF_WIDTH
 
-EXIT_OK, EXIT_BUG, EXIT_FELL = 0, 1, 3
+EXIT_OK, EXIT_BUG, EXIT_USAGE, EXIT_FELL = 0, 1, 2, 3
+#: Seed 0's start: the kick-off (robot in its own half facing the opponent goal, the ball
+#: on the centre mark); other seeds draw theirs (:func:`start_positions`).
+KICK_OFF_POSE, KICK_OFF_BALL = (-1.0, 0.5, 0.0), (0.0, 0.0)
+#: Options whose value may start with a minus sign (``--ball -0.5,0``).
+SIGNED_OPTIONS = ("--robot-pose", "--ball")
 #: What the robot's recorder records once started (relative to the robot's namespace);
 #: a viewer may change it (the recorder's ``~/set_topics`` service).
 RECORDED_TOPICS = [
@@ -122,6 +135,8 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         "",
         "| figure | value |",
         "|---|---|",
+        f"| start | robot at {','.join(f'{v:g}' for v in args.robot_pose)} (x, y, heading), "
+        f"ball at {','.join(f'{v:g}' for v in args.ball)} |",
         f"| simulated time | {sim['sim_time_s']:.1f} s in {wall_s:.1f} s wall |",
         *play(robot),
         f"| real-time factor | {sim['real_time_factor']:.2f}{skipped} |",
@@ -158,18 +173,80 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
     return "\n".join(lines)
 
 
-def _floats(count: int) -> Callable[[str], list[float]]:
-    """An argument of ``count`` comma-separated finite numbers."""
+def start_positions(seed: int) -> tuple[tuple[float, float, float], tuple[float, float]]:
+    """Where the robot (x, y, heading) and the ball (x, y) start for ``seed``.
+
+    Seed 0 is the kick-off (:data:`KICK_OFF_POSE`, :data:`KICK_OFF_BALL`). Other seeds
+    draw a start a game can have: the robot in its own half, at least 0.5 m inside the
+    lines and off the halfway line, facing anywhere; the ball in the middle of the field
+    (within 1.5 m of the centre mark in x and y, clear of the penalty areas) and at least
+    0.6 m from the robot, so every start asks for a walk before the kick.
+    """
+    if seed == 0:
+        return KICK_OFF_POSE, KICK_OFF_BALL
+    rng = random.Random(f"soccer_demo start {seed}")
+    while True:
+        pose = (rng.uniform(-HALF_LENGTH + 0.5, -0.5), rng.uniform(-HALF_WIDTH + 0.5,
+                HALF_WIDTH - 0.5), rng.uniform(-math.pi, math.pi))
+        ball = (rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5))
+        if math.dist(pose[:2], ball) >= 0.6:
+            return pose, ball
+
+
+def _number(*, low: float = -math.inf, high: float = math.inf, low_open: bool = False,
+            high_open: bool = False, what: str) -> Callable[[str], float]:
+    """A finite number within [low, high] (bounds excluded where ``*_open``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        inside = ((value > low if low_open else value >= low)
+                  and (value < high if high_open else value <= high))
+        if not math.isfinite(value) or not inside:
+            raise argparse.ArgumentTypeError(f"{text!r}: need {what}")
+        return value
+    return parse
+
+
+def _on_field(count: int, what: str) -> Callable[[str], list[float]]:
+    """``count`` comma-separated finite numbers, x and y on the field."""
     def parse(text: str) -> list[float]:
         try:
             values = [float(part) for part in text.split(",")]
         except ValueError:
             values = []
         if len(values) != count or not all(map(math.isfinite, values)):
-            raise argparse.ArgumentTypeError(f"{text!r}: need {count} numbers separated by "
-                                             f"commas")
+            raise argparse.ArgumentTypeError(f"{text!r}: need {what}, {count} numbers "
+                                             f"separated by commas")
+        if abs(values[0]) > HALF_LENGTH or abs(values[1]) > HALF_WIDTH:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is off the field: it is {2 * HALF_LENGTH:g} x {2 * HALF_WIDTH:g} m, "
+                f"x within +-{HALF_LENGTH:g}, y within +-{HALF_WIDTH:g} (origin the centre "
+                f"mark)")
         return values
     return parse
+
+
+class DemoArguments(argparse.ArgumentParser):
+    """The demo's parser: a bad argument is one line (``soccer_demo: error: ...``) and
+    exit status 2, and values of :data:`SIGNED_OPTIONS` may start with a minus sign."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
+
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: None = None) -> argparse.Namespace:
+        # argparse takes "-0.5,0" for an option (only plain negative numbers are values):
+        # glue such a value to its option, as "--ball=-0.5,0" is read.
+        given = list(sys.argv[1:] if args is None else args)
+        joined: list[str] = []
+        for arg in given:
+            if joined and joined[-1] in SIGNED_OPTIONS and arg.startswith("-"):
+                joined[-1] = f"{joined[-1]}={arg}"
+            else:
+                joined.append(arg)
+        return super().parse_args(joined)
 
 
 def namespace_arg(text: str) -> str:
@@ -193,33 +270,47 @@ def add_recorder(container: Container, namespace: str, bag_dir: Path) -> Recorde
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="soccer_demo", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=30.0, help="seconds; 0 = until Ctrl-C")
+    parser = DemoArguments(prog="soccer_demo", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--duration", type=_number(low=0, what="seconds >= 0"), default=30.0,
+                        help="simulated seconds in lockstep, wall seconds otherwise; "
+                        "0 = until Ctrl-C (default 30)")
     parser.add_argument("--lockstep", action="store_true",
                         help="manual clock, as fast as possible, deterministic")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--robot-pose", type=_floats(3), default=[-1.0, 0.5, 0.0],
+    parser.add_argument("--seed", type=int, default=0,
+                        help="the start (unless --robot-pose and --ball are given; 0 is the "
+                        "kick-off) and the line noise's pattern (default 0)")
+    parser.add_argument("--robot-pose", type=_on_field(3, "X,Y,HEADING"), default=None,
                         metavar="X,Y,HEADING",
                         help="where the robot starts on the field (m, m, rad; x towards the "
-                        "opponent goal, origin the centre mark); default -1,0.5,0")
-    parser.add_argument("--ball", type=_floats(2), default=[0.0, 0.0], metavar="X,Y",
-                        help="where the ball starts (m); default 0,0: the centre mark")
-    parser.add_argument("--line-noise", type=float, default=0.0,
-                        help="share of servo bus packets (either way) with a flipped bit")
+                        "opponent goal, origin the centre mark, e.g. -1,0.5,0); "
+                        "default: from --seed")
+    parser.add_argument("--ball", type=_on_field(2, "X,Y"), default=None, metavar="X,Y",
+                        help="where the ball starts (m; 0,0 is the centre mark); "
+                        "default: from --seed")
+    parser.add_argument("--line-noise", type=_number(low=0, high=1, high_open=True,
+                                                     what="a share 0 <= p < 1"),
+                        default=0.0, help="share of servo bus packets (either way) with a "
+                        "flipped bit, 0 <= p < 1 (default 0)")
     parser.add_argument("--no-dds", action="store_true", help="no DDS: nothing leaves the process")
-    parser.add_argument("--stats-period", type=float, default=2.0,
-                        help="seconds between the printed live lines")
+    parser.add_argument("--stats-period", type=_number(low=0, what="seconds >= 0"),
+                        default=2.0, help="seconds between the printed live lines; 0 = none "
+                        "(default 2)")
     parser.add_argument("--namespace", type=namespace_arg, default="/robot",
                         help="the robot's namespace (default /robot)")
     parser.add_argument("--bag-dir", type=Path, default=None,
                         help="where the robot's recorder writes bags "
                         "(default recordings/<namespace>)")
     parser.add_argument("--report", type=Path, default=Path("soccer_report.md"))
-    parser.add_argument("--push-at", type=float, default=0.0, metavar="SECONDS",
-                        help="push the robot from behind at this simulated time (0: never)")
-    parser.add_argument("--push-newtons", type=float, default=40.0,
-                        help="force of that push, for 0.1 s")
+    parser.add_argument("--push-at", type=_number(low=0, what="simulated seconds >= 0"),
+                        default=0.0, metavar="SECONDS",
+                        help="push the robot along +x of the field (towards the opponent "
+                        "goal) at this simulated time (0: never)")
+    parser.add_argument("--push-newtons", type=_number(low=0, what="newtons >= 0"),
+                        default=40.0, help="force of that push, for 0.1 s (default 40)")
     args = parser.parse_args(argv)
+    pose, ball = start_positions(args.seed)
+    args.robot_pose = args.robot_pose or list(pose)
+    args.ball = args.ball or list(ball)
     bag_dir = args.bag_dir or Path("recordings", args.namespace.strip("/") or "root")
     stop_on_sigterm()
 
@@ -227,18 +318,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     started = time.monotonic()
     with Container("soccer", namespace=args.namespace, dds=not args.no_dds, clock=clock,
                    stats_namespace=args.namespace) as container:
-        robot = compose(container, namespace=args.namespace, simulator={
-            "seed": args.seed, "robot_pose": args.robot_pose, "ball_position": args.ball,
-            "line_noise": args.line_noise,
-            "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
-        })
+        try:
+            robot = compose(container, namespace=args.namespace, simulator={
+                "seed": args.seed, "robot_pose": args.robot_pose, "ball_position": args.ball,
+                "line_noise": args.line_noise,
+                "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
+            })
+        except HumanoidSimError as exc:  # what the parser let through and a component refused
+            parser.error(str(exc))
         add_recorder(container, args.namespace, bag_dir)
         print(f"soccer demo: {robot.simulator.camera.backend if robot.simulator.camera else 'no'}"
               f" camera, servos on {robot.simulator.port}; "
               f"{'lockstep' if args.lockstep else 'real time'}, "
-              f"{'until Ctrl-C' if args.duration <= 0 else f'{args.duration:g} s'}")
-        print(HEADER, flush=True)
+              f"{'until Ctrl-C' if args.duration <= 0 else f'{args.duration:g} s'}; "
+              f"robot at {','.join(f'{v:g}' for v in args.robot_pose)}, "
+              f"ball at {','.join(f'{v:g}' for v in args.ball)}")
+        if args.stats_period:
+            print(HEADER, flush=True)
         end = args.duration if args.duration > 0 else math.inf
+        # Without live lines the loop still wakes every second (Ctrl-C, SIGTERM).
+        period = args.stats_period or 1.0
         spin_start = time.monotonic()
 
         def elapsed() -> float:  # simulated seconds in lockstep, wall seconds in real time
@@ -246,12 +345,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         try:
             while (left := end - elapsed()) > 1e-3:
-                step = min(args.stats_period, left)
+                step = min(period, left)
                 if args.lockstep:
                     container.advance(step)
                 else:
                     container.spin_for(step)
-                print(live_line(robot, robot.monitor.window()), flush=True)
+                if args.stats_period:
+                    print(live_line(robot, robot.monitor.window()), flush=True)
         except KeyboardInterrupt:
             print("interrupted")
         text = report(robot, container, args, time.monotonic() - started)

@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import math
 import termios
+from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -64,7 +65,10 @@ ALERT = 0x80  # the status error byte's hardware error bit (the rest is the erro
 #: Consecutive failed reads after which a servo counts as missing (a garbled reply or two
 #: on a noisy line must not take a joint away).
 MISSING_AFTER = 10
-ADOPT_TRIES = 3  # reads and writes while adopting a servo, before waiting a second
+#: Tries of each exchange while adopting a servo (ping, firmware read, torque on and its
+#: read-back) within one cycle; a servo that answered its ping but was not adopted is tried
+#: again next cycle, one that did not answer within a second.
+ADOPT_TRIES = 5
 #: Model number -> the first firmware with Fast Sync Read (e-Manual, Protocol 2.0: "X430/540
 #: Series (Fw v45 or above, 2XL/2XC Not Supported)", "X330 (Fw v46 or above)"; model numbers
 #: as in dynamixel-sdk's model list). Servos not listed get plain Sync Read.
@@ -120,15 +124,23 @@ class ServoDriver:
         self.cycles = 0
         self.comm_errors = 0
         self._port: PortHandler | None = None
+        #: Makes the port from its name: dynamixel-sdk's PortHandler. The seam through which
+        #: a lockstep simulation hands the SDK a port whose reply timeout does not depend on
+        #: the wall clock (``PtyBus.idle_port``); on a robot nothing sets it.
+        self.port_factory: Callable[[str], PortHandler] = PortHandler
         self._packets = PacketHandler(2.0)
         self._last_retry_ns = -RETRY_NS
         self._last_diag_ns = -RETRY_NS
+        #: Servos that answered a ping but whose adoption (firmware read, torque on read
+        #: back) failed: tried again every cycle, so a garbled write never leaves a joint
+        #: limp for a second.
+        self._adopting: set[int] = set()
         node.create_timer(1.0 / rate, self.cycle)
 
     # -- connection -----------------------------------------------------------------------
 
     def _connect(self) -> None:
-        port = PortHandler(self.port_name)
+        port = self.port_factory(self.port_name)
         try:
             opened = port.openPort() and port.setBaudRate(self.baud)
         except Exception as exc:  # pyserial raises for a missing device
@@ -142,39 +154,57 @@ class ServoDriver:
         self._port = port
         self.node.logger.info(f"opened {self.port_name} at {self.baud} baud")
 
-    def _adopt_missing(self) -> None:
+    def _adopt_missing(self, ids: list[int] | None = None) -> None:
+        """Ping each servo of ``ids`` (default: every servo not present), read its firmware
+        and turn its torque on, verified by reading Torque Enable back: a garbled write
+        (its reply lost, or the request refused for a bad CRC) must not leave it limp."""
         assert self._port is not None
-        for dxl_id in self.ids:
+        for dxl_id in self.ids if ids is None else ids:
             if dxl_id in self.present:
                 continue
-            model, result, _ = self._packets.ping(self._port, dxl_id)
-            if result != COMM_SUCCESS:
-                continue
             for _ in range(ADOPT_TRIES):  # line noise either way: asking again is harmless
+                model, result, _ = self._packets.ping(self._port, dxl_id)
+                if result == COMM_SUCCESS:
+                    break
+            if result != COMM_SUCCESS:
+                self._adopting.discard(dxl_id)  # silent: pinged again within a second
+                continue
+            self._adopting.add(dxl_id)  # answers: tried every cycle until adopted
+            for _ in range(ADOPT_TRIES):
                 firmware, result, _ = self._packets.read1ByteTxRx(self._port, dxl_id,
                                                                   ADDR_FIRMWARE)
                 if result == COMM_SUCCESS:
                     break
             if result != COMM_SUCCESS:
-                self.comm_errors += 1  # asked again within a second
+                self.comm_errors += 1
                 continue
             if firmware >= FAST_SYNC_READ_FIRMWARE.get(model, 256):
                 self.fast_capable.add(dxl_id)
             else:
                 self.fast_capable.discard(dxl_id)
-            for _ in range(ADOPT_TRIES):  # line noise either way: writing 1 again is harmless
-                result, error = self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
-                if result == COMM_SUCCESS and not error & ~ALERT:
-                    break
-            if result != COMM_SUCCESS or error & ~ALERT:
-                self.comm_errors += 1  # tried again within a second
-                self.node.logger.warning(f"servo {dxl_id} answers but torque on failed "
-                                         f"({self._packets.getTxRxResult(result)}, "
-                                         f"error {error:#04x})")
+            if not self._torque_on(dxl_id):
+                self.comm_errors += 1
                 continue
+            self._adopting.discard(dxl_id)
             self.present.add(dxl_id)
             self._misses[dxl_id] = 0
             self.node.logger.info(f"servo {dxl_id} answers; torque on")
+
+    def _torque_on(self, dxl_id: int) -> bool:
+        """Write Torque Enable 1 and read it back; True once the servo says it is on."""
+        assert self._port is not None
+        result, error = COMM_SUCCESS, 0
+        for _ in range(ADOPT_TRIES):
+            # The write's own reply does not matter: a garbled reply hides a write that
+            # happened, a garbled request is refused; the read-back tells which.
+            self._packets.write1ByteTxRx(self._port, dxl_id, ADDR_TORQUE, 1)
+            value, result, error = self._packets.read1ByteTxRx(self._port, dxl_id, ADDR_TORQUE)
+            if result == COMM_SUCCESS and value == 1:
+                return True
+        self.node.logger.warning(f"servo {dxl_id} answers but torque on failed "
+                                 f"({self._packets.getTxRxResult(result)}, error {error:#04x})"
+                                 f"; trying again next cycle")
+        return False
 
     # -- the cycle ----------------------------------------------------------------------
 
@@ -195,6 +225,8 @@ class ServoDriver:
                     self._connect()
                 if self._port is not None:
                     self._adopt_missing()
+            elif self._port is not None and self._adopting:
+                self._adopt_missing(sorted(self._adopting))
             if self._port is not None and self.present:
                 self._read(now)
                 self._write()
@@ -214,6 +246,7 @@ class ServoDriver:
         self.comm_errors += 1
         port, self._port = self._port, None
         self.present.clear()
+        self._adopting.clear()
         if port is not None:
             with contextlib.suppress(*PORT_GONE):
                 port.closePort()

@@ -52,7 +52,7 @@ from efficient_comm.standalone import standalone_main
 from throttle_publisher import ThrottledPublisher
 
 from .dynamixel.bus import Bus
-from .dynamixel.pty import PtyBus
+from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus
 from .errors import SimConfigError
 from .mujoco_plant import JOINTS, MujocoPlant
 from .render import OffscreenCamera
@@ -61,7 +61,10 @@ CAMERA = "head_camera"
 BALL_RADIUS_M = 0.07
 #: Where kicked balls go: in front of the robot, where its head can follow them.
 KICK_AREA = ((0.8, 2.5), (-1.2, 1.2))
-KICK_SECONDS = 2.0
+#: How fast the field slows a rolling ball (m/s²): the ball's rolling friction in
+#: ``models/soccer_field.xml`` (``test_field.py`` measures it); a kick that should reach a
+#: point rolls the ball off with the speed that stops it there.
+ROLLING_DECELERATION = 0.8
 MAX_CATCH_UP = 4
 #: How long a push that arrives as an impulse on the ``push`` topic lasts.
 PUSH_SECONDS = 0.1
@@ -119,7 +122,11 @@ class Simulator:
                 self.camera = OffscreenCamera(self.model, camera=CAMERA, width=width,
                                               height=height)
                 opened.callback(self.camera.close)
-            self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed)
+            # In lockstep nothing may depend on wall time: no packet is dropped for being
+            # slow to complete (a loaded machine may split a write by any time).
+            self.pty = PtyBus(Bus(JOINTS, self.plant), corrupt=line_noise, seed=seed,
+                              packet_timeout_s=None if node.clock_kind == "manual"
+                              else PACKET_TIMEOUT_S)
             opened.callback(self.pty.close)
             self.port = self.pty.port
             if port_link:
@@ -275,7 +282,10 @@ class Simulator:
     def _kick(self) -> None:
         (x0, x1), (y0, y1) = KICK_AREA
         target = np.array([self._rng.uniform(x0, x1), self._rng.uniform(y0, y1)])
-        velocity = (target - self.ball_position()[:2]) / KICK_SECONDS
+        way = target - self.ball_position()[:2]
+        distance = float(np.linalg.norm(way))
+        speed = math.sqrt(2 * ROLLING_DECELERATION * distance)  # rolls to rest there
+        velocity = way / distance * speed if distance > 0 else way
         self.roll_ball(velocity=(float(velocity[0]), float(velocity[1])))
 
     # -- the loop -------------------------------------------------------------------------

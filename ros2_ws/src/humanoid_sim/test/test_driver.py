@@ -190,6 +190,22 @@ def test_line_noise_is_counted_and_survived() -> None:
         driver.close()
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_torque_is_on_within_a_few_cycles_despite_garbled_start_up_writes(seed: int) -> None:
+    """A ping, a torque write or its reply garbled at start-up used to leave the servo limp
+    until the next retry a second later (a standing robot fell): the driver pings again,
+    reads Torque Enable back and tries again every cycle."""
+    with PtyBus(Bus(IDS, IdealPlant()), corrupt=0.2, seed=seed) as pty:
+        node, driver = _driver(pty, latency_timer_ms=SDK_LATENCY_TIMER_MS)
+        for _ in range(5):
+            node.advance(0.01)
+        with pty.lock:
+            torque = {i: pty.bus.servos[i].get("torque_enable") for i in IDS}
+        assert torque == dict.fromkeys(IDS, 1), (seed, torque)
+        assert driver.status()["present"] == IDS
+        driver.close()
+
+
 def test_a_missing_port_is_reported_not_fatal() -> None:
     node = TestHandle("driver", parameters={"port": "/dev/does_not_exist", "ids": [1]})
     driver = ServoDriver(node)

@@ -320,6 +320,20 @@ def test_the_monitor_counts_kicks_get_ups_the_first_kick_and_the_way_walked() ->
     assert monitor.walked_m == pytest.approx(0.2)
 
 
+@pytest.mark.parametrize("states", [
+    ["fallen", "getup", "stand"],
+    ["fallen", "getup", "fallen", "stand"],  # the motion over before fall/state says standing
+    ["fallen", "getup", "fallen", "getup", "fallen", "walk"],  # a second attempt
+])
+def test_the_monitor_counts_a_get_up_however_the_arbiter_got_back_to_standing(
+        states: list[str]) -> None:
+    node = TestHandle("monitor")
+    monitor = SoccerMonitor(node)
+    for state in ["stand", *states, "stand", "fallen", "stand"]:  # no get-up in the last fall
+        node.inject("motion/state", String(data=state))
+    assert monitor.getups == 1
+
+
 def test_the_monitor_does_not_score_frames_without_the_ball_in_the_image() -> None:
     node = TestHandle("monitor")
     monitor = SoccerMonitor(node)

@@ -24,6 +24,8 @@ import threading
 import time
 import tty
 
+from dynamixel_sdk import PortHandler
+
 from efficient_comm import Closing
 
 from .bus import Bus
@@ -40,9 +42,16 @@ PACKET_TIMEOUT_S = 0.5
 class PtyBus(Closing):
     """A context manager: the bus answers on a pty until closed."""
 
-    def __init__(self, bus: Bus, *, corrupt: float = 0.0, seed: int = 0) -> None:
-        """``corrupt``: line noise, the share of packets either way with one bit flipped."""
+    def __init__(self, bus: Bus, *, corrupt: float = 0.0, seed: int = 0,
+                 packet_timeout_s: float | None = PACKET_TIMEOUT_S) -> None:
+        """``corrupt``: line noise, the share of packets either way with one bit flipped.
+
+        ``packet_timeout_s``: drop a packet not complete this long (wall time) after its
+        first bytes; None never does (lockstep: a loaded machine may split a write by any
+        time, and the run must not change with the load).
+        """
         self.bus = bus
+        self.packet_timeout_s = packet_timeout_s
         self.corrupt = corrupt
         self._rng = random.Random(seed)
         self._master, self._slave = os.openpty()
@@ -61,6 +70,8 @@ class PtyBus(Closing):
         self.discarded_bytes = 0
         #: Replies, or their tails, that did not fit into the pty (nobody was reading).
         self.dropped_replies = 0
+        #: Bytes of replies written to the pty (what a reader on the port can receive).
+        self.sent_bytes = 0
         self._closed = False
         self._lock = threading.Lock()
         self._synced = threading.Condition()
@@ -69,6 +80,10 @@ class PtyBus(Closing):
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, name="dynamixel-bus", daemon=True)
         self._thread.start()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
 
     @property
     def lock(self) -> threading.Lock:
@@ -86,7 +101,8 @@ class PtyBus(Closing):
                 partial_since = None
             elif partial_since is None:
                 partial_since = time.monotonic()
-            elif time.monotonic() - partial_since > PACKET_TIMEOUT_S:
+            elif (self.packet_timeout_s is not None
+                  and time.monotonic() - partial_since > self.packet_timeout_s):
                 self.discarded_bytes += parser.discard()
                 partial_since = None
             if not ready:
@@ -135,8 +151,14 @@ class PtyBus(Closing):
             written = os.write(self._master, reply)
         except BlockingIOError:
             written = 0
+        self.sent_bytes += written
         if written < len(reply):
             self.dropped_replies += 1
+
+    def idle_port(self, port_name: str) -> PortHandler:
+        """A dynamixel-sdk port on this bus whose reply timeout is the emulator being done,
+        not the wall clock: for lockstep runs (see :class:`IdlePortHandler`)."""
+        return IdlePortHandler(port_name, self)
 
     def close(self) -> None:
         """Stop answering and close the pty; a second call does nothing."""
@@ -147,3 +169,57 @@ class PtyBus(Closing):
         self._thread.join(timeout=2)
         os.close(self._master)
         os.close(self._slave)
+
+
+class IdlePortHandler(PortHandler):  # type: ignore[misc]  # the SDK is untyped
+    """dynamixel-sdk's PortHandler, except when a reply has timed out.
+
+    The SDK gives up on a reply after a wall-clock timeout. On a loaded machine the
+    emulator's thread may not get to answer in time, so a lockstep run (the same for a seed
+    whatever the load) would see a missing reply where an idle machine sees none. Here a
+    reply has timed out when it can no longer come: the emulator has handled every byte
+    written before (:meth:`PtyBus.sync`) and every byte it sent has reached this side of
+    the pty, and still the SDK lacks bytes (a silent servo, a garbled length). That takes
+    as long as the emulator needs, and gives the same answer at any load. Likewise
+    ``clearPort`` (the SDK's discarding of stale input before each request) discards
+    every byte the emulator sent so far, never just those that happened to have arrived.
+    """
+
+    def __init__(self, port_name: str, bus: PtyBus) -> None:
+        super().__init__(port_name)
+        self._bus = bus
+        self._read = 0  # bytes read from the port, or discarded when it was set up
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (the SDK's name)
+        ready = bool(super().setupPort(cflag_baud))
+        self._read = self._bus.sent_bytes  # the set-up discarded what had arrived
+        return ready
+
+    def readPort(self, length: int) -> bytes:  # noqa: N802
+        data = bytes(super().readPort(length))
+        self._read += len(data)
+        return data
+
+    def _all_arrived(self) -> None:
+        """Wait until the emulator has handled every byte written before and every byte it
+        sent has reached this side (the kernel hands pty data over through a work queue)."""
+        if not self._bus.sync():
+            return  # the emulator has stopped: nothing more will come
+        while (self._read + self.ser.in_waiting < self._bus.sent_bytes
+               and not self._bus.closed):
+            select.select([self.ser.fileno()], [], [], 0.01)
+
+    def clearPort(self) -> None:  # noqa: N802
+        # The SDK discards what has arrived before each request: on a wall clock that
+        # depends on how far a late reply got. Here it is always every byte sent so far.
+        self._all_arrived()
+        super().clearPort()
+        self._read = self._bus.sent_bytes
+
+    def isPacketTimeout(self) -> bool:  # noqa: N802
+        if not self.ser.in_waiting:
+            self._all_arrived()
+        if self.ser.in_waiting:
+            return False  # bytes to read first: the SDK reads them and asks again
+        self.packet_timeout = 0
+        return True

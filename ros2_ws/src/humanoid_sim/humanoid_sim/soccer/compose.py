@@ -66,9 +66,11 @@ def add_body(container: Container, *, namespace: str,
              driver: Mapping[str, Any] | None = None) -> tuple[Simulator, ServoDriver]:
     """Add the simulator and the servo driver on its pty: the robot without its software.
 
-    On a manual clock (lockstep) the driver's reply timeouts, which dynamixel-sdk measures
-    in wall time, are relaxed to :data:`LOCKSTEP_LATENCY_TIMER_MS`: a loaded machine must
-    not turn a slow emulator thread into a missing servo and change the run.
+    On a manual clock (lockstep) the driver's port is the emulator's
+    :class:`~..dynamixel.pty.IdlePortHandler`: a reply has timed out when the emulator has
+    answered everything and the reply is still short, never after wall time, so a loaded
+    machine cannot turn a slow emulator thread into a missing servo and change the run.
+    (The relaxed :data:`LOCKSTEP_LATENCY_TIMER_MS` stays for drivers given another port.)
     """
     sim: Simulator = container.add(Simulator, name="simulator", namespace=namespace,
                                    parameters=dict(simulator or {}))
@@ -79,6 +81,10 @@ def add_body(container: Container, *, namespace: str,
     driver_parameters.update(driver or {})
     servo_driver: ServoDriver = container.add(ServoDriver, name="servo_driver",
                                               namespace=namespace, parameters=driver_parameters)
+    if container.clock_kind == "manual" and servo_driver.port_name == sim.port:
+        # A reply has timed out when the emulator is done, not after wall time: the same
+        # run at any load (the driver opens its port at its first cycle).
+        servo_driver.port_factory = sim.pty.idle_port
     return sim, servo_driver
 
 

