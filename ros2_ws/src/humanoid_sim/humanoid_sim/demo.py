@@ -47,11 +47,11 @@ from rclpy.validate_namespace import validate_namespace
 
 from efficient_comm import Container, ManualClock, format_stats, stop_on_sigterm
 from robot_recorder import Recorder
+from soccer_field import KIDSIZE
 
 from .errors import HumanoidSimError
 from .soccer.compose import SoccerRobot, compose
 from .soccer.monitor import Figures
-from .soccer.referee import HALF_LENGTH, HALF_WIDTH
 
 EXIT_OK, EXIT_BUG, EXIT_USAGE, EXIT_FELL = 0, 1, 2, 3
 #: Seed 0's start: the kick-off (robot in its own half facing the opponent goal, the ball
@@ -186,8 +186,9 @@ def start_positions(seed: int) -> tuple[tuple[float, float, float], tuple[float,
         return KICK_OFF_POSE, KICK_OFF_BALL
     rng = random.Random(f"soccer_demo start {seed}")
     while True:
-        pose = (rng.uniform(-HALF_LENGTH + 0.5, -0.5), rng.uniform(-HALF_WIDTH + 0.5,
-                HALF_WIDTH - 0.5), rng.uniform(-math.pi, math.pi))
+        half_l, half_w = KIDSIZE.half_length, KIDSIZE.half_width
+        pose = (rng.uniform(-half_l + 0.5, -0.5), rng.uniform(-half_w + 0.5, half_w - 0.5),
+                rng.uniform(-math.pi, math.pi))
         ball = (rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5))
         if math.dist(pose[:2], ball) >= 0.6:
             return pose, ball
@@ -219,11 +220,11 @@ def _on_field(count: int, what: str) -> Callable[[str], list[float]]:
         if len(values) != count or not all(map(math.isfinite, values)):
             raise argparse.ArgumentTypeError(f"{text!r}: need {what}, {count} numbers "
                                              f"separated by commas")
-        if abs(values[0]) > HALF_LENGTH or abs(values[1]) > HALF_WIDTH:
+        half_l, half_w = KIDSIZE.half_length, KIDSIZE.half_width
+        if abs(values[0]) > half_l or abs(values[1]) > half_w:
             raise argparse.ArgumentTypeError(
-                f"{text!r} is off the field: it is {2 * HALF_LENGTH:g} x {2 * HALF_WIDTH:g} m, "
-                f"x within +-{HALF_LENGTH:g}, y within +-{HALF_WIDTH:g} (origin the centre "
-                f"mark)")
+                f"{text!r} is off the field: it is {2 * half_l:g} x {2 * half_w:g} m, "
+                f"x within +-{half_l:g}, y within +-{half_w:g} (origin the centre mark)")
         return values
     return parse
 
