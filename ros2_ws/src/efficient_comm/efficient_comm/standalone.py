@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import inspect
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -340,7 +341,7 @@ def standalone_main(factory: Callable[[Any], Any], *, name: str) -> Callable[[],
 
     def main(argv: Sequence[str] | None = None) -> int:
         args = list(sys.argv if argv is None else [name, *argv])
-        doc = (sys.modules[factory.__module__].__doc__ or factory.__doc__ or "").strip()
+        doc = (inspect.getdoc(inspect.getmodule(factory)) or factory.__doc__ or "").strip()
         parser = argparse.ArgumentParser(
             prog=name, usage=f"{name} [-h] [--ros-args ...]",
             description=doc.split("\n\n")[0] if doc else None,

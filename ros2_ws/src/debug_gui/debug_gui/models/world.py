@@ -33,7 +33,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from efficient_comm import latched_qos
+from efficient_comm import from_msg, latched_qos
 from soccer_field import KIDSIZE
 
 from ..hub import Feed, Hub
@@ -150,7 +150,7 @@ class _Robot:
         self.feeds: list[Feed] = []
 
     def heard(self, stamp: Any) -> int:
-        ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+        ns = from_msg(stamp)
         self.newest_ns = max(self.newest_ns, ns)
         return ns
 
