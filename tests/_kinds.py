@@ -42,15 +42,12 @@ KINDS = (*SLOW_KINDS, "fast")
 KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     # Package unit tests: in-process, on a TestHandle or ManualClock.
     ("ros2_ws/src/*/test/test_*.py", "fast"),
-    # ... except the ones that start programs or run the simulator for seconds.
+    # ... except the ones that start programs (or a renderer's subprocess).
     ("ros2_ws/src/debug_gui/test/test_components_model.py", "process"),
     ("ros2_ws/src/debug_gui/test/test_layout_security.py", "process"),
     ("ros2_ws/src/efficient_comm/test/test_testing.py", "process"),
     ("ros2_ws/src/rf_bridge/test/test_ros1_types.py", "process"),
-    ("ros2_ws/src/humanoid_sim/test/test_walk.py", "sil"),
-    ("ros2_ws/src/humanoid_sim/test/test_getup.py", "sil"),
-    ("ros2_ws/src/humanoid_sim/test/test_striker.py", "sil"),
-    ("ros2_ws/src/humanoid_sim/test/test_simulator.py", "sil"),
+    ("ros2_ws/src/humanoid_sim/test/test_render.py", "process"),
     # Top-level suites: cross-package, separate processes unless a row says otherwise.
     ("tests/test_*.py", "process"),
     ("tests/test_*_sil.py", "sil"),

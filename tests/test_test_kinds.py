@@ -34,7 +34,7 @@ def test_every_test_file_has_a_kind() -> None:
 
 @pytest.mark.parametrize(("path", "name", "fixtures", "expected"), [
     ("ros2_ws/src/efficient_comm/test/test_bus.py", "test_a", (), {"fast"}),
-    ("ros2_ws/src/humanoid_sim/test/test_walk.py", "test_a", (), {"sil"}),
+    ("ros2_ws/src/humanoid_sim/test/test_render.py", "test_a", (), {"process"}),
     ("tests/test_kick_sil.py", "test_a", (), {"sil"}),
     ("tests/test_gui_shell_browser.py", "test_a", ("browser",), {"browser"}),
     # A browser test in a data-side file is a browser test all the same.
