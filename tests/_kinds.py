@@ -11,7 +11,8 @@ The kinds, each a pytest marker (declared in pyproject.toml):
   emulated servo bus, with the robot's software) for simulated seconds, in lockstep or in
   real time. CPU-bound: minutes on two cores.
 * ``browser``: drives debug_gui in a headless chromium (``scripts/setup_browser.sh``).
-  Every test that uses the ``browser`` fixture gets it, whatever its file is called.
+  Every test that uses the ``browser`` (or ``chromium_session``) fixture gets it, whatever
+  its file is called.
 * ``bench``: runs a benchmark of ``bench/`` briefly, to show it still runs and reports.
 * ``docs``: runs the command lines of README.md and docs/ as written.
 * ``process``: starts separate programs or DDS participants and waits for them
@@ -84,7 +85,7 @@ def kinds_of(path: str, name: str = "", *, fixtures: Iterable[str] = ()) -> set[
     if file_kind is None:
         return set()
     kinds.add(file_kind)
-    if "browser" in fixtures:
+    if {"browser", "chromium_session"} & set(fixtures):
         kinds.add("browser")
     if kinds & set(SLOW_KINDS):
         kinds.discard("fast")
