@@ -1,13 +1,95 @@
-"""Test-session set-up shared by every suite: DDS on loopback, composition-ready process.
+"""Test-session set-up shared by every suite: DDS on loopback, composition-ready process,
+and each test's kind (tier) from its file name.
 
 Fast DDS reads its profile once per process, when the first participant is created, so
 the profile that keeps in-process and DDS delivery apart must be in place before any test
 calls ``rclpy.init`` (see efficient_comm.dds).
+
+Kinds (``sil``, ``browser``, ``bench``, ``docs``, ``process``, ``root``, ``fast``) are
+markers given by tests/_kinds.py's table, so ``pytest -m fast`` selects the tier to run
+after an edit and new test files get a tier without a marker of their own. Tests of kind
+``root`` are counted at the end ("root-only tests: N ran, M skipped"); under CI (``CI=true``)
+as root, a skipped one fails the run, since CI is where they are meant to run.
 """
 
+import importlib.util
 import os
+from pathlib import Path
+from typing import Any
+
+import pytest
 
 from efficient_comm.dds import prepare_process
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 prepare_process()
+
+ROOT = Path(__file__).resolve().parent
+
+
+def _load_kinds() -> Any:
+    # By path: the repository root is not on sys.path under --import-mode=importlib.
+    spec = importlib.util.spec_from_file_location("_test_kinds", ROOT / "tests" / "_kinds.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_kinds = _load_kinds()
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark each test with its kinds; a file no row of the table covers is an error."""
+    missing = set()
+    for item in items:
+        path = Path(str(item.path)).resolve()
+        try:
+            rel = path.relative_to(ROOT).as_posix()
+        except ValueError:  # a test outside the repository (pytester's): no tier
+            continue
+        kinds = _kinds.kinds_of(rel, item.name, fixtures=getattr(item, "fixturenames", ()))
+        if not kinds:
+            missing.add(rel)
+        for kind in sorted(kinds):
+            item.add_marker(kind)
+    if missing:
+        raise pytest.UsageError(
+            f"no test kind for {', '.join(sorted(missing))}: add a row to "
+            "tests/_kinds.py's KIND_PATTERNS"
+        )
+
+
+_root_outcomes: dict[str, str] = {}
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    if "root" not in report.keywords:
+        return
+    if report.skipped:
+        _root_outcomes[report.nodeid] = "skipped"
+    elif report.when == "call" and report.nodeid not in _root_outcomes:
+        _root_outcomes[report.nodeid] = "ran"
+
+
+def _root_counts() -> tuple[int, int]:
+    outcomes = list(_root_outcomes.values())
+    return outcomes.count("ran"), outcomes.count("skipped")
+
+
+def _root_required() -> bool:
+    return os.environ.get("CI", "").lower() == "true" and os.geteuid() == 0
+
+
+def pytest_terminal_summary(terminalreporter: Any) -> None:
+    ran, skipped = _root_counts()
+    if ran or skipped:
+        terminalreporter.write_line(f"root-only tests: {ran} ran, {skipped} skipped")
+        if skipped and _root_required():
+            terminalreporter.write_line(
+                "root-only tests were skipped under CI as root: failing the run", red=True)
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    if _root_counts()[1] and _root_required() and exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -1,16 +1,32 @@
 #!/usr/bin/env bash
 # Set up, then lint (ruff), type-check (mypy) and test (pytest) the project.
 # Extra arguments go to pytest: scripts/test.sh -k foo
+# scripts/test.sh --fast: the tier for an edit (pytest -m fast: no processes, simulations,
+# browser, benchmarks or docs commands; see tests/_kinds.py), with ruff, without mypy.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+fast=0
+if [[ "${1:-}" == "--fast" ]]; then
+  fast=1
+  shift
+fi
 bash scripts/setup.sh
-bash scripts/setup_ros1.sh  # rf_bridge tests run against Debian's ROS 1
-bash scripts/setup_browser.sh  # debug_gui tests drive a headless chromium
+if ((!fast)); then
+  bash scripts/setup_ros1.sh  # rf_bridge tests run against Debian's ROS 1
+  bash scripts/setup_browser.sh  # debug_gui tests drive a headless chromium
+fi
 source scripts/env.sh
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST PYTHONDONTWRITEBYTECODE=1
 
 echo "test: ruff check"
 ruff check
+
+if ((fast)); then
+  echo "test: pytest -m fast"
+  rc=0
+  pytest -m fast "$@" || rc=$?
+  exit "$rc"
+fi
 
 # mypy checks the paths pyproject.toml lists that exist yet, one at a time: every ROS package
 # has its own test/ folder, and checked together their test modules would share names.

@@ -7,13 +7,16 @@
 * :func:`gui` starts ``ros2 run debug_gui debug_gui --port 0 --domains ...`` the way a
   user types it and waits for the URL it prints and for the page to answer.
 * the ``browser`` fixture (re-exported by ``tests/conftest.py``) is a headless chromium
-  WebDriver; whatever the test did, its last screen is saved under ``tests/artifacts/``.
+  WebDriver, one for the whole session (``chromium_session``), reset between tests (a new
+  tab, no cookies or storage, the default size); whatever the test did, its last screen is
+  saved under ``tests/artifacts/``.
 
 Waiting is on conditions with deadlines (:func:`wait_for`), never on sleeps.
 """
 
 from __future__ import annotations
 
+import contextlib
 import re
 import subprocess
 import sys
@@ -35,6 +38,8 @@ CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
 FAKE_ROBOT = Path(__file__).with_name("_gui_fake_robot.py")
 _URL = re.compile(r"at (http://\S+)")
+#: The browser's window (width, height), restored between tests.
+WINDOW_SIZE = (1600, 1000)
 
 
 @dataclass
@@ -174,7 +179,7 @@ def new_browser() -> Any:
         pytest.fail("chromium and chromedriver missing: run bash scripts/setup_browser.sh")
     options = webdriver.ChromeOptions()
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
-                "--window-size=1600,1000", "--disable-gpu"):
+                "--window-size={},{}".format(*WINDOW_SIZE), "--disable-gpu"):
         options.add_argument(arg)
     options.binary_location = str(CHROMIUM)
     return webdriver.Chrome(options=options, service=Service(str(CHROMEDRIVER)))
@@ -188,17 +193,76 @@ def screenshot(driver: Any, name: str) -> Path:
     return path
 
 
+@pytest.fixture(scope="session")
+def chromium_session() -> Iterator[list[Any]]:
+    """The session's one chromium (started by the first browser test, replaced if a test
+    left it broken): starting chromium and its driver costs seconds a test."""
+    holder: list[Any] = []
+    try:
+        yield holder
+    finally:
+        for driver in holder:
+            with contextlib.suppress(Exception):
+                driver.quit()
+
+
+def fresh_browser(holder: list[Any]) -> Any:
+    """The session's chromium (a new one if there is none or it no longer answers)."""
+    if holder:
+        try:
+            holder[0].current_window_handle  # noqa: B018 (answers, or raises)
+            return holder[0]
+        except Exception:
+            with contextlib.suppress(Exception):
+                holder[0].quit()
+            holder.clear()
+    holder.append(new_browser())
+    return holder[0]
+
+
+def reset_browser(driver: Any, holder: list[Any]) -> None:
+    """Leave nothing of a test for the next: one new tab at the default size, no cookies,
+    no storage of the origins the test visited. A browser that will not reset is quit, so
+    the next test gets a new one."""
+    try:
+        origins = set()
+        for handle in driver.window_handles:
+            driver.switch_to.window(handle)
+            url = str(driver.current_url)
+            if url.startswith("http"):
+                origins.add("/".join(url.split("/", 3)[:3]))
+        driver.switch_to.new_window("tab")
+        keep = driver.current_window_handle
+        for handle in driver.window_handles:
+            if handle != keep:
+                driver.switch_to.window(handle)
+                driver.close()
+        driver.switch_to.window(keep)
+        driver.execute_cdp_cmd("Network.clearBrowserCookies", {})
+        for origin in origins:
+            driver.execute_cdp_cmd("Storage.clearDataForOrigin",
+                                   {"origin": origin, "storageTypes": "all"})
+        driver.set_window_size(*WINDOW_SIZE)
+    except Exception:
+        with contextlib.suppress(Exception):
+            driver.quit()
+        holder.clear()
+
+
 @pytest.fixture
-def browser(request: pytest.FixtureRequest) -> Iterator[Any]:
-    """A headless chromium; its last screen is saved as ``tests/artifacts/<test>.png``."""
-    driver = new_browser()
+def browser(request: pytest.FixtureRequest, chromium_session: list[Any]) -> Iterator[Any]:
+    """A headless chromium tab (the session's browser, reset after each test); its last
+    screen is saved as ``tests/artifacts/<test>.png``."""
+    driver = fresh_browser(chromium_session)
     try:
         yield driver
     finally:
         try:
             screenshot(driver, request.node.name)
+        except Exception:  # a test that broke the browser: the reset replaces it
+            pass
         finally:
-            driver.quit()
+            reset_browser(driver, chromium_session)
 
 
 def page_text(driver: Any) -> str:

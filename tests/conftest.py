@@ -7,6 +7,7 @@ import pytest
 
 from ._cli import daemons_in_tmp
 from ._gui import browser as browser
+from ._gui import chromium_session as chromium_session
 
 
 @pytest.fixture(scope="session", autouse=True)
