@@ -47,6 +47,7 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("ros2_ws/src/debug_gui/test/test_components_model.py", "process"),
     ("ros2_ws/src/debug_gui/test/test_layout_security.py", "process"),
     ("ros2_ws/src/efficient_comm/test/test_testing.py", "process"),
+    ("ros2_ws/src/efficient_comm/test/test_signals.py", "process"),
     ("ros2_ws/src/rf_bridge/test/test_ros1_types.py", "process"),
     ("ros2_ws/src/humanoid_sim/test/test_render.py", "process"),
     # Top-level suites: cross-package, separate processes unless a row says otherwise.

@@ -32,7 +32,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from efficient_comm import stop_on_sigterm
+from efficient_comm import exit_with_parent, stop_on_sigterm
 
 from .errors import DebugGuiError, InvalidInput
 from .robots import check_domain
@@ -114,7 +114,7 @@ def robots(planned: Sequence[DemoRobot], log_dir: Path, *, record_dir: Path,
                      "--bag-dir", str(record_dir.absolute() / name),
                      *(["--lockstep"] if lockstep else [])],
                     env=env, stdout=log, stderr=subprocess.STDOUT, cwd=workdir,
-                    start_new_session=True,
+                    start_new_session=True, preexec_fn=exit_with_parent,
                 ))
         yield procs
     finally:

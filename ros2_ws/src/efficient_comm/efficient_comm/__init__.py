@@ -27,6 +27,7 @@ from ._clock import to_msg as to_msg
 from ._closing import Closing as Closing
 from ._qos import latched_qos as latched_qos
 from ._qos import matching_qos as matching_qos
+from ._signals import exit_with_parent as exit_with_parent
 from ._signals import stop_on_sigterm as stop_on_sigterm
 from .binding import BoundParameters as BoundParameters
 from .binding import bind_parameters as bind_parameters

@@ -3,9 +3,24 @@
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import signal
+import sys
 import threading
 from collections.abc import Callable, Iterator
+
+_PR_SET_PDEATHSIG = 1
+_PRCTL = ctypes.CDLL(None, use_errno=True).prctl if sys.platform == "linux" else None
+
+
+def exit_with_parent() -> None:
+    """``preexec_fn`` for ``subprocess.Popen``: the child gets SIGTERM when the thread that
+    started it ends, however that happens (SIGKILL included). A program that starts its
+    peers in sessions of their own (so Ctrl-C reaches them one by one) would otherwise
+    leave them running when it is killed: robots playing on in a DDS domain that the next
+    user, or the next test, takes for free. Linux only; elsewhere it does nothing."""
+    if _PRCTL is not None:
+        _PRCTL(_PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 def stop_on_sigterm() -> None:
