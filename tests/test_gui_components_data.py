@@ -51,3 +51,43 @@ def test_the_status_line_changes_only_when_what_it_says_does() -> None:
     assert lines == {"1 callbacks, 0 over their period"}
     now[0] = 100.0 + STALE_S + 2
     assert "no statistics for 7 s" in status_text(model)
+
+
+def _stats_at(stamp_s: float):
+    from efficient_comm import to_msg
+    from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
+
+    return ExecutorStats(
+        stamp=to_msg(round(stamp_s * 1e9)), process_name="p",
+        hostname="h", pid=1, callbacks=[CallbackStats(node="/s/a", kind="timer", name="/s/t",
+                                                      rate_hz=10.0, period_ns=100_000_000)])
+
+
+def test_the_status_line_says_when_rates_are_in_the_robots_own_time() -> None:
+    """Under --lockstep a robot counts rates in simulated seconds; the line says so (and
+    how fast that clock runs), and says nothing for a robot on the wall clock."""
+    from debug_gui.ui.components import status_text
+
+    epoch = 1_790_000_000.0
+    for robot_start, speed, expected in ((epoch, 1.0, ""), (0.0, 0.4, "0.4x real time"),
+                                         (epoch, 0.5, "0.5x real time")):
+        now = [100.0]
+
+        def gui_clock(now: list[float] = now) -> float:
+            return now[0]
+
+        def wall_clock(now: list[float] = now) -> float:
+            return epoch + now[0] - 100.0
+
+        model = ComponentsModel(None, RobotId(0, "/s"),  # type: ignore[arg-type]
+                                clock=gui_clock, wall_clock=wall_clock)
+        for step in range(6):
+            now[0] = 100.0 + step
+            model.on_stats(_stats_at(robot_start + speed * step))
+            if step == 1:  # too short a span to judge the clock
+                assert "robot's time" not in status_text(model)
+        line = status_text(model)
+        if expected:
+            assert "rates in the robot's time" in line and expected in line, line
+        else:
+            assert line == "1 callbacks, 0 over their period"

@@ -19,6 +19,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from efficient_comm import from_msg
+
 from ..errors import DebugGuiError, InvalidInput
 from ..hub import Feed, Hub
 from ..robots import STATS_SUFFIX, RobotId
@@ -27,6 +29,13 @@ from ..robots import STATS_SUFFIX, RobotId
 HISTORY = 30
 #: A process whose stats stopped this long ago is gone.
 STALE_AFTER_S = 10.0
+#: The robot's clock counts as real time while it runs within this factor of the GUI's.
+REAL_TIME_TOLERANCE = 0.1
+#: ... and its stamps lie within this of the GUI's wall clock (s): a manual clock in
+#: lockstep counts from its own start, far from the epoch.
+WALL_CLOCK_TOLERANCE_S = 3600.0
+#: The clock's rate is judged over at least this much of the GUI's time (s).
+CLOCK_SPAN_S = 3.0
 #: Columns rows can be sorted by.
 SORT_KEYS = (
     "node", "kind", "name", "process", "calls", "exceptions", "drops", "rate_hz",
@@ -83,11 +92,16 @@ class ComponentsModel:
         *,
         rate_hz: float = 1.0,
         clock: Callable[[], float] = time.monotonic,
+        wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.hub = hub
         self.robot = robot
         self.rate_hz = rate_hz
         self._clock = clock
+        self._wall_clock = wall_clock
+        #: (GUI time, robot stamp in s) of the first and the latest statistics heard.
+        self._first_stamp: tuple[float, float] | None = None
+        self._last_stamp: tuple[float, float] | None = None
         self._lock = threading.Lock()
         self._feed: Feed | None = None
         #: process key -> (time heard, {callback key -> series})
@@ -134,6 +148,11 @@ class ComponentsModel:
             self._processes[process] = (now, series)
             self.messages += 1
             self.last_heard = now
+            stamp = from_msg(msg.stamp) / 1e9
+            if stamp > 0:
+                self._last_stamp = (now, stamp)
+                if self._first_stamp is None or stamp < self._first_stamp[1]:
+                    self._first_stamp = self._last_stamp
 
     # -- what the view reads ------------------------------------------------------------
 
@@ -160,6 +179,31 @@ class ComponentsModel:
                     ))
         out.sort(key=lambda r: (getattr(r, sort_by), r.key), reverse=descending)
         return out
+
+    def clock_factor(self) -> float | None:
+        """How fast the robot's clock runs against the GUI's (1.0: real time; 0.4 under a
+        lockstep simulation that manages 40 %), from the statistics' stamps; None until
+        :data:`CLOCK_SPAN_S` of them were heard."""
+        with self._lock:
+            first, last = self._first_stamp, self._last_stamp
+        if first is None or last is None or last[0] - first[0] < CLOCK_SPAN_S:
+            return None
+        return (last[1] - first[1]) / (last[0] - first[0])
+
+    def clock_note(self) -> str:
+        """What the view says when the robot's rates are not per second of real time: a
+        robot on a simulated or manual clock (``--lockstep``) counts rates, periods and
+        execution-time windows in its own seconds. Empty for a robot on the wall clock."""
+        factor = self.clock_factor()
+        with self._lock:
+            last = self._last_stamp
+        if factor is None or last is None:
+            return ""
+        off_wall = abs(last[1] - self._wall_clock()) > WALL_CLOCK_TOLERANCE_S
+        if not off_wall and abs(factor - 1.0) <= REAL_TIME_TOLERANCE:
+            return ""
+        return (f"rates in the robot's time: its clock runs at {factor:.1f}x real time "
+                "(simulated or lockstep)")
 
     def age_s(self) -> float | None:
         """Seconds since the last stats message (None: none yet)."""

@@ -147,4 +147,7 @@ def status_text(model: ComponentsModel) -> str:
             else NO_STATISTICS
     rows = model.rows()
     text = f"{len(rows)} callbacks, {sum(r.over_period for r in rows)} over their period"
+    note = model.clock_note()
+    if note:
+        text = f"{text}; {note}"
     return text if age < STALE_S else f"{text}; no statistics for {age:.0f} s"
