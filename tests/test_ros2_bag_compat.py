@@ -69,6 +69,15 @@ def _wait_subscribed(topic: str, domain_id: int) -> None:
     raise AssertionError(f"nobody subscribed to {topic}: {info.stdout}{info.stderr}")
 
 
+def _wait_published(topic: str, domain_id: int) -> None:
+    """Until ``ros2 topic info`` counts a publisher of ``topic``."""
+    for _ in range(30):
+        info = ros2("topic", "info", topic, domain_id=domain_id)
+        if "Publisher count: 1" in info.stdout:
+            return
+    raise AssertionError(f"nobody publishes {topic}: {info.stdout}{info.stderr}")
+
+
 def test_sqlite3_bags_info_and_play(tmp_path: Path) -> None:
     domain_id = isolated_domain_id()
     topic = unique_topic("sq")
@@ -85,10 +94,19 @@ def test_sqlite3_bags_info_and_play(tmp_path: Path) -> None:
     with running([ros2_path(), "topic", "echo", replay, STRING], domain_id=domain_id,
                  log=tmp_path / "echo.log") as echo:
         _wait_subscribed(replay, domain_id)
-        played = ros2("bag", "play", str(bag), "--remap", f"{topic}:={replay}",
-                      domain_id=domain_id)
-        assert played.returncode == 0, played.stderr
-        text = echo.wait_for(lambda t: "data: m4\n---\n" in t)
+        # A short bag is over before a new player process has discovered the echo (as with
+        # rosbag2): start it paused and resume it once its publisher is in the graph.
+        with running([ros2_path(), "bag", "play", str(bag), "--start-paused", "--remap",
+                      f"{topic}:={replay}"], domain_id=domain_id,
+                     log=tmp_path / "play.log") as play:
+            _wait_published(replay, domain_id)
+            resumed = ros2("service", "call", "/rosbag2_player/control",
+                           "robot_recorder_interfaces/srv/PlayerControl", "{command: 1}",
+                           domain_id=domain_id)
+            assert resumed.returncode == 0, resumed.stderr
+            text = echo.wait_for(lambda t: "data: m4\n---\n" in t)
+            play.proc.wait(30)
+            assert play.proc.returncode == 0, play.text()
     assert re.findall(r"data: (m\d)", text) == ["m0", "m1", "m2", "m3", "m4"], text
 
 
@@ -112,7 +130,9 @@ def test_play_clock_start_paused_and_delay_are_honoured(tmp_path: Path) -> None:
     with running([ros2_path(), "topic", "echo", "/clock", "rosgraph_msgs/msg/Clock"],
                  domain_id=domain_id, log=tmp_path / "clock.log") as clock:
         _wait_subscribed("/clock", domain_id)
-        played = ros2("bag", "play", str(tmp_path / "bag"), "--clock", "50", "-d", "0.5",
+        # The delay is also the window in which the new player process and the echo
+        # discover each other: /clock is published from the start, paused or not.
+        played = ros2("bag", "play", str(tmp_path / "bag"), "--clock", "50", "-d", "3",
                       domain_id=domain_id)
         assert played.returncode == 0, played.stderr
         text = clock.wait_for(lambda t: "sec: 1700000000" in t)

@@ -94,6 +94,9 @@ def _wait_unlocked(lock: Path, timeout_s: float) -> bool:
     return released
 
 
+# Twenty commands, ten of which listen for themselves (3.5 s and more each): about a minute
+# on an idle machine, over the default 120 s on a loaded one.
+@pytest.mark.timeout(300)
 def test_answers_equal_the_answers_without_daemon(graph: Graph) -> None:
     assert graph.out("daemon", "status") == "The daemon is not running\n"
     first = graph.out("topic", "list")  # the first graph verb starts the daemon
