@@ -321,7 +321,21 @@ def choose(driver: Any, testid: str, option: str, *, timeout_s: float = 10.0) ->
                 continue
         return None
 
-    wait_for(item, timeout_s=timeout_s, what=f"option {option!r} of {testid}").click()
+    def picked() -> bool:
+        # The menu is re-rendered when a robot appears: an option found a moment ago may be
+        # gone by the click, so find it again and click that one.
+        from selenium.common.exceptions import StaleElementReferenceException
+
+        element = item()
+        if element is None:
+            return False
+        try:
+            element.click()
+        except StaleElementReferenceException:
+            return False
+        return True
+
+    wait_for(picked, timeout_s=timeout_s, what=f"option {option!r} of {testid}")
 
 
 def present(driver: Any, testid: str) -> bool:
