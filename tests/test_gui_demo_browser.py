@@ -9,6 +9,8 @@ import sys
 from functools import partial
 from pathlib import Path
 
+import pytest
+
 from debug_gui import Hub, RobotId
 from debug_gui.models.recorder import RecorderModel
 from debug_gui.security import AccessPolicy
@@ -37,6 +39,9 @@ def _alive(pid: int) -> bool:
     return True
 
 
+# The one end-to-end test with the real demo: three real-time soccer simulations, the GUI
+# and chromium share two cores, and each robot's pipeline starts in turn (about two minutes).
+@pytest.mark.timeout(300)
 def test_demo_serves_three_robots_in_two_domains_and_stops_them_all(
     tmp_path: Path, browser
 ) -> None:
