@@ -5,6 +5,8 @@ elsewhere since the tab loaded it."""
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -44,16 +46,26 @@ def _select_text(browser: Any, testid: str) -> str:
         "return el ? (el.closest('.q-field') || el).innerText : '';", testid))
 
 
-def test_a_reload_keeps_the_tabs_layout_and_each_views_settings(tmp_path: Path,
-                                                                  browser: Any) -> None:
+
+@contextmanager
+def _alpha_page(tmp_path: Path, browser: Any, *,
+                layout: Path | None = None) -> Iterator[tuple[int, list[Process]]]:
+    """A light robot ``/alpha`` in a domain of its own, the GUI (with ``--layout``, if
+    given) and the browser on its page once the robot shows: (domain, processes to watch)."""
     domain = isolated_domain_id()
-    key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
-    layout = tmp_path / "layout.json"
+    args = ["--layout", str(layout)] if layout is not None else []
     with fake_robot(tmp_path, domain_id=domain, namespace="/alpha") as bot, \
-            gui(tmp_path, domains=[domain], args=["--layout", str(layout)]) as server:
+            gui(tmp_path, domains=[domain], args=args) as server:
         alive: list[Process] = [bot, server]
         browser.get(server.url)
-        wait_for_text(browser, label, alive=alive)
+        wait_for_text(browser, f"alpha @ domain {domain}", alive=alive)
+        yield domain, alive
+
+def test_a_reload_keeps_the_tabs_layout_and_each_views_settings(tmp_path: Path,
+                                                                  browser: Any) -> None:
+    layout = tmp_path / "layout.json"
+    with _alpha_page(tmp_path, browser, layout=layout) as (domain, alive):
+        key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
         # Unsaved work: a log view with a level and a filter, a parameters view with a
         # node and a filter.
         _add(browser, "Diagnostics and log", label)
@@ -97,14 +109,9 @@ def test_a_reload_keeps_the_tabs_layout_and_each_views_settings(tmp_path: Path,
 
 def test_a_save_over_a_layout_saved_elsewhere_is_refused_then_confirmed(
         tmp_path: Path, browser: Any) -> None:
-    domain = isolated_domain_id()
-    label = f"alpha @ domain {domain}"
     layout = tmp_path / "layout.json"
-    with fake_robot(tmp_path, domain_id=domain, namespace="/alpha") as bot, \
-            gui(tmp_path, domains=[domain], args=["--layout", str(layout)]) as server:
-        alive: list[Process] = [bot, server]
-        browser.get(server.url)
-        wait_for_text(browser, label, alive=alive)
+    with _alpha_page(tmp_path, browser, layout=layout) as (domain, alive):
+        label = f"alpha @ domain {domain}"
         click(browser, "save-layout")
         wait_for_text(browser, "layout saved", alive=alive)
         # Another tab or server saves a different layout meanwhile.
@@ -125,14 +132,9 @@ def test_a_reload_echoes_and_plots_what_the_topics_view_showed(tmp_path: Path,
                                                                browser: Any) -> None:
     from selenium.webdriver.common.by import By
 
-    domain = isolated_domain_id()
-    key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
     stats = "/alpha/efficient_comm/stats"
-    with fake_robot(tmp_path, domain_id=domain, namespace="/alpha") as bot, \
-            gui(tmp_path, domains=[domain]) as server:
-        alive: list[Process] = [bot, server]
-        browser.get(server.url)
-        wait_for_text(browser, label, alive=alive)
+    with _alpha_page(tmp_path, browser) as (domain, alive):
+        key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
         _add(browser, "Topics", label)
         cell = wait_for(
             lambda: next((td for td in by_testid(browser, f"topics-{key}").find_elements(
