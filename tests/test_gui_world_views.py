@@ -223,7 +223,9 @@ def test_log_view_shows_a_plain_nodes_line_and_the_filter_hides_it(
         _add_view(browser, "Diagnostics and log", f"alpha @ domain {domain}")
         wait_for(lambda: "peer zebra says" in text_of(browser, f"logs-records-{key}"),
                  what="the peer's log line", alive=alive)
-        assert "battery low" in text_of(browser, f"logs-diagnostics-{key}")
+        # Diagnostics come on their own topic, at their own rate: awaited as the log line is.
+        wait_for(lambda: "battery low" in text_of(browser, f"logs-diagnostics-{key}"),
+                 what="the peer's diagnostic status", alive=alive)
         box = by_testid(browser, f"logs-filter-{key}")
         if box.tag_name != "input":  # the attribute lands on the native input or its wrapper
             box = box.find_element("css selector", "input")
