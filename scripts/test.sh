@@ -41,9 +41,13 @@ for p in "${mypy_paths[@]}"; do
   mypy "$p"
 done
 
-echo "test: pytest"
+# Most tests wait (for discovery, a reply, a browser), so they run side by side in
+# TEST_WORKERS pytest-xdist workers; simulations and benchmarks, which keep a core busy, take
+# turns in one of them (conftest.py's SERIAL_GROUPS), as do the docs' commands.
+workers=${TEST_WORKERS:-3}
+echo "test: pytest ($workers workers)"
 rc=0
-pytest "$@" || rc=$?
+pytest -n "$workers" --dist loadgroup "$@" || rc=$?
 if ((rc == 5)); then
   echo "test: pytest collected no tests; that counts as a failure" >&2
 fi
