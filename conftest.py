@@ -39,19 +39,10 @@ def _load_kinds() -> Any:
 _kinds = _load_kinds()
 
 
-#: Kinds whose tests share one pytest-xdist worker, one test at a time, when the suite runs
-#: in parallel (``scripts/test.sh``: ``-n`` with ``--dist loadgroup``). Simulations and
-#: benchmarks each keep a core busy, and two of them side by side on a two-core machine
-#: only slow each other (and every waiting test) down; docs commands start the programs
-#: the docs name, as written, so two blocks could want the same thing at once. Every other
-#: test mostly waits (discovery, a reply, a browser) and runs beside the others.
-SERIAL_GROUPS = {"sil": "cpu", "bench": "cpu", "docs": "docs"}
-
-
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark each test with its kinds (and its serial group, see :data:`SERIAL_GROUPS`); a
-    file no row of the table covers is an error."""
+    """Mark each test with its kinds, and with its pytest-xdist group where its kind has one
+    (tests/_kinds.py's ``serial_group``); a file no row of the table covers is an error."""
     missing = set()
     for item in items:
         path = Path(str(item.path)).resolve()
@@ -64,9 +55,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             missing.add(rel)
         for kind in sorted(kinds):
             item.add_marker(kind)
-        groups = sorted({SERIAL_GROUPS[k] for k in kinds if k in SERIAL_GROUPS})
-        if groups:
-            item.add_marker(pytest.mark.xdist_group(groups[0]))
+        group = _kinds.serial_group(kinds)
+        if group:
+            item.add_marker(pytest.mark.xdist_group(group))
     if missing:
         raise pytest.UsageError(
             f"no test kind for {', '.join(sorted(missing))}: add a row to "

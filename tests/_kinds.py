@@ -93,3 +93,18 @@ def kinds_of(path: str, name: str = "", *, fixtures: Iterable[str] = ()) -> set[
     if kinds & set(SLOW_KINDS):
         kinds.discard("fast")
     return kinds
+
+
+#: Kinds whose tests share one pytest-xdist worker, one test at a time, when the suite runs
+#: in parallel (``scripts/test.sh``: ``-n`` with ``--dist loadgroup``). Simulations and
+#: benchmarks each keep a core busy, and two of them side by side on a two-core machine
+#: only slow each other (and every waiting test) down; docs commands start the programs
+#: the docs name, as written, so two blocks could want the same thing at once. Every other
+#: test mostly waits (discovery, a reply, a browser) and runs beside the others.
+SERIAL_GROUPS = {"sil": "cpu", "bench": "cpu", "docs": "docs"}
+
+
+def serial_group(kinds: Iterable[str]) -> str | None:
+    """The xdist group of a test of these kinds (None: it may run beside any other)."""
+    groups = sorted({SERIAL_GROUPS[k] for k in kinds if k in SERIAL_GROUPS})
+    return groups[0] if groups else None

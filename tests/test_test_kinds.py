@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from ._kinds import KINDS, SLOW_KINDS, kinds_of
+from ._kinds import KINDS, SLOW_KINDS, kinds_of, serial_group
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -82,3 +82,17 @@ def test_the_hook_marks_collected_tests() -> None:
     assert browser and all(n.startswith("tests/test_gui_world_views.py::") for n in browser)
     process = _collected("process", *files)
     assert set(process) > set(browser)
+
+
+def test_busy_kinds_take_turns_in_one_worker() -> None:
+    """Simulations and benchmarks share one xdist group, docs commands another; a waiting
+    test has none (it runs beside anything)."""
+    group = {f: serial_group(kinds_of(f, "test_a")) for f in (
+        "tests/test_kick_sil.py", "tests/test_demo_args.py", "tests/test_walk_bench_smoke.py",
+        "tests/test_throttle_bench_smoke.py", "tests/test_docs_commands.py",
+        "tests/test_gui_world_views.py", "ros2_ws/src/efficient_comm/test/test_bus.py")}
+    assert group == {
+        "tests/test_kick_sil.py": "cpu", "tests/test_demo_args.py": "cpu",
+        "tests/test_walk_bench_smoke.py": "cpu", "tests/test_throttle_bench_smoke.py": "cpu",
+        "tests/test_docs_commands.py": "docs", "tests/test_gui_world_views.py": None,
+        "ros2_ws/src/efficient_comm/test/test_bus.py": None}
