@@ -39,10 +39,8 @@ def _load_kinds() -> Any:
 _kinds = _load_kinds()
 
 
-@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark each test with its kinds, and with its pytest-xdist group where its kind has one
-    (tests/_kinds.py's ``serial_group``); a file no row of the table covers is an error."""
+    """Mark each test with its kinds; a file no row of the table covers is an error."""
     missing = set()
     for item in items:
         path = Path(str(item.path)).resolve()
@@ -55,14 +53,33 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             missing.add(rel)
         for kind in sorted(kinds):
             item.add_marker(kind)
-        group = _kinds.serial_group(kinds)
-        if group:
-            item.add_marker(pytest.mark.xdist_group(group))
     if missing:
         raise pytest.UsageError(
             f"no test kind for {', '.join(sorted(missing))}: add a row to "
             "tests/_kinds.py's KIND_PATTERNS"
         )
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under ``-n N --dist loadgroup`` (scripts/test.sh), tests of a kind with a serial group
+    (tests/_kinds.py's ``serial_group``: simulations and benchmarks, docs commands) run one
+    after another in one worker, every other test wherever a worker is free.
+
+    The group comes from the node id's file and name, as the kinds do, and not from an
+    ``xdist_group`` marker: pytest-xdist 3.8 groups marked tests by renaming their node ids,
+    which pytest 9 no longer lets a plugin do (the marker is silently ignored).
+    """
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class KindScheduling(LoadScopeScheduling):  # type: ignore[misc]
+        def _split_scope(self, nodeid: str) -> str:
+            path, _, name = nodeid.partition("::")
+            return _kinds.serial_group(_kinds.kinds_of(path, name)) or nodeid
+
+    return KindScheduling(config, log)
 
 
 _root_outcomes: dict[str, str] = {}
