@@ -153,5 +153,10 @@ class MujocoPlant:
             current_a=abs(self.motor_torque(dxl_id)) / TORQUE_PER_AMP,
         )
 
+    @property
+    def time_s(self) -> float:
+        """Simulated seconds: the servos' Realtime Tick counts them."""
+        return float(self.data.time)
+
     def torso_height(self) -> float:
         return float(self.data.xpos[self.model.body("torso").id][2])

@@ -329,7 +329,8 @@ class Simulator:
             self._push_at_s = 0.0
             self.push(self._push_force)
         if self._lockstep and not self.pty.sync():  # the driver's last writes applied first
-            self.node.logger.error("servo bus emulator did not answer a sync within 5 s")
+            self.node.logger.error("servo bus emulator has stopped: physics steps without "
+                                   "the servos' last writes")
         with self.pty.lock:
             self.plant.step(step)
         now = self.node.clock.now_ns()

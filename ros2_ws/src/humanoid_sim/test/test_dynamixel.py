@@ -217,6 +217,18 @@ def test_homing_offset_is_added_to_the_present_position() -> None:
     assert plant.state(1).position_rad == 0.0  # the joint stays at its actual centre
 
 
+def test_the_realtime_tick_counts_the_plants_time_not_the_wall_clock() -> None:
+    # A lockstep run reads the same ticks at any load: milliseconds of simulated time,
+    # wrapping at 32767 as on the servo.
+    plant = IdealPlant()
+    servo = Bus(IDS, plant).servos[1]
+    tick = ct.BY_NAME["realtime_tick"].address
+    plant.step(0.25)
+    assert servo.read(tick, 2) == (Error.NONE, (250).to_bytes(2, "little"))
+    plant.step(33.0)
+    assert servo.read(tick, 2) == (Error.NONE, (33_250 % 32_768).to_bytes(2, "little"))
+
+
 def test_reg_write_action_reboot_and_a_new_id() -> None:
     plant = IdealPlant()
     bus = Bus(IDS, plant)

@@ -27,6 +27,12 @@ class Plant(Protocol):
 
     def state(self, dxl_id: int) -> JointState: ...
 
+    @property
+    def time_s(self) -> float:
+        """The plant's time (s): what the servos' Realtime Tick counts. Simulated time, so
+        a lockstep run reads the same ticks however fast the machine runs it."""
+        ...
+
 
 class IdealPlant:
     """Joints that move straight to their goal at the allowed speed; limp ones stay put."""
@@ -35,6 +41,11 @@ class IdealPlant:
         self._pos: dict[int, float] = {}
         self._vel: dict[int, float] = {}
         self._cmd: dict[int, tuple[bool, float, float]] = {}
+        self._time_s = 0.0
+
+    @property
+    def time_s(self) -> float:
+        return self._time_s
 
     def command(self, dxl_id: int, *, torque: bool, goal_rad: float, max_speed_rad_s: float
                 ) -> None:
@@ -44,6 +55,7 @@ class IdealPlant:
         return JointState(self._pos.get(dxl_id, 0.0), self._vel.get(dxl_id, 0.0), 0.0)
 
     def step(self, dt: float) -> None:
+        self._time_s += dt
         for dxl_id, (torque, goal, speed) in self._cmd.items():
             pos = self._pos.get(dxl_id, 0.0)
             if not torque:

@@ -16,7 +16,6 @@ makes that byte plain storage.
 from __future__ import annotations
 
 import math
-import time
 
 from . import control_table as ct
 from .plant import Plant
@@ -44,7 +43,6 @@ class Servo:
         self.plant = plant
         self.registered: tuple[int, bytes] | None = None
         self.connected = True  # False: unplugged, never answers
-        self._started = time.monotonic()
         self._set(ct.BY_NAME["id"], dxl_id)
         self.reset(keep=("id",))
 
@@ -133,7 +131,9 @@ class Servo:
         self._set(f["present_temperature"], round(s.temperature_c))
         self._set(f["present_input_voltage"], round(s.voltage_v * 10))
         self._set(f["moving"], int(abs(velocity) > self.get("moving_threshold")))
-        self._set(f["realtime_tick"], int((time.monotonic() - self._started) * 1000) % 32768)
+        # Milliseconds of the plant's time, not the wall clock's: in lockstep a driver that
+        # reads the tick must read the same whatever the machine's load.
+        self._set(f["realtime_tick"], round(self.plant.time_s * 1000) % 32768)
 
     # -- writes ---------------------------------------------------------------------------
 
