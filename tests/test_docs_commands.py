@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import re
 import subprocess
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -106,6 +107,36 @@ def _start(command: str, cwd: Path, env: dict[str, str], log: Path) -> subproces
 
 
 
+def _group_states(pgid: int) -> list[str]:
+    """The scheduler states (R, S, D, ...) of the processes in process group ``pgid``."""
+    states = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError):
+            # pid (comm) state ppid pgrp ...: comm may hold spaces and parentheses.
+            fields = stat.read_text().rpartition(")")[2].split()
+            if int(fields[2]) == pgid:
+                states.append(fields[0])
+    return states
+
+
+def _wait_until_idle(proc: subprocess.Popen[bytes]) -> None:
+    """Wait :data:`STOPPED_AFTER_S`, then until every process the command started has been
+    waiting (sleeping, as a started node spins) in most samples for a second, at most
+    :data:`RUN_S`: Ctrl-C while Python still imports is a KeyboardInterrupt traceback for any
+    program, and a loaded machine imports rclpy for longer than the 5 s an idle one needs.
+    """
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=STOPPED_AFTER_S)
+    deadline = time.monotonic() + RUN_S
+    while proc.poll() is None and time.monotonic() < deadline:
+        samples = []
+        for _ in range(20):
+            samples.append(all(s == "S" for s in _group_states(proc.pid)))
+            time.sleep(0.05)  # sampling the scheduler's state: nothing to await
+        if sum(samples) >= 16:
+            return
+
+
 def _bad(text: str) -> bool:
     return "Traceback" in text or re.search(r"^error:", text, re.MULTILINE) is not None
 
@@ -127,8 +158,7 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
             log = tmp_path / f"cmd{n}.log"
             proc = _start(command, cwd, env, log)
             if block.directive == "runs-until-stopped":
-                with contextlib.suppress(subprocess.TimeoutExpired):
-                    proc.wait(timeout=STOPPED_AFTER_S)
+                _wait_until_idle(proc)
                 still_running = proc.poll() is None
                 stop_process_group(proc)
                 text = log.read_text(errors="replace")
