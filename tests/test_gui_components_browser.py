@@ -47,7 +47,9 @@ def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
         assert text_a.count("over period") == 1, text_a
         # Live: the cumulative call count of component0 grows (a column shown on demand).
         click(browser, f"components-columns-{d1}:/alpha")
-        first = _calls(browser, table_a, "alpha_component0")
+        # Once the column shows (-1 until the table is redrawn with it).
+        (first,) = wait_for(lambda: (n := _calls(browser, table_a, "alpha_component0")) >= 0
+                            and (n,), what="the calls column", alive=alive)
         wait_for(lambda: _calls(browser, table_a, "alpha_component0") > first >= 0,
                  what="the calls to grow", alive=alive)
         # Sortable: a click on "component" orders beta's rows by name (they come by p95).

@@ -172,10 +172,9 @@ def _panels_in_order(browser: Any, titles: list[str]) -> bool:
         text_of(browser, f"panel-{i}").startswith(title) for i, title in enumerate(titles)))
 
 
-def test_add_keeps_the_chosen_robot_and_a_clone_lands_beside_its_original(
-        tmp_path: Path, browser: Any) -> None:
+def test_add_keeps_the_chosen_view_and_robot(tmp_path: Path, browser: Any) -> None:
     """Issue 18, 4g: after "add" the view and robot chosen stay chosen (adding several views
-    for one robot is one click each); a clone lands right after its original."""
+    for one robot is one click each), and the panel's own robot selector stays the robot."""
     with _alpha_page(tmp_path, browser) as (domain, alive):
         key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
         _add(browser, "Diagnostics and log", label)
@@ -186,12 +185,19 @@ def test_add_keeps_the_chosen_robot_and_a_clone_lands_beside_its_original(
         click(browser, "add-view")  # nothing chosen again: the same view, the same robot
         wait_for(lambda: present(browser, "panel-2"), what="the second log view", alive=alive)
         assert text_of(browser, "panel-2").startswith(f"Diagnostics and log — {label}")
+        assert label in _select_text(browser, "add-robot")
 
+
+def test_a_clone_lands_beside_its_original(tmp_path: Path, browser: Any) -> None:
+    """Issue 18, 4g: a clone is the panel right after its original, not the last one."""
+    with _alpha_page(tmp_path, browser) as (domain, alive):
+        label = f"alpha @ domain {domain}"
+        _add(browser, "Diagnostics and log", label)
+        wait_for(lambda: present(browser, "panel-1"), what="the log view", alive=alive)
         # The team's components panel (the first) cloned for alpha: second, not last.
         choose(browser, "clone-0", label)
-        team, mine = "Components — team", f"Components — {label}"
-        logs = f"Diagnostics and log — {label}"
-        expected = [team, mine, logs, logs]
+        expected = ["Components — team", f"Components — {label}",
+                    f"Diagnostics and log — {label}"]
         wait_for(lambda: _panels_in_order(browser, expected),
                  what=f"the panels in the order {expected}", alive=alive)
         wait_for(lambda: "alpha_component0" in text_of(browser, "panel-1"),
