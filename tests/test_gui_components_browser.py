@@ -150,6 +150,9 @@ def test_team_views_of_three_robots_fit_the_window_at_1600_and_1280_px(
                      what=f"a window {width} px wide")
             screenshot(browser, f"team_views_{width}")
             assert browser.execute_script(_CUT_OFF, wanted) == [], width
+            browser.execute_script("arguments[0].scrollIntoView()",
+                                   by_testid(browser, f"recorder-{recorders[0]}"))
+            screenshot(browser, f"team_views_{width}_recorder")
             for key in keys:  # the figures' headings themselves, in the window
                 headings = by_testid(browser, f"components-{key}").find_elements(
                     By.CSS_SELECTOR, "th")
