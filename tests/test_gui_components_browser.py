@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 from selenium.common.exceptions import StaleElementReferenceException
@@ -10,7 +11,17 @@ from selenium.webdriver.common.by import By
 from debug_gui.ui.components import ALL, COMPACT
 from efficient_comm.testing import isolated_domain_id
 
-from ._gui import by_testid, click, fake_robot, gui, screenshot, text_of, wait_for, wait_for_text
+from ._gui import (
+    by_testid,
+    choose,
+    click,
+    fake_robot,
+    gui,
+    screenshot,
+    text_of,
+    wait_for,
+    wait_for_text,
+)
 
 
 def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
@@ -36,7 +47,9 @@ def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
         assert text_a.count("over period") == 1, text_a
         # Live: the cumulative call count of component0 grows (a column shown on demand).
         click(browser, f"components-columns-{d1}:/alpha")
-        first = _calls(browser, table_a, "alpha_component0")
+        # Once the column shows (-1 until the table is redrawn with it).
+        (first,) = wait_for(lambda: (n := _calls(browser, table_a, "alpha_component0")) >= 0
+                            and (n,), what="the calls column", alive=alive)
         wait_for(lambda: _calls(browser, table_a, "alpha_component0") > first >= 0,
                  what="the calls to grow", alive=alive)
         # Sortable: a click on "component" orders beta's rows by name (they come by p95).
@@ -76,3 +89,78 @@ def _calls(browser, testid: str, node: str) -> int:
     except (StaleElementReferenceException, ValueError, IndexError):
         pass  # the table was re-rendered while being read
     return -1
+
+
+#: What is cut off in the window: elements of the given test ids that reach beyond it, and
+#: tables in them whose columns do not fit (hidden behind their own scroll bar).
+_CUT_OFF = """
+const out = [], width = window.innerWidth;
+if (document.documentElement.scrollWidth > width)
+  out.push('the page scrolls sideways: ' + document.documentElement.scrollWidth);
+for (const testid of arguments[0]) {
+  const el = document.querySelector(`[data-testid="${testid}"]`);
+  if (!el) { out.push(testid + ' missing'); continue; }
+  const box = el.getBoundingClientRect();
+  if (box.left < 0 || box.right > width) out.push(`${testid} at ${box.left}..${box.right}`);
+  for (const table of el.querySelectorAll('.q-table__middle'))
+    if (table.scrollWidth > table.clientWidth)
+      out.push(`${testid}: table ${table.scrollWidth} wide in ${table.clientWidth}`);
+}
+return out;
+"""
+
+
+def test_team_views_of_three_robots_fit_the_window_at_1600_and_1280_px(
+    tmp_path: Path, browser
+) -> None:
+    """Issue 18, 4g: at 1600 px and at 1280x720 every robot of a three-robot team, its
+    components' figures (mean, p95, max), its recorder's buttons and topic types are in
+    the window, not cut off or behind a scroll bar."""
+    from .test_gui_recorder_browser import _press
+    from .test_gui_recorder_data import recorder_robot
+
+    domain = isolated_domain_id()
+    names = ("/robot1", "/robot2", "/robot3")
+    with recorder_robot(tmp_path, domain_id=domain, namespace=names[0]) as r1, \
+            recorder_robot(tmp_path, domain_id=domain, namespace=names[1]) as r2, \
+            recorder_robot(tmp_path, domain_id=domain, namespace=names[2]) as r3, \
+            gui(tmp_path, domains=[domain]) as server:
+        alive = [r1, r2, r3, server]
+        keys = [f"{domain}:{name}" for name in names]
+        browser.get(server.url)
+        wait_for(lambda: all("talker" in text_of(browser, f"components-{k}") for k in keys),
+                 what="every robot's components", alive=alive, timeout_s=60)
+        choose(browser, "add-kind", "Recorder")
+        click(browser, "add-view")
+        recorders = [f"{key}-recorder" for key in keys]
+        wait_for(lambda: all(text_of(browser, f"recorder-state-{r}") == "idle"
+                             for r in recorders), what="every recorder's status", alive=alive,
+                 timeout_s=60)
+        _press(browser, "recorder-start-all")  # the longest lines: bags, recorded topics
+        wait_for(lambda: all("chatter" in text_of(browser, f"recorder-topics-{r}")
+                             and "file" in text_of(browser, f"recorder-bag-{r}")
+                             for r in recorders), what="every recorder recording", alive=alive)
+        wanted = [f"components-{key}" for key in keys] + [
+            testid for recorder in recorders for testid in (
+                f"recorder-{recorder}", f"recorder-split-{recorder}",
+                f"recorder-snapshot-{recorder}", f"recorder-topics-{recorder}")]
+        for width, height in ((1600, 1000), (1280, 720)):
+            browser.set_window_size(width, height)
+            wait_for(functools.partial(_window_is, browser, width),
+                     what=f"a window {width} px wide")
+            screenshot(browser, f"team_views_{width}")
+            assert browser.execute_script(_CUT_OFF, wanted) == [], width
+            browser.execute_script("arguments[0].scrollIntoView()",
+                                   by_testid(browser, f"recorder-{recorders[0]}"))
+            screenshot(browser, f"team_views_{width}_recorder")
+            for key in keys:  # the figures' headings themselves, in the window
+                headings = by_testid(browser, f"components-{key}").find_elements(
+                    By.CSS_SELECTOR, "th")
+                shown = [" ".join(th.text.split()) for th in headings if th.is_displayed()
+                         and th.rect["x"] + th.rect["width"] <= width]
+                for figure in ("mean ms", "p95 ms", "max ms"):
+                    assert any(figure in text for text in shown), (width, figure, shown)
+
+
+def _window_is(browser, width: int) -> bool:
+    return bool(browser.execute_script("return window.innerWidth") == width)

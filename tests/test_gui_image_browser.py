@@ -17,7 +17,8 @@ from selenium.webdriver.common.by import By
 from debug_gui import RobotId
 from efficient_comm.testing import isolated_domain_id
 
-from ._gui import by_testid, gui, robot, screenshot, wait_for
+from ._gui import by_testid, gui, robot, screenshot, text_of, wait_for
+from .test_gui_hub_data import plain_robot
 from .test_gui_image_data import graph, view_readers
 
 #: What the image view's page script exposes: (frames drawn, frame stamp, overlay stamp,
@@ -28,6 +29,13 @@ if (!root || !root.dataset.frames) return null;
 const svg = root.querySelector('svg');
 return [Number(root.dataset.frames), root.dataset.stamp, root.dataset.overlayStamp,
         svg.children.length, svg.querySelectorAll('text').length];
+"""
+
+
+#: Whether the image view's <img> is displayed (it is not before its first picture).
+_SHOWN = """
+const img = document.querySelector(`[data-testid="${arguments[0]}"] img`);
+return !!img && img.offsetParent !== null;
 """
 
 
@@ -63,6 +71,10 @@ def test_image_view_shows_frames_with_their_own_overlays_layers_pause_and_step(
                 assert overlay == stamp, (stamp, overlay)
         wait_for(lambda: (s := image_state(browser)) and s[2] == s[1] and s[3] > 0,
                  what="a frame with its overlay drawn", alive=alive)
+        # The picture, no longer the text that stood in for it before the first frame.
+        assert browser.execute_script(_SHOWN, f"image-{domain}:/robot")
+        wait_for(lambda: not by_testid(browser, f"image-placeholder-{domain}:/robot")
+                 .is_displayed(), what="the placeholder gone", alive=alive)
         screenshot(browser, "image_view_live")
 
         # A layer switched off leaves the overlay.
@@ -100,3 +112,31 @@ def test_image_view_shows_frames_with_their_own_overlays_layers_pause_and_step(
             by_testid(browser, "panel-0").find_element(By.CSS_SELECTOR, ".q-item").click()
             wait_for(lambda: view_readers(node, robot_id) == 0, what="no reader when hidden",
                      alive=alive)
+
+
+#: Whether the image view's picture shows nothing as an image (a broken-image icon): its
+#: <img> is displayed without a picture.
+_BROKEN = """
+const img = document.querySelector(`[data-testid="${arguments[0]}"] img`);
+return !!img && img.offsetParent !== null && !(img.complete && img.naturalWidth > 0);
+"""
+
+
+def test_a_robot_without_a_camera_says_so_instead_of_a_broken_image(
+    tmp_path: Path, browser
+) -> None:
+    """Issue 18, 4g: a plain ROS 2 robot's image view says it has no image topic."""
+    domain = isolated_domain_id()
+    key = f"{domain}:/plainbot"
+    layout = image_layout(tmp_path / "layout.json")
+    with plain_robot(tmp_path, domain_id=domain, namespace="/plainbot") as bot, \
+            gui(tmp_path, domains=[domain],
+                args=["--layout", str(layout), "--plain-robots"]) as server:
+        alive = [bot, server]
+        browser.get(server.url)
+        wait_for(lambda: "no image topic: this robot publishes no "
+                 "/plainbot/camera/image_raw/compressed"
+                 in text_of(browser, f"image-placeholder-{key}"),
+                 what="the view saying there is no image topic", alive=alive, timeout_s=60)
+        assert not browser.execute_script(_BROKEN, f"image-{key}")
+        screenshot(browser, "image_view_no_camera")

@@ -20,6 +20,7 @@ from ._gui import (
     fake_robot,
     gui,
     present,
+    screenshot,
     text_of,
     wait_for,
     wait_for_text,
@@ -155,3 +156,51 @@ def test_a_reload_echoes_and_plots_what_the_topics_view_showed(tmp_path: Path,
         wait_for(lambda: "window_ns" in text_of(browser, f"topics-echo-{key}")
                  and "window_ns" in _select_text(browser, f"topics-plot-field-{key}"),
                  what="the echo and the plotted field after the reload", alive=alive)
+
+
+#: The panels' test ids in the page's order.
+_PANELS = """
+return Array.from(document.querySelectorAll('[data-testid^="panel-"]')).map(
+    p => p.dataset.testid);
+"""
+
+
+def _panels_in_order(browser: Any, titles: list[str]) -> bool:
+    """Whether the page shows panels with these titles, in this order."""
+    ids = [f"panel-{i}" for i in range(len(titles))]
+    return bool(browser.execute_script(_PANELS) == ids and all(
+        text_of(browser, f"panel-{i}").startswith(title) for i, title in enumerate(titles)))
+
+
+def test_add_keeps_the_chosen_view_and_robot(tmp_path: Path, browser: Any) -> None:
+    """Issue 18, 4g: after "add" the view and robot chosen stay chosen (adding several views
+    for one robot is one click each), and the panel's own robot selector stays the robot."""
+    with _alpha_page(tmp_path, browser) as (domain, alive):
+        key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
+        _add(browser, "Diagnostics and log", label)
+        wait_for(lambda: present(browser, "panel-1") and present(browser, f"logs-level-{key}"),
+                 what="the log view", alive=alive)
+        assert label in _select_text(browser, "add-robot")
+        assert "Diagnostics and log" in _select_text(browser, "add-kind")
+        click(browser, "add-view")  # nothing chosen again: the same view, the same robot
+        wait_for(lambda: present(browser, "panel-2"), what="the second log view", alive=alive)
+        assert text_of(browser, "panel-2").startswith(f"Diagnostics and log — {label}")
+        assert label in _select_text(browser, "add-robot")
+
+
+def test_a_clone_lands_beside_its_original(tmp_path: Path, browser: Any) -> None:
+    """Issue 18, 4g: a clone is the panel right after its original, not the last one."""
+    with _alpha_page(tmp_path, browser) as (domain, alive):
+        label = f"alpha @ domain {domain}"
+        _add(browser, "Diagnostics and log", label)
+        wait_for(lambda: present(browser, "panel-1"), what="the log view", alive=alive)
+        # The team's components panel (the first) cloned for alpha: second, not last.
+        choose(browser, "clone-0", label)
+        expected = ["Components — team", f"Components — {label}",
+                    f"Diagnostics and log — {label}"]
+        wait_for(lambda: _panels_in_order(browser, expected),
+                 what=f"the panels in the order {expected}", alive=alive)
+        wait_for(lambda: "alpha_component0" in text_of(browser, "panel-1"),
+                 what="the clone's rows", alive=alive)
+        assert text_of(browser, "binding-1").startswith("2. Components")
+        screenshot(browser, "clone_beside_its_original")

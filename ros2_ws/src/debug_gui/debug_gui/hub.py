@@ -507,7 +507,11 @@ class Hub:
     def publishes_statistics(self, robot: RobotId) -> bool:
         """True if the robot publishes efficient_comm statistics now (a plain ROS 2 robot,
         found with ``plain_robots``, does not)."""
-        return self._domain(robot).node.count_publishers(robot.stats_topic) > 0
+        return self.publishes(robot, robot.stats_topic)
+
+    def publishes(self, robot: RobotId, topic: str) -> bool:
+        """True if someone publishes ``topic`` (relative to the robot's namespace) now."""
+        return self._domain(robot).node.count_publishers(robot.resolve(topic)) > 0
 
     def nodes(self, robot: RobotId) -> list[str]:
         """Fully qualified names of the nodes under the robot's namespace (not the GUI's)."""

@@ -228,9 +228,14 @@ class Layout:
             ) from None
 
     def adding(self, panel: Panel) -> Layout:
+        return self.inserting(len(self.panels), panel)
+
+    def inserting(self, index: int, panel: Panel) -> Layout:
+        """This layout with ``panel`` at ``index``, the later panels one down (a clone goes
+        right after its original, where the eye compares them)."""
         if len(self.panels) >= MAX_PANELS:
             raise InvalidInput(f"at most {MAX_PANELS} panels")
-        return Layout((*self.panels, panel))
+        return Layout((*self.panels[:index], panel, *self.panels[index:]))
 
     def without(self, index: int) -> Layout:
         return Layout(tuple(p for i, p in enumerate(self.panels) if i != index))

@@ -129,3 +129,12 @@ def test_names_rates_and_domains_are_validated() -> None:
     for bad_domains in ("", "a", "1;2", "-1", "233"):
         with pytest.raises(InvalidInput):
             parse_domains(bad_domains)
+
+
+def test_a_panel_inserted_goes_where_asked_and_the_limit_holds() -> None:
+    """A clone goes right after its original (issue 18, 4g), adding at the end."""
+    a, b, c = Panel("components"), Panel("image"), Panel("logs")
+    assert Layout((a, b)).inserting(1, c).panels == (a, c, b)
+    assert Layout((a, b)).adding(c).panels == (a, b, c)
+    with pytest.raises(InvalidInput, match="at most"):
+        Layout((a,) * MAX_PANELS).inserting(0, c)

@@ -184,6 +184,11 @@ class ImageModel:
         with self._lock:
             return list(self._frozen) if self._paused_at is not None else list(self._frames)
 
+    def has_camera(self) -> bool:
+        """Whether the robot publishes the image topic now (a plain ROS 2 robot, or one
+        without a camera, does not: its view says so rather than wait)."""
+        return self.hub.publishes(self.robot, self.image_topic)
+
     def drawing_for(self, stamp_ns: int) -> Drawing | None:
         with self._lock:
             return self._drawings.get(stamp_ns)

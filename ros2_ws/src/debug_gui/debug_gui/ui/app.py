@@ -113,6 +113,11 @@ class _Tab:
         self._layout = shell.layout
         self.views: list[_PanelView] = []
         self.robots: list[RobotId] = shell.hub.robots()
+        #: The view kind and robot last chosen for "add": kept across the binding view's
+        #: re-renders (each add, each robot coming or going), so adding several views for
+        #: one robot does not mean choosing it again every time.
+        self.add_kind: str | None = None
+        self.add_robot = TEAM
         #: Whether this tab has seen a robot: "no robots yet" until then, "no robots" after.
         self.seen_robots = bool(self.robots)
 
@@ -229,12 +234,19 @@ class _Tab:
                 self._binding_row(index, panel)
             with ui.row().classes("items-center gap-2"):
                 kinds = {k.kind: k.title for k in registry.kinds()}
-                kind = ui.select(kinds, label="view", value=next(iter(kinds), None)).props(
+                if self.add_kind not in kinds:
+                    self.add_kind = next(iter(kinds), None)
+                robots = self._robot_options(team=True)
+                if self.add_robot not in robots:
+                    self.add_robot = TEAM  # the robot chosen last has gone
+                kind = ui.select(kinds, label="view", value=self.add_kind,
+                                 on_change=lambda e: setattr(self, "add_kind", e.value)).props(
                     "dense data-testid=add-kind"
                 ).classes("w-40")
-                robot = ui.select(
-                    self._robot_options(team=True), label="robot", value=TEAM
-                ).props("dense data-testid=add-robot").classes("w-56")
+                robot = ui.select(robots, label="robot", value=self.add_robot,
+                                  on_change=lambda e: setattr(self, "add_robot", e.value)).props(
+                    "dense data-testid=add-robot"
+                ).classes("w-56")
                 ui.button("add", on_click=lambda: self._guard(
                     lambda: self._add(Panel(kind=kind.value, robot=self._robot_of(robot.value)))
                 )).props("data-testid=add-view")
@@ -268,7 +280,7 @@ class _Tab:
             clone = ui.select(
                 self._robot_options(team=False), label="clone for",
             ).props(f"dense data-testid=clone-{index}").classes("w-56")
-            clone.on_value_change(lambda e, p=panel: self._guard(lambda: self._clone(p, e.value)))
+            clone.on_value_change(lambda e, i=index: self._guard(lambda: self._clone(i, e.value)))
             ui.button(icon="close", on_click=lambda i=index: self._guard(
                 lambda: self._remove(i)
             )).props(f"flat dense data-testid=remove-{index}")
@@ -294,22 +306,27 @@ class _Tab:
         self._render_binding()
         self._render_panels()
 
-    def _add(self, panel: Panel) -> None:
+    def _add(self, panel: Panel, *, at: int | None = None) -> None:
+        """Add ``panel`` at index ``at`` (default: last)."""
         registry.get(panel.kind)
-        self.layout = self.layout.adding(panel)
+        index = len(self.layout.panels) if at is None else at
+        self.layout = self.layout.inserting(index, panel)
         self._render_binding()
-        self._add_panel(panel)
+        self._add_panel(panel, at=index)
 
-    def _clone(self, panel: Panel, key: str | None) -> None:
+    def _clone(self, index: int, key: str | None) -> None:
+        """Panel ``index`` for robot ``key``, right after the original."""
         if key:
+            panel = self.layout.panels[index]
             self._add(Panel(kind=panel.kind, robot=self._robot_of(key),
-                            settings=panel.settings))
+                            settings=panel.settings), at=index + 1)
 
     def _remove(self, index: int) -> None:
         self.layout = self.layout.without(index)
         view = self.views.pop(index)
         self._hide(view)
         view.expansion.delete()
+        self._number_panels(index)
         self._render_binding()
 
     def _rebind(self, index: int, key: str) -> None:
@@ -366,18 +383,28 @@ class _Tab:
         for panel in self.layout.panels:
             self._add_panel(panel)
 
-    def _add_panel(self, panel: Panel) -> None:
-        index = len(self.views)
+    def _add_panel(self, panel: Panel, *, at: int | None = None) -> None:
+        index = len(self.views) if at is None else at
         with self.panels:
             expansion = ui.expansion(self._title(panel), value=True).classes(
                 "w-full"
             ).props(f"dense header-class=bg-grey-3 data-testid=panel-{index}")
             with expansion:
-                body = ui.row().classes("w-full no-wrap items-start gap-2 overflow-auto")
+                body = ui.element("div").classes("w-full items-start").style(
+                    registry.TEAM_GRID)
+        if index < len(self.views):
+            expansion.move(target_index=index)
         view = _PanelView(panel=panel, expansion=expansion, body=body)
         expansion.on_value_change(lambda e, v=view: self._toggle(v, bool(e.value)))
-        self.views.append(view)
+        self.views.insert(index, view)
+        self._number_panels(index + 1)
         self._fill(view)
+
+    def _number_panels(self, start: int) -> None:
+        """Panels from ``start`` on moved (one inserted or removed before them): their test
+        ids follow their place, as the binding view's rows do."""
+        for index, view in enumerate(self.views[start:], start=start):
+            view.expansion.props(f"data-testid=panel-{index}")
 
     def _toggle(self, view: _PanelView, shown: bool) -> None:
         # A page only counts as seen once its browser is connected: a page fetched by
@@ -409,7 +436,7 @@ class _Tab:
                 ui.label(f"{self._no_robots()}: they appear here when found").classes(
                     "italic")
             for robot in robots:
-                with ui.column().classes("min-w-[24rem] flex-1") as container:
+                with ui.column().classes("min-w-0") as container:
                     if view.panel.robot is None and robot is not None:
                         ui.label(robot.label).classes("text-bold")
                     ctx = ViewContext(

@@ -29,19 +29,20 @@ STALE_S = 5.0
 POLICY_VARIABLE = "DEBUG_GUI_UPDATE_POLICY"
 NO_STATISTICS = ("this robot publishes no efficient_comm statistics (a plain ROS 2 robot): "
                  "nothing to show here; its parameters and topics are in those views")
-#: Long names (services, parameter events) are cut with an ellipsis; the full name shows on
-#: hover. Otherwise one long name pushes the figures out of a team layout's narrow table.
-_NARROW = {"classes": "ellipsis", "style": "max-width: 12rem", "headerStyle": "max-width: 12rem"}
+#: Long names (services, parameter events) wrap, after a ``/``, ``.`` or ``_`` where they
+#: can (:data:`_BREAKABLE`), so that the figures of three robots' tables side by side stay
+#: in view rather than behind a scroll bar.
+_NARROW = {"style": "overflow-wrap: anywhere; min-width: 4rem"}
 COLUMNS: list[dict[str, Any]] = [
     {"name": "flag", "label": "", "field": "flag", "sortable": True, "align": "left"},
     {"name": "node", "label": "component", "field": "node", "sortable": True, "align": "left",
      **_NARROW},
     {"name": "name", "label": "callback", "field": "name", "sortable": True, "align": "left",
      **_NARROW},
-    {"name": "rate_hz", "label": "rate Hz", "field": "rate_hz", "sortable": True},
     {"name": "mean_ms", "label": "mean ms", "field": "mean_ms", "sortable": True},
     {"name": "p95_ms", "label": "p95 ms", "field": "p95_ms", "sortable": True},
     {"name": "max_ms", "label": "max ms", "field": "max_ms", "sortable": True},
+    {"name": "rate_hz", "label": "rate Hz", "field": "rate_hz", "sortable": True},
     {"name": "history", "label": "mean, last 30", "field": "history", "align": "left"},
     {"name": "period_ms", "label": "period ms", "field": "period_ms", "sortable": True},
     {"name": "calls", "label": "calls", "field": "calls", "sortable": True},
@@ -52,10 +53,22 @@ COLUMNS: list[dict[str, Any]] = [
      "align": "left"},
 ]
 
+#: Half Quasar's dense padding between columns: nine columns of three robots side by side
+#: need the room.
+for _column in COLUMNS:
+    for _key in ("style", "headerStyle"):
+        _column[_key] = "; ".join(filter(None, (_column.get(_key), "padding: 4px")))
+
 
 ALL = [c["name"] for c in COLUMNS]
-#: What fits when several robots' tables stand side by side.
-COMPACT = [n for n in ALL if n not in {"period_ms", "calls", "kind", "process"}]
+#: What fits when several robots' tables stand side by side (28rem each, ui.registry's
+#: TEAM_GRID): the history's thirty characters do not, it shows with all columns.
+COMPACT = [n for n in ALL if n not in {"history", "period_ms", "calls", "kind", "process"}]
+#: A name's cell with a line-break opportunity after each ``/``, ``.`` and ``_``.
+_BREAKABLE = r"""
+        <q-td :props="props" :title="props.value"><template
+          v-for="part in String(props.value).split(/(?<=[/._])/)">{{ part }}<wbr></template>
+        </q-td>"""
 
 
 def _ms(ns: int) -> float:
@@ -94,7 +107,7 @@ def build(ctx: ViewContext) -> None:
     table = ui.table(
         columns=COLUMNS, rows=[], row_key="id", pagination=0,
     ).props(
-        f"dense flat data-testid=components-{robot.key}"
+        f"dense flat wrap-cells data-testid=components-{robot.key}"
     ).classes("w-full").style("max-height: 32rem")
     table.props["visible-columns"] = COMPACT
 
@@ -107,13 +120,14 @@ def build(ctx: ViewContext) -> None:
     )
     table.add_slot("body-cell-flag", r"""
         <q-td :props="props">
-          <q-badge v-if="props.value" color="negative" :label="props.value" />
+          <q-badge v-if="props.value" color="negative" multi-line :label="props.value"
+                   style="word-break: keep-all; text-align: center" />
         </q-td>""")
     for column in ("node", "name"):
-        table.add_slot(f"body-cell-{column}", r"""
-        <q-td :props="props" :title="props.value">{{ props.value }}</q-td>""")
+        table.add_slot(f"body-cell-{column}", _BREAKABLE)
     table.add_slot("body-cell-history", r"""
-        <q-td :props="props" style="font-family: monospace">{{ props.value }}</q-td>""")
+        <q-td :props="props" style="font-family: monospace; white-space: nowrap">
+          {{ props.value }}</q-td>""")
 
     pushed: dict[str, Any] = {"messages": -1, "at": -UPDATE_S, "rows": None}
     every_second = os.environ.get(POLICY_VARIABLE) == "every-second"

@@ -71,6 +71,7 @@ window.debugGuiImage = window.debugGuiImage || {
         img.onload = () => {
           if (v.url) URL.revokeObjectURL(v.url);
           v.url = url;
+          img.style.display = 'block';
           svg.setAttribute('viewBox', '0 0 ' + img.naturalWidth + ' ' + img.naturalHeight);
           svg.innerHTML = meta.svg;
           v.frames += 1; v.stamp = meta.stamp_ns; v.overlayStamp = meta.overlay_stamp_ns;
@@ -102,6 +103,13 @@ def live_state(*, online: bool, position: tuple[int, int] | None, fps: float,
     if position is not None:
         return f"paused at frame {position[0] + 1} of {position[1]}"
     return f"live, {fps:.1f} fps received (asked {asked:g})"
+
+
+def placeholder_text(*, camera: bool, image_topic: str) -> str:
+    """What the view shows where the picture will be, before the first frame."""
+    if not camera:
+        return f"no image topic: this robot publishes no {image_topic}"
+    return "waiting for the first frame…"
 
 
 def frame_message(model: ImageModel) -> tuple[tuple[Any, ...], bytes] | None:
@@ -197,10 +205,15 @@ def build(ctx: ViewContext) -> None:
             apply.tooltip("changing the robot needs the server's token")
     layer_row = ui.row().classes("items-center gap-1").props(
         f"data-testid=image-layers-{robot.key}")
+    # Text until the first frame is drawn: an <img> without a picture is a broken-image icon.
+    placeholder = ui.label(placeholder_text(
+        camera=True, image_topic=robot.resolve(model.image_topic))).style(
+        "width: 640px; max-width: 100%; background: #222; color: #eee; padding: 1.5rem"
+    ).props(f"data-testid=image-placeholder-{robot.key}")
     ui.html(
         f'<div id="dbgimg-{key}" data-testid="image-{robot.key}" '
         f'style="position:relative; width:640px; max-width:100%; background:#222">'
-        f'<img style="display:block; width:100%; min-height:60px" alt="camera"/>'
+        f'<img style="display:none; width:100%" alt="camera"/>'
         f'<svg style="position:absolute; left:0; top:0; width:100%; height:100%; '
         f'pointer-events:none"></svg></div>',
         sanitize=False,
@@ -234,6 +247,13 @@ def build(ctx: ViewContext) -> None:
                 quality_note.text = "JPEG quality cannot be set: the robot has gone"
             elif ctx.can_write:
                 background_tasks.create(read_quality(), name=f"image quality {key}")
+        if model.received and placeholder.visible:
+            placeholder.set_visibility(False)
+        elif not model.received:
+            text = placeholder_text(camera=model.has_camera(),
+                                    image_topic=robot.resolve(model.image_topic))
+            if text != placeholder.text:
+                placeholder.text = text
         stamp = f"stamp {shown_now[0].stamp_ns / 1e9:.3f} s" if shown_now else "no frame yet"
         status.text = f"{where}; {stamp}; {model.received} frames, " \
                       f"{model.drawings_received} drawings"

@@ -30,7 +30,7 @@ from ..models.recorder import (
     relative,
 )
 from ..robots import RobotId
-from .registry import ViewContext, register
+from .registry import TEAM_GRID, ViewContext, register
 
 POLL_S = 0.5
 #: The graph is asked for new recorders every this many polls (and at once when shown).
@@ -38,12 +38,16 @@ DISCOVER_EVERY = 4
 READ_ONLY = "controlling recorders needs the server's token (open the URL it printed)"
 _STATE_COLOURS = {"recording": "positive", "idle": "grey-7", "failed": "negative",
                   "waiting": "grey-5"}
+#: Topic and type names are long and have no spaces: they break at any character rather
+#: than push the figures out of a team layout's narrow card.
+_BREAK = {"style": "overflow-wrap: anywhere; min-width: 6rem"}
 TOPIC_COLUMNS: list[dict[str, Any]] = [
-    {"name": "name", "label": "topic", "field": "name", "align": "left", "sortable": True},
+    {"name": "name", "label": "topic", "field": "name", "align": "left", "sortable": True,
+     **_BREAK},
     {"name": "messages", "label": "messages", "field": "messages", "sortable": True},
     {"name": "bytes", "label": "bytes", "field": "bytes", "sortable": True},
     {"name": "drops", "label": "drops", "field": "drops", "sortable": True},
-    {"name": "type", "label": "type", "field": "type", "align": "left"},
+    {"name": "type", "label": "type", "field": "type", "align": "left", **_BREAK},
 ]
 
 
@@ -93,8 +97,8 @@ class _RecorderPanel:
                     f"data-testid=recorder-state-{key}")
             self.figures = ui.label("waiting for the recorder's status…").props(
                 f"data-testid=recorder-figures-{key}")
-            self.bag = ui.label("").classes("text-caption").props(
-                f"data-testid=recorder-bag-{key}")
+            self.bag = ui.label("").classes("text-caption").style(
+                "overflow-wrap: anywhere").props(f"data-testid=recorder-bag-{key}")
             self.error = ui.label("").classes("text-negative").props(
                 f"data-testid=recorder-error-{key}")
             with ui.row().classes("items-center gap-1"):
@@ -109,7 +113,8 @@ class _RecorderPanel:
                 f"data-testid=recorder-result-{key}")
             self.table = ui.table(columns=TOPIC_COLUMNS, rows=[], row_key="name",
                                   pagination=0).props(
-                f"dense flat hide-pagination data-testid=recorder-topics-{key}").classes("w-full")
+                f"dense flat hide-pagination wrap-cells data-testid=recorder-topics-{key}"
+            ).classes("w-full")
             with ui.expansion("topic selection", on_value_change=self._opened).props(
                     f"dense data-testid=recorder-editor-{key}").classes("w-full"):
                 self.picks = ui.column().classes("gap-0").props(
@@ -223,7 +228,7 @@ class _RobotColumn:
     def __init__(self, ctx: ViewContext, model: RecorderModel, *, titled: bool) -> None:
         self.ctx, self.model = ctx, model
         robot: RobotId = model.robot
-        with ui.column().classes("min-w-[26rem] flex-1 gap-1").props(
+        with ui.column().classes("min-w-0 gap-1").props(
                 f"data-testid=recorder-robot-{robot.key}"):
             if titled:
                 ui.label(robot.label).classes("text-bold")
@@ -295,7 +300,7 @@ def build(ctx: ViewContext) -> None:
         stop_all.on_click(lambda: for_all("stop"))
     if not robots:
         ui.label("no robots yet").classes("italic")
-    with ui.row().classes("w-full items-start gap-2 no-wrap overflow-auto"):
+    with ui.element("div").classes("w-full items-start").style(TEAM_GRID):
         columns = [_RobotColumn(ctx, m, titled=ctx.robot is None) for m in team.models]
     ticks = {"n": 0}
 

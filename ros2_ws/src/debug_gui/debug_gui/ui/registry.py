@@ -31,6 +31,12 @@ from ..security import AccessPolicy
 
 _log = logging.getLogger(__name__)
 
+#: How a team's robots stand side by side (the shell's team panels, the recorder's robots):
+#: as many equal columns of at least 28rem as the window has room for (three at 1600 px),
+#: the others on the next line, so no robot is cut off behind a scroll bar (two at 1280 px).
+TEAM_GRID = ("display: grid; gap: 0.5rem; "
+             "grid-template-columns: repeat(auto-fit, minmax(min(100%, 28rem), 1fr))")
+
 
 @dataclass(slots=True)
 class ViewContext:
