@@ -3,7 +3,9 @@
 * :func:`robot` starts one simulated robot (``python -m humanoid_sim.demo --duration 0
   --namespace NS``) in its own process and session, on a domain the test reserved;
   :func:`fake_robot` a light one (a plain rclpy process publishing callback statistics,
-  ``tests/_gui_fake_robot.py``) for tests about the GUI rather than the robot.
+  ``tests/_gui_fake_robot.py``) for tests about the GUI rather than the robot;
+  :func:`camera_robot` one with the real ball detector and JPEG compressor behind a drawn
+  camera (``tests/_gui_camera_robot.py``), for the image and parameter views.
 * :func:`gui` starts ``ros2 run debug_gui debug_gui --port 0 --domains ...`` the way a
   user types it and waits for the URL it prints and for the page to answer.
 * the ``browser`` fixture (re-exported by ``tests/conftest.py``) is a headless chromium
@@ -37,6 +39,7 @@ ARTIFACTS = ROOT / "tests" / "artifacts"
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
 FAKE_ROBOT = Path(__file__).with_name("_gui_fake_robot.py")
+CAMERA_ROBOT = Path(__file__).with_name("_gui_camera_robot.py")
 _URL = re.compile(r"at (http://\S+)")
 #: The browser's window (width, height), restored between tests.
 WINDOW_SIZE = (1600, 1000)
@@ -138,6 +141,19 @@ def fake_robot(
     log = tmp_path / f"fake_{domain_id}{namespace.replace('/', '_')}.log"
     cmd: list[str | Path] = [sys.executable, FAKE_ROBOT, "--namespace", namespace,
                              "--period", str(period_s), "--callbacks", str(callbacks)]
+    with started(cmd, env=ros_env(domain_id), log=log) as proc:
+        yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
+
+
+@contextmanager
+def camera_robot(
+    tmp_path: Path, *, domain_id: int, namespace: str = "/robot"
+) -> Iterator[RobotProcess]:
+    """A light robot with the real camera pipeline as robot ``namespace``: a drawn camera
+    (an orange ball on green), humanoid_sim's ball detector and debug_probes' JPEG
+    compressor in one container, without the simulation (tests/_gui_camera_robot.py)."""
+    log = tmp_path / f"camera_{domain_id}{namespace.replace('/', '_')}.log"
+    cmd: list[str | Path] = [sys.executable, CAMERA_ROBOT, "--namespace", namespace]
     with started(cmd, env=ros_env(domain_id), log=log) as proc:
         yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
 
