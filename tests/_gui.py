@@ -116,6 +116,30 @@ def wait_for(
         time.sleep(0.05)
 
 
+def wait_for_robots(hub: Any, robots: Sequence[Any], *, alive: Sequence[Process] = (),
+                    timeout_s: float = 30.0) -> None:
+    """Wait until the Hub sees each of ``robots`` (RobotIds): the test's own, by name.
+
+    Not ``Hub.wait_for_robots(n)``, which returns the first n robots the Hub sees, whichever
+    they are. A domain id is reserved for a test, not emptied for it: a participant that
+    outlived its test (a process, a daemon, a container left open) is still in the domain
+    when the id is reused, and one such robot among the first two made the world view wait
+    30 s for poses from a robot that never sends any, while the test's robots ran fine.
+    """
+    wanted = set(robots)
+    wait_for(lambda: wanted <= set(hub.robots()), timeout_s=timeout_s,
+             what=f"robots {', '.join(sorted(r.label for r in wanted))} in the Hub",
+             alive=alive)
+
+
+def ready(processes: Sequence[Process], *, timeout_s: float = 30.0) -> None:
+    """Wait for each process's ``ready`` line (printed once its publishers exist), so that
+    a deadline for data then stands for discovery and delivery, not for start-up."""
+    for p in processes:
+        wait_for(lambda p=p: "ready" in p.output(), timeout_s=timeout_s,  # type: ignore[misc]
+                 what=f"{p.log.name} to be ready", alive=processes)
+
+
 @contextmanager
 def robot(
     tmp_path: Path, *, domain_id: int, namespace: str = "/robot", args: Sequence[str] = ()
