@@ -3,7 +3,9 @@
 * :func:`robot` starts one simulated robot (``python -m humanoid_sim.demo --duration 0
   --namespace NS``) in its own process and session, on a domain the test reserved;
   :func:`fake_robot` a light one (a plain rclpy process publishing callback statistics,
-  ``tests/_gui_fake_robot.py``) for tests about the GUI rather than the robot.
+  ``tests/_gui_fake_robot.py``) for tests about the GUI rather than the robot;
+  :func:`camera_robot` one with the real ball detector and JPEG compressor behind a drawn
+  camera (``tests/_gui_camera_robot.py``), for the image and parameter views.
 * :func:`gui` starts ``ros2 run debug_gui debug_gui --port 0 --domains ...`` the way a
   user types it and waits for the URL it prints and for the page to answer.
 * the ``browser`` fixture (re-exported by ``tests/conftest.py``) is a headless chromium
@@ -37,6 +39,7 @@ ARTIFACTS = ROOT / "tests" / "artifacts"
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
 FAKE_ROBOT = Path(__file__).with_name("_gui_fake_robot.py")
+CAMERA_ROBOT = Path(__file__).with_name("_gui_camera_robot.py")
 _URL = re.compile(r"at (http://\S+)")
 #: The browser's window (width, height), restored between tests.
 WINDOW_SIZE = (1600, 1000)
@@ -113,6 +116,30 @@ def wait_for(
         time.sleep(0.05)
 
 
+def wait_for_robots(hub: Any, robots: Sequence[Any], *, alive: Sequence[Process] = (),
+                    timeout_s: float = 30.0) -> None:
+    """Wait until the Hub sees each of ``robots`` (RobotIds): the test's own, by name.
+
+    Not ``Hub.wait_for_robots(n)``, which returns the first n robots the Hub sees, whichever
+    they are. A domain id is reserved for a test, not emptied for it: a participant that
+    outlived its test (a process, a daemon, a container left open) is still in the domain
+    when the id is reused, and one such robot among the first two made the world view wait
+    30 s for poses from a robot that never sends any, while the test's robots ran fine.
+    """
+    wanted = set(robots)
+    wait_for(lambda: wanted <= set(hub.robots()), timeout_s=timeout_s,
+             what=f"robots {', '.join(sorted(r.label for r in wanted))} in the Hub",
+             alive=alive)
+
+
+def ready(processes: Sequence[Process], *, timeout_s: float = 30.0) -> None:
+    """Wait for each process's ``ready`` line (printed once its publishers exist), so that
+    a deadline for data then stands for discovery and delivery, not for start-up."""
+    for p in processes:
+        wait_for(lambda p=p: "ready" in p.output(), timeout_s=timeout_s,  # type: ignore[misc]
+                 what=f"{p.log.name} to be ready", alive=processes)
+
+
 @contextmanager
 def robot(
     tmp_path: Path, *, domain_id: int, namespace: str = "/robot", args: Sequence[str] = ()
@@ -138,6 +165,19 @@ def fake_robot(
     log = tmp_path / f"fake_{domain_id}{namespace.replace('/', '_')}.log"
     cmd: list[str | Path] = [sys.executable, FAKE_ROBOT, "--namespace", namespace,
                              "--period", str(period_s), "--callbacks", str(callbacks)]
+    with started(cmd, env=ros_env(domain_id), log=log) as proc:
+        yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
+
+
+@contextmanager
+def camera_robot(
+    tmp_path: Path, *, domain_id: int, namespace: str = "/robot"
+) -> Iterator[RobotProcess]:
+    """A light robot with the real camera pipeline as robot ``namespace``: a drawn camera
+    (an orange ball on green), humanoid_sim's ball detector and debug_probes' JPEG
+    compressor in one container, without the simulation (tests/_gui_camera_robot.py)."""
+    log = tmp_path / f"camera_{domain_id}{namespace.replace('/', '_')}.log"
+    cmd: list[str | Path] = [sys.executable, CAMERA_ROBOT, "--namespace", namespace]
     with started(cmd, env=ros_env(domain_id), log=log) as proc:
         yield RobotProcess(proc=proc, log=log, domain_id=domain_id, namespace=namespace)
 

@@ -1,4 +1,7 @@
-"""The image view in a real browser against a simulated robot: frames advance, overlays match.
+"""The image view in a real browser against a robot: frames advance, overlays match.
+
+The robot is the light one with the real ball detector and JPEG compressor behind a drawn
+camera (tests/_gui_camera_robot.py); tests/test_gui_demo_browser.py runs the full demo.
 
 The frame rate the browser reaches is measured by bench/image_view_bench.py (a figure, not
 an assertion); here: frames keep coming, each overlay is its frame's (same stamp), layers
@@ -17,7 +20,7 @@ from selenium.webdriver.common.by import By
 from debug_gui import RobotId
 from efficient_comm.testing import isolated_domain_id
 
-from ._gui import by_testid, gui, robot, screenshot, text_of, wait_for
+from ._gui import by_testid, camera_robot, gui, screenshot, text_of, wait_for
 from .test_gui_hub_data import plain_robot
 from .test_gui_image_data import graph, view_readers
 
@@ -55,7 +58,7 @@ def test_image_view_shows_frames_with_their_own_overlays_layers_pause_and_step(
 ) -> None:
     domain = isolated_domain_id()
     layout = image_layout(tmp_path / "layout.json")
-    with robot(tmp_path, domain_id=domain, namespace="/robot") as bot, \
+    with camera_robot(tmp_path, domain_id=domain, namespace="/robot") as bot, \
             gui(tmp_path, domains=[domain], args=["--layout", str(layout)]) as server:
         alive = [bot, server]
         browser.get(server.url)

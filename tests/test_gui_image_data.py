@@ -1,7 +1,9 @@
-"""The image view's data side: without a browser, against a simulated robot in its own process.
+"""The image view's data side: without a browser, against a robot in its own process.
 
 The model logic (matching by stamp, layers, pause and step, the SVG) is checked on messages
-made here; the feeds, the throttling and the JPEG quality against ``humanoid_sim.demo``.
+made here; the feeds, the throttling and the JPEG quality against the real ball detector
+and JPEG compressor of a light robot whose camera draws its picture
+(tests/_gui_camera_robot.py: the simulation would add nothing here but start-up and CPU).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from debug_probes import DebugDrawing
 from efficient_comm import to_msg
 from efficient_comm.testing import TestHandle, isolated_domain_id, test_container
 
-from ._gui import robot, wait_for
+from ._gui import camera_robot, wait_for
 
 
 class _Clock:
@@ -137,11 +139,11 @@ def test_svg_of_every_kind_of_shape() -> None:
     assert "<polyline" in svg and "<polygon" in svg and 'fill="rgba(0,255,0,0.5)"' in svg
 
 
-def test_against_a_simulated_robot_frames_match_drawings_quality_applies_and_hidden_costs_nothing(
+def test_against_a_robot_frames_match_drawings_quality_applies_and_hidden_costs_nothing(
     tmp_path: Path,
 ) -> None:
     domain = isolated_domain_id()
-    with robot(tmp_path, domain_id=domain, namespace="/robot") as proc, \
+    with camera_robot(tmp_path, domain_id=domain, namespace="/robot") as proc, \
             Hub(domains=[domain]) as hub:
         bot = RobotId(domain, "/robot")
         wait_for(lambda: bot in hub.robots(), what="the robot", alive=[proc], timeout_s=60)

@@ -1,10 +1,11 @@
 """The parameters view in a real browser: edits reach the component, vetoes reach the user.
 
-Against a simulated robot (``humanoid_sim.demo``): the ball detector's ``min_saturation``
-is typed into its field and set with Enter, and the test reads the value back from the
-component over its own ``get_parameters`` service (a plain rclpy client, not the GUI); an
-invalid ``hue_range`` is vetoed by the detector and its reason shows beside the field; a
-change made with ``ros2 param set`` shows up live. Against the light plain-rclpy robot: a
+Against humanoid_sim's real ball detector (in the light robot tests/_gui_camera_robot.py,
+fed by a drawn camera instead of the simulation): its ``min_saturation`` is typed into its
+field and set with Enter, and the test reads the value back from the component over its
+own ``get_parameters`` service (a plain rclpy client, not the GUI); an invalid
+``hue_range`` is vetoed by the detector and its reason shows beside the field; a change
+made with ``ros2 param set`` shows up live. Against the light plain-rclpy robot: a
 switch sets a boolean, and a page opened without the token shows the values with every
 field disabled, and what it sends anyway changes nothing.
 """
@@ -26,9 +27,9 @@ from ._cli import ros2
 from ._gui import (
     Process,
     by_testid,
+    camera_robot,
     choose,
     gui,
-    robot,
     screenshot,
     text_of,
     wait_for,
@@ -86,7 +87,7 @@ def test_a_parameter_edited_in_the_browser_changes_the_component(
     domain = isolated_domain_id()
     ns, node = "/robot", "/robot/ball_detector"
     key = f"{domain}:{ns}"
-    with robot(tmp_path, domain_id=domain, namespace=ns) as bot, \
+    with camera_robot(tmp_path, domain_id=domain, namespace=ns) as bot, \
             gui(tmp_path, domains=[domain],
                 args=["--layout", str(layout(tmp_path / "l.json", domain=domain,
                                              namespace=ns))]) as server, \

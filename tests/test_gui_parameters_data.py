@@ -29,7 +29,7 @@ from efficient_comm.testing import (
 )
 
 from ._cli import ros2
-from ._gui import Process, started, wait_for
+from ._gui import Process, started, wait_for, wait_for_robots
 from ._ros import executable
 from ._ros import peer as peer_node
 from .test_gui_foxglove import Robot
@@ -59,7 +59,7 @@ def test_a_plain_rclpy_node_listed_described_set_vetoed_and_followed(peer: Robot
     node = "/pr/detector"
     with Hub(domains=[peer.domain]) as hub:
         robot = RobotId(peer.domain, "/pr")
-        assert hub.wait_for_robots(1)[0] == robot
+        wait_for_robots(hub, [robot])  # by name: the domain may hold other robots
         model = _model(hub, robot)
         wait_for(lambda: node in model.nodes(), what="the node's parameter services")
         assert model.nodes("nosuch") == []
@@ -141,7 +141,7 @@ def test_without_the_token_the_model_refuses_to_write(peer: Robot) -> None:
     node = "/pr/detector"
     with Hub(domains=[peer.domain]) as hub:
         robot = RobotId(peer.domain, "/pr")
-        hub.wait_for_robots(1)
+        wait_for_robots(hub, [robot])
         reader = _model(hub, robot, token=False)
         wait_for(lambda: node in reader.nodes(), what="the node's parameter services")
         assert {p.name for p in reader.load(node)} >= {"count"}  # reading needs no token

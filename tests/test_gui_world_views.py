@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from debug_gui import Hub, InvalidInput
+from debug_gui import Hub, InvalidInput, RobotId
 from debug_gui.models.logs import LogsModel
 from debug_gui.models.topics import TopicsModel, numeric_paths, value_at
 from debug_gui.models.world import WorldModel
@@ -29,10 +29,12 @@ from ._gui import (
     fake_robot,
     gui,
     present,
+    ready,
     screenshot,
     started,
     text_of,
     wait_for,
+    wait_for_robots,
     wait_for_text,
 )
 
@@ -63,36 +65,46 @@ def robot_with_peer(tmp_path: Path, *, domain_id: int, namespace: str, x: float,
 
 def test_world_model_places_each_robot_and_its_ball_from_odometry(tmp_path: Path) -> None:
     domain = isolated_domain_id()
-    with robot_with_peer(tmp_path, domain_id=domain, namespace="/alpha", x=1.5) as a, \
-            robot_with_peer(tmp_path, domain_id=domain, namespace="/beta", x=-2.0) as b, \
+    ids = [RobotId(domain, "/alpha"), RobotId(domain, "/beta")]
+    # The domain already holds a robot that is none of the test's, as a reused domain id
+    # can (a participant that outlived an earlier test): the view is of the test's robots,
+    # awaited by name. Taking the first two robots the Hub saw, the test waited 30 s for
+    # poses of such a robot (the fake robots logged "computed 0" all along: nothing here
+    # asks them for anything).
+    with fake_robot(tmp_path, domain_id=domain, namespace="/aardvark") as other, \
             Hub(domains=[domain]) as hub:
-        robots = sorted(hub.wait_for_robots(2), key=lambda r: r.namespace)
-        model = WorldModel(hub, robots)
-        model.activate()
-        try:
-            states = wait_for(
-                lambda: (s := model.states()) and all(
-                    x.pose is not None and x.ball is not None and x.true_pose is not None
-                    and x.motion for x in s) and s,
-                what="poses, balls and motion states of both robots", alive=[*a, *b])
-        finally:
-            model.deactivate()
-        alpha, beta = states
-        assert alpha.colour != beta.colour
-        assert alpha.pose_source == beta.pose_source == "odom"
-        # Published once before the view existed: latched, so the view learns it.
-        assert alpha.motion == beta.motion == "walk"
-        # Odometry is anchored where it first met ground truth (0.1 m further along x).
-        assert alpha.pose is not None and beta.pose is not None
-        assert alpha.pose.x == pytest.approx(1.6, abs=1e-6)
-        assert beta.pose.x == pytest.approx(-1.9, abs=1e-6)
-        assert alpha.pose.y == pytest.approx(-1.0, abs=1e-6)
-        # The ball 1 m straight ahead of a robot facing +y.
-        assert alpha.ball == pytest.approx((1.6, 0.0), abs=1e-6)
-        # The team ball: the two estimates at equal distance, so their mean.
-        team = model.team_ball(states)
-        assert team == pytest.approx(((1.6 - 1.9) / 2, 0.0), abs=1e-6)
-        assert not model.active
+        wait_for_robots(hub, [RobotId(domain, "/aardvark")], alive=[other])
+        with robot_with_peer(tmp_path, domain_id=domain, namespace="/alpha", x=1.5) as a, \
+                robot_with_peer(tmp_path, domain_id=domain, namespace="/beta", x=-2.0) as b:
+            alive = [other, *a, *b]
+            wait_for_robots(hub, ids, alive=alive)
+            ready(alive)
+            model = WorldModel(hub, ids)
+            model.activate()
+            try:
+                states = wait_for(
+                    lambda: (s := model.states()) and all(
+                        x.pose is not None and x.ball is not None and x.true_pose is not None
+                        and x.motion for x in s) and s,
+                    what="poses, balls and motion states of both robots", alive=alive)
+            finally:
+                model.deactivate()
+            alpha, beta = states
+            assert alpha.colour != beta.colour
+            assert alpha.pose_source == beta.pose_source == "odom"
+            # Published once before the view existed: latched, so the view learns it.
+            assert alpha.motion == beta.motion == "walk"
+            # Odometry is anchored where it first met ground truth (0.1 m further along x).
+            assert alpha.pose is not None and beta.pose is not None
+            assert alpha.pose.x == pytest.approx(1.6, abs=1e-6)
+            assert beta.pose.x == pytest.approx(-1.9, abs=1e-6)
+            assert alpha.pose.y == pytest.approx(-1.0, abs=1e-6)
+            # The ball 1 m straight ahead of a robot facing +y.
+            assert alpha.ball == pytest.approx((1.6, 0.0), abs=1e-6)
+            # The team ball: the two estimates at equal distance, so their mean.
+            team = model.team_ball(states)
+            assert team == pytest.approx(((1.6 - 1.9) / 2, 0.0), abs=1e-6)
+            assert not model.active
 
 
 def test_logs_model_keeps_a_robots_records_and_statuses_and_filters(tmp_path: Path) -> None:
@@ -102,8 +114,9 @@ def test_logs_model_keeps_a_robots_records_and_statuses_and_filters(tmp_path: Pa
             robot_with_peer(tmp_path, domain_id=domain, namespace="/beta", x=0,
                             token="betatok") as b, \
             Hub(domains=[domain]) as hub:
-        robots = {r.namespace: r for r in hub.wait_for_robots(2)}
-        model = LogsModel(hub, robots["/alpha"])
+        wait_for_robots(hub, [RobotId(domain, "/alpha"), RobotId(domain, "/beta")],
+                        alive=[*a, *b])
+        model = LogsModel(hub, RobotId(domain, "/alpha"))
         model.activate()
         try:
             wait_for(lambda: model.logs() and model.statuses(), what="alpha's log and status",
@@ -130,7 +143,8 @@ def test_topics_model_lists_echoes_and_plots_a_plain_publisher(tmp_path: Path) -
     domain = isolated_domain_id()
     with robot_with_peer(tmp_path, domain_id=domain, namespace="/alpha", x=2.5) as a, \
             Hub(domains=[domain]) as hub:
-        [robot] = hub.wait_for_robots(1)
+        robot = RobotId(domain, "/alpha")
+        wait_for_robots(hub, [robot], alive=a)
         model = TopicsModel(hub, robot)
         model.activate()
         try:
