@@ -57,3 +57,36 @@ def sigterm_calls(stop: Callable[[], None]) -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextlib.contextmanager
+def interrupt_calls(stop: Callable[[], None]) -> Iterator[None]:
+    """While inside, the first Ctrl-C (SIGINT) calls ``stop()``; a second one raises
+    ``KeyboardInterrupt`` as usual (a callback that never returns can still be broken).
+
+    Python raises ``KeyboardInterrupt`` at whatever bytecode the main thread runs; inside
+    rclpy's conversion of a message it takes, pybind11 turns it into ``RuntimeError:
+    Unable to convert call argument '0' to Python object``, and the program ends in that
+    traceback instead of stopping (a loaded machine hits this window often). Only in the
+    main thread, and only if SIGINT still raises ``KeyboardInterrupt``.
+    """
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield
+        return
+    interrupted = False
+
+    def interrupt(_signum: int, _frame: object) -> None:
+        nonlocal interrupted
+        if interrupted:
+            raise KeyboardInterrupt
+        interrupted = True
+        stop()
+
+    signal.signal(signal.SIGINT, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)

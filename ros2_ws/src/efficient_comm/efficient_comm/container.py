@@ -30,7 +30,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from ._closing import Closing
 from ._names import apply_node_remaps, check_node_name, fully_qualified, parse_remaps
-from ._signals import sigterm_calls
+from ._signals import interrupt_calls, sigterm_calls
 from .bus import Bus
 from .composed import ComposedHandle, LocalService, RecordingLogger
 from .config import ComponentSpec, parse_file, resolve_factory
@@ -273,12 +273,16 @@ class Container(Closing):
     def spin(self) -> None:
         """Run until :meth:`shutdown`, Ctrl-C or SIGTERM.
 
+        Ctrl-C stops the loop between two callbacks, as :meth:`shutdown` does (a second
+        Ctrl-C interrupts a callback that hangs): a ``KeyboardInterrupt`` raised inside
+        rclpy's take ends in a RuntimeError traceback instead (``_signals.interrupt_calls``).
+
         SIGTERM (what ``ros2 launch``, ``docker stop`` and service managers send) would
         otherwise kill the process with no component's ``close()`` run; here it stops the
         loop as :meth:`shutdown` does, so the ``with`` block unloads every component. (In
         the main thread, unless the program installed a SIGTERM handler of its own.)
         """
-        with sigterm_calls(self.shutdown), contextlib.suppress(
+        with sigterm_calls(self.shutdown), interrupt_calls(self.shutdown), contextlib.suppress(
             KeyboardInterrupt, ExternalShutdownException
         ):
             self.executor.spin()

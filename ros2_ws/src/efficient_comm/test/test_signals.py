@@ -43,3 +43,51 @@ def test_a_child_ends_when_its_parent_is_killed(use_it: bool) -> None:
             parent.stdout.close()
         if not use_it:
             os.kill(child_pid, signal.SIGKILL)
+
+
+# A container (no DDS) whose one component's timer callback is busy when Ctrl-C comes: it
+# says so, runs on for a while, says it finished; close() says it ran.
+BUSY = """
+import sys, time
+from efficient_comm import Container
+
+class Busy:
+    def __init__(self, node):
+        self.calls = 0
+        node.create_timer(0.05, self.tick)
+
+    def tick(self):
+        self.calls += 1
+        if self.calls == 2:
+            print("in callback", flush=True)
+            end = time.monotonic() + 1.0
+            while time.monotonic() < end:  # pure Python: where KeyboardInterrupt lands
+                pass
+            print("callback done", flush=True)
+
+    def close(self):
+        print("closed", flush=True)
+
+with Container("busy", dds=False) as c:
+    c.add(Busy, name="busy")
+    c.spin()
+print("spin returned", flush=True)
+"""
+
+
+def test_ctrl_c_stops_the_container_between_callbacks_not_inside_one() -> None:
+    """A first Ctrl-C lets the running callback finish and unloads every component; a
+    ``KeyboardInterrupt`` raised mid-callback (inside rclpy's take, a RuntimeError) would
+    end the program with a traceback instead."""
+    proc = subprocess.Popen([sys.executable, "-c", BUSY], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == "in callback"
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert out.split() == ["callback", "done", "closed", "spin", "returned"], (out, err)
+    assert proc.returncode == 0 and "Traceback" not in err, err
