@@ -37,7 +37,7 @@ from ._future import Future
 from ._graph import NodeGraph
 from ._params import ParameterMethods, RclpyParameters
 from ._qos import lost_events, to_profile
-from ._signals import stop_on_sigterm
+from ._signals import interrupt_calls, stop_on_sigterm
 from .config import ComponentSpec, resolve_factory
 from .errors import ComponentError
 from .handle import (
@@ -289,8 +289,16 @@ class Standalone(Closing):
         context of our own, so Python's handlers, which run only between waits, are what
         stop the node; an unbounded wait of an idle node would never let them run.
         """
-        with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
-            while self.context.ok():
+        interrupted = False
+
+        def stop() -> None:  # the first Ctrl-C: between two callbacks (see interrupt_calls)
+            nonlocal interrupted
+            interrupted = True
+
+        with interrupt_calls(stop), contextlib.suppress(
+            KeyboardInterrupt, ExternalShutdownException
+        ):
+            while self.context.ok() and not interrupted:
                 self.executor.spin_once(timeout_sec=SIGNAL_CHECK_S)
 
     def spin_once(self, timeout_s: float | None = None) -> None:

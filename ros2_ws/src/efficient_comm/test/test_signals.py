@@ -10,6 +10,8 @@ import sys
 
 import pytest
 
+from efficient_comm.testing import isolated_domain_id
+
 # The parent starts a long sleeper with exit_with_parent, says its pid, and waits for ever.
 PARENT = """
 import subprocess, sys, time
@@ -68,19 +70,25 @@ class Busy:
     def close(self):
         print("closed", flush=True)
 
-with Container("busy", dds=False) as c:
-    c.add(Busy, name="busy")
-    c.spin()
+RUN
 print("spin returned", flush=True)
 """
+RUNS = {
+    "container": 'with Container("busy", dds=False) as c:\n    c.add(Busy, name="busy")\n'
+                 '    c.spin()',
+    "standalone": 'from efficient_comm import Standalone\n'
+                  'with Standalone(Busy, name="busy", args=[]) as s:\n    s.spin()',
+}
 
 
-def test_ctrl_c_stops_the_container_between_callbacks_not_inside_one() -> None:
+@pytest.mark.parametrize("run", sorted(RUNS))
+def test_ctrl_c_stops_between_callbacks_not_inside_one(run: str) -> None:
     """A first Ctrl-C lets the running callback finish and unloads every component; a
     ``KeyboardInterrupt`` raised mid-callback (inside rclpy's take, a RuntimeError) would
     end the program with a traceback instead."""
-    proc = subprocess.Popen([sys.executable, "-c", BUSY], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    env = {**os.environ, "ROS_DOMAIN_ID": str(isolated_domain_id())}
+    proc = subprocess.Popen([sys.executable, "-c", BUSY.replace("RUN", RUNS[run])], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None
         assert proc.stdout.readline().strip() == "in callback"
