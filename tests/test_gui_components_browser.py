@@ -47,11 +47,17 @@ def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
         assert text_a.count("over period") == 1, text_a
         # Live: the cumulative call count of component0 grows (a column shown on demand).
         click(browser, f"components-columns-{d1}:/alpha")
-        # Once the column shows (-1 until the table is redrawn with it).
-        (first,) = wait_for(lambda: (n := _calls(browser, table_a, "alpha_component0")) >= 0
-                            and (n,), what="the calls column", alive=alive)
-        wait_for(lambda: _calls(browser, table_a, "alpha_component0") > first >= 0,
-                 what="the calls to grow", alive=alive)
+        first = wait_for(lambda: _calls(browser, table_a, "alpha_component0") + 1,
+                         what="the calls column", alive=alive) - 1
+        # Only changed cells are updated: the cell of a name that stays is the same element
+        # after the figures changed twice (issue 18: every slotted cell of every table was
+        # re-created at each update, which kept the browser's main thread busy).
+        assert browser.execute_script(_MARK, table_a, "alpha_component0")
+        second = wait_for(lambda: max(0, _calls(browser, table_a, "alpha_component0") - first),
+                          what="the calls to grow", alive=alive) + first
+        wait_for(lambda: _calls(browser, table_a, "alpha_component0") > second,
+                 what="the calls to grow again", alive=alive)
+        assert browser.execute_script(_MARKED, table_a), "the unchanged cell was re-created"
         # Sortable: a click on "component" orders beta's rows by name (they come by p95).
         header = by_testid(browser, table_b).find_element(
             By.XPATH, ".//th[contains(., 'component')]")
@@ -66,6 +72,20 @@ def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
         screenshot(browser, "components_two_robots")
 
 
+#: Marks the cell showing ``name`` in table ``testid`` (a JS property: not in the markup, so
+#: only the same element still has it); True when there was one.
+_MARK = """
+const cell = [...document.querySelectorAll('[data-testid="' + arguments[0] + '"] tbody td')]
+  .find(td => td.textContent.trim() === arguments[1]);
+if (cell) cell.__issue18 = true;
+return Boolean(cell);
+"""
+_MARKED = """
+return [...document.querySelectorAll('[data-testid="' + arguments[0] + '"] tbody td')]
+  .some(td => td.__issue18 === true);
+"""
+
+
 def _column(browser, testid: str, name: str) -> list[str]:
     """The cells of the compact table's column ``name``, top to bottom."""
     index = COMPACT.index(name)
@@ -78,17 +98,23 @@ def _column(browser, testid: str, name: str) -> list[str]:
 
 
 def _calls(browser, testid: str, node: str) -> int:
-    """The calls column of ``node``'s row in the table ``testid`` (-1: no such row)."""
-    calls = ALL.index("calls")
+    """The calls column of ``node``'s row in the table ``testid`` (-1: no such row), read
+    in one script (cell by cell over WebDriver, a table re-rendered meanwhile is stale)."""
+    cells = browser.execute_script(_ROW, testid, node)
     try:
-        for tr in by_testid(browser, testid).find_elements(By.CSS_SELECTOR, "tbody tr"):
-            cells = [td.get_attribute("textContent").strip()
-                     for td in tr.find_elements(By.TAG_NAME, "td")]
-            if node in cells:
-                return int(cells[calls])
-    except (StaleElementReferenceException, ValueError, IndexError):
-        pass  # the table was re-rendered while being read
-    return -1
+        return int(cells[ALL.index("calls")]) if cells else -1
+    except (ValueError, IndexError):
+        return -1
+
+
+#: The cells' texts of the row of table ``arguments[0]`` that shows ``arguments[1]``.
+_ROW = """
+for (const tr of document.querySelectorAll('[data-testid="' + arguments[0] + '"] tbody tr')) {
+  const cells = [...tr.querySelectorAll('td')].map(td => td.textContent.trim());
+  if (cells.includes(arguments[1])) return cells;
+}
+return null;
+"""
 
 
 #: What is cut off in the window: elements of the given test ids that reach beyond it, and
