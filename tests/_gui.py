@@ -346,6 +346,29 @@ def click(driver: Any, testid: str) -> None:
     by_testid(driver, testid).click()
 
 
+def click_cell(driver: Any, testid: str, text: str, *, alive: Any = (),
+               timeout_s: float = 30.0) -> None:
+    """Click the table cell showing ``text`` in the element ``testid``, once it is there.
+
+    Found again on every try: a table re-rendered between finding a cell and clicking it
+    (a new rate, a robot arriving) leaves the element found stale."""
+    from selenium.common.exceptions import StaleElementReferenceException
+    from selenium.webdriver.common.by import By
+
+    def clicked() -> bool:
+        try:
+            for td in driver.find_elements(By.CSS_SELECTOR, f'[data-testid="{testid}"] td'):
+                if td.text == text:
+                    td.click()
+                    return True
+        except StaleElementReferenceException:
+            pass
+        return False
+
+    wait_for(clicked, what=f"the cell {text!r} of {testid} clicked", alive=alive,
+             timeout_s=timeout_s)
+
+
 def choose(driver: Any, testid: str, option: str, *, timeout_s: float = 10.0) -> None:
     """Pick ``option`` (its text) in the NiceGUI select ``testid``."""
     from selenium.webdriver.common.by import By

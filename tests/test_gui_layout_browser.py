@@ -17,6 +17,7 @@ from ._gui import (
     by_testid,
     choose,
     click,
+    click_cell,
     fake_robot,
     gui,
     present,
@@ -131,18 +132,12 @@ def test_a_save_over_a_layout_saved_elsewhere_is_refused_then_confirmed(
 
 def test_a_reload_echoes_and_plots_what_the_topics_view_showed(tmp_path: Path,
                                                                browser: Any) -> None:
-    from selenium.webdriver.common.by import By
 
     stats = "/alpha/efficient_comm/stats"
     with _alpha_page(tmp_path, browser) as (domain, alive):
         key, label = f"{domain}:/alpha", f"alpha @ domain {domain}"
         _add(browser, "Topics", label)
-        cell = wait_for(
-            lambda: next((td for td in by_testid(browser, f"topics-{key}").find_elements(
-                By.CSS_SELECTOR, "td") if td.text == stats), None)
-            if present(browser, f"topics-{key}") else None,
-            what=f"{stats} in the list", alive=alive)
-        cell.click()
+        click_cell(browser, f"topics-{key}", stats, alive=alive)
         wait_for(lambda: "window_ns" in text_of(browser, f"topics-echo-{key}"),
                  what="the echoed statistics", alive=alive)
         choose(browser, f"topics-plot-field-{key}", "window_ns")

@@ -25,10 +25,12 @@ def test_a_rate_capped_by_the_echo_says_so(tmp_path: Path) -> None:
 
             def chatter() -> dict[str, object] | None:
                 row = next(t for t in model.topics() if t["name"] == "/capped/chatter")
-                return row if row["rate_source"] == "received" else None
+                return row if row["rate_capped"] else None
 
-            row = wait_for(chatter, what="chatter's received rate", alive=[proc])
+            # Awaited: the first rates measured on a loaded machine may fall short of the
+            # cap (then they are the topic's rate as far as anyone here can tell).
+            row = wait_for(chatter, what="chatter's rate said to be capped", alive=[proc])
+            assert row["rate_source"] == "received"
             assert isinstance(row["rate_hz"], float) and row["rate_hz"] <= ECHO_HZ * 1.2
-            assert row["rate_capped"] is True
         finally:
             model.deactivate()

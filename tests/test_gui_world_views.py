@@ -26,6 +26,7 @@ from ._gui import (
     by_testid,
     choose,
     click,
+    click_cell,
     fake_robot,
     gui,
     present,
@@ -250,7 +251,6 @@ def test_log_view_shows_a_plain_nodes_line_and_the_filter_hides_it(
 
 
 def test_topic_echo_shows_a_field_of_a_plain_publisher(tmp_path: Path, browser) -> None:
-    from selenium.webdriver.common.by import By
 
     domain = isolated_domain_id()
     with robot_with_peer(tmp_path, domain_id=domain, namespace="/alpha", x=7.25) as a, \
@@ -260,17 +260,11 @@ def test_topic_echo_shows_a_field_of_a_plain_publisher(tmp_path: Path, browser) 
         key = f"{domain}:/alpha"
         wait_for_text(browser, f"alpha @ domain {domain}", alive=alive)
         _add_view(browser, "Topics", f"alpha @ domain {domain}")
-        cell = wait_for(
-            lambda: next((td for td in by_testid(browser, f"topics-{key}").find_elements(
-                By.CSS_SELECTOR, "td") if td.text == "/alpha/point"), None)
-            if present(browser, f"topics-{key}") else None,
-            what="/alpha/point in the list", alive=alive)
-        cell.click()
+        click_cell(browser, f"topics-{key}", "/alpha/point", alive=alive)
         wait_for(lambda: "y: 7.25" in text_of(browser, f"topics-echo-{key}"),
                  what="the echoed field", alive=alive)
         # A nested message opens expanded: a field two levels down is visible at once.
-        next(td for td in by_testid(browser, f"topics-{key}").find_elements(
-            By.CSS_SELECTOR, "td") if td.text == "/alpha/ball/estimate").click()
+        click_cell(browser, f"topics-{key}", "/alpha/ball/estimate", alive=alive)
         wait_for(lambda: "z: 1.0" in text_of(browser, f"topics-echo-{key}"),
                  what="point.z of the ball estimate, shown expanded", alive=alive)
         screenshot(browser, "topics_echo")

@@ -54,10 +54,11 @@ class ComponentSpec:
 
 
 def resolve_factory(spec: ComponentSpec) -> Callable[[Any], Any]:
-    """Import the class of ``spec``: ``module:Class`` or an entry point name."""
+    """Import the class of ``spec``: ``module:Class`` or an entry point name (which may
+    hold ``::``, as ``humanoid_sim::BallDetector`` does, like a ROS plugin name)."""
     path = spec.class_path
     try:
-        if ":" in path:
+        if ":" in path.replace("::", ""):
             module_name, _, attr = path.partition(":")
             target: Any = importlib.import_module(module_name)
             for part in attr.split("."):

@@ -141,6 +141,9 @@ def test_entry_points_load_by_name() -> None:
         assert type(loaded.instance).__name__ == "Camera"
         with pytest.raises(ConfigError, match="no entry point"):
             container.load(ComponentSpec(class_path="no_such_component", name="x"))
+        # A registered name in ROS's plugin style is an entry point name, not module:Class.
+        with pytest.raises(ConfigError, match="no entry point 'efficient_comm::nothing'"):
+            container.load(ComponentSpec(class_path="efficient_comm::nothing", name="y"))
 
 
 def test_unload_calls_close_and_frees_the_name() -> None:
