@@ -68,6 +68,12 @@ DEFAULT_PORT = 8765  # the port Foxglove's "open connection" dialog proposes
 _CDR = "cdr"
 _ROS2MSG = "ros2msg"
 _PARAM_SEP = "."
+#: A topic missing from a robot's graph for less than this keeps its channel. A DDS graph
+#: can miss an endpoint for a moment on a loaded machine; a channel withdrawn and advertised
+#: again gets a new id, and a viewer's subscription made with the old one fails ("unknown
+#: channel"). A robot that is gone (the Hub's own grace period passed) loses its channels
+#: at once.
+WITHDRAW_AFTER_S = 1.5
 
 
 @dataclass
@@ -131,6 +137,7 @@ class _Bridge(ServerListener):
         self._lock = threading.RLock()
         self._channels: dict[int, _Channel] = {}
         self._by_topic: dict[tuple[RobotId, str, str], _Channel] = {}
+        self._missing_since: dict[tuple[RobotId, str, str], float] = {}
         self._services: dict[str, tuple[RobotId, str]] = {}
         self._watched_params: set[str] = set()
         # SDK client id -> may it write; only the gate's connections are here (see the gate).
@@ -145,7 +152,8 @@ class _Bridge(ServerListener):
         """Advertise new topics and services, withdraw vanished ones."""
         topics: dict[tuple[RobotId, str, str], None] = {}
         services: dict[str, tuple[RobotId, str, str]] = {}
-        for robot in self._hub.robots():
+        robots = self._hub.robots()
+        for robot in robots:
             try:
                 for topic, types in self._hub.topics(robot).items():
                     if types:
@@ -157,7 +165,15 @@ class _Bridge(ServerListener):
             except RobotUnavailable:
                 continue
         with self._lock:
-            gone = [key for key in self._by_topic if key not in topics]
+            now = time.monotonic()
+            gone = []
+            for key in self._by_topic:
+                if key in topics:
+                    self._missing_since.pop(key, None)
+                    continue
+                since = self._missing_since.setdefault(key, now)
+                if key[0] not in robots or now - since >= WITHDRAW_AFTER_S:
+                    gone.append(key)
             new = [key for key in topics if key not in self._by_topic]
             closing = [self._forget(key) for key in gone]
             for key in new:
@@ -189,6 +205,7 @@ class _Bridge(ServerListener):
 
     def _forget(self, key: tuple[RobotId, str, str]) -> _Channel:
         entry = self._by_topic.pop(key)
+        self._missing_since.pop(key, None)
         self._channels.pop(entry.channel.id(), None)
         return entry
 
