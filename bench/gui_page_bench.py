@@ -15,9 +15,9 @@ table per robot), and headless chromium showing it. Per page policy and run:
 Policies, each its own GUI process, measured in the same run: ``idle`` (the same page with
 no robots: what the page costs doing nothing), ``old`` (the table before issue 18: a
 ``ui.table`` with slot templates, every row re-sent every second,
-``DEBUG_GUI_UPDATE_POLICY=every-second``) and ``new`` (the default: changed cells only,
-at most every 2 s per table). ``--hogs N`` runs N busy-looping processes beside it (a
-loaded machine).
+``DEBUG_GUI_UPDATE_POLICY=every-second``) and ``new`` (the default: changed cells and the
+status line only, at most every 2 s, every table's in one render). ``--hogs N`` runs N
+busy-looping processes beside it (a loaded machine).
 Printed per run and as medians over ``--repeat`` runs, with the ratios old / new.
 
 Run: ``source scripts/env.sh && python bench/gui_page_bench.py --hogs 2``

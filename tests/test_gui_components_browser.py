@@ -72,6 +72,42 @@ def test_components_view_shows_live_rows_of_each_robot_and_flags_slow_ones(
         screenshot(browser, "components_two_robots")
 
 
+
+def test_changing_figures_and_status_line_send_no_element_update(
+    tmp_path: Path, browser
+) -> None:
+    """Issue 18, 4a: a NiceGUI element update re-renders the page's whole Vue tree and lays
+    out the page; the components view's figures and its status line (which changes as
+    callbacks go over their period and back) change through the table's own messages, so
+    none is sent while they change."""
+    domain = isolated_domain_id()
+    key = f"{domain}:/robot1"
+    with fake_robot(tmp_path, domain_id=domain, namespace="/robot1", period_s=1.0,
+                    callbacks=40) as robot, gui(tmp_path, domains=[domain]) as server:
+        alive = [robot, server]
+        browser.get(server.url)
+        status = f"components-status-{key}"
+        wait_for(lambda: "callbacks" in text_of(browser, status), what="the status line",
+                 alive=alive)
+        browser.execute_script(_COUNT_MESSAGES)
+        seen = {text_of(browser, status)}
+
+        def status_changed() -> bool:
+            seen.add(text_of(browser, status))
+            counts = browser.execute_script("return window.__issue18")
+            return len(seen) >= 2 and counts["other"] >= 2
+
+        wait_for(status_changed, what="the status line to change", alive=alive,
+                 timeout_s=90)
+        assert browser.execute_script("return window.__issue18")["update"] == 0, seen
+
+
+#: Counts the server's messages to the page: element updates and the others.
+_COUNT_MESSAGES = """
+window.__issue18 = {update: 0, other: 0};
+window.socket.onAny((event) => { window.__issue18[event === 'update' ? 'update' : 'other']++; });
+"""
+
 #: Marks the cell showing ``name`` in table ``testid`` (a JS property: not in the markup, so
 #: only the same element still has it); True when there was one.
 _MARK = """

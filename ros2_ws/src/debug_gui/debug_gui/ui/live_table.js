@@ -1,23 +1,55 @@
-// A QTable whose rows the server patches cell by cell (see _live_table.py for why).
-// The cell templates live in this component's own template: compiled once, one component
-// type for the life of the page, so Vue patches a changed cell's text instead of
-// re-creating every cell whenever anything on the page changes.
+// A table the server patches cell by cell (see _live_table.py for why), drawn with plain
+// <tr>/<td> in Quasar's table classes rather than by a QTable: a QTable re-renders every row
+// and a QTd component per slotted cell whenever one cell changes. Here each row is
+// memoised (v-memo on its version), so a patch re-renders only the rows it touched, and
+// the patches of every table on the page that arrive within the same second are applied
+// together at the second's end: one render, not one per table. The rows' box is contained
+// (CSS `contain: strict`, its height set from the table's), so a changed cell lays out its
+// own table, not the page around it (a page layout was most of an update's cost).
+
+// Tables with patches waiting, and the one timer that applies them all.
+const waiting = new Set();
+let flushTimer = null;
+
+function flushAll() {
+  flushTimer = null;
+  for (const table of waiting) table.applyWaiting();
+  waiting.clear();
+}
+
 export default {
   template: `
-    <q-table :rows="shown" :columns="columns" :row-key="rowKey" v-model:pagination="paging"
-             :visible-columns="visible">
-      <template v-for="name in badges" :key="name" v-slot:[cellSlot(name)]="props">
-        <q-td :props="props">
-          <q-badge v-if="props.value" color="negative" multi-line :label="props.value"
-                   style="word-break: keep-all; text-align: center" />
-        </q-td>
-      </template>
-      <template v-for="name in titled" :key="name" v-slot:[cellSlot(name)]="props">
-        <q-td :props="props" :title="props.value"><template
-          v-for="part in String(props.value).split(/(?<=[/._])/)">{{ part }}<wbr></template>
-        </q-td>
-      </template>
-    </q-table>
+    <div :class="containerClass">
+      <div class="text-caption" :data-testid="captionTestid">{{ text }}</div>
+      <div ref="middle" class="q-table__middle scroll"
+           :style="{ contain: 'strict', height: height + 'px' }">
+        <table ref="table" class="q-table">
+          <thead><tr>
+            <th v-for="c in cols" :key="c.name" :class="thClass(c)" :style="c.headerStyle"
+                @click="c.sortable && sort(c.name)"><i v-if="c.sortable && right(c)"
+                class="q-icon notranslate material-icons q-table__sort-icon
+                q-table__sort-icon--right" aria-hidden="true">arrow_upward</i>{{ c.label
+              }}<i v-if="c.sortable && !right(c)" class="q-icon notranslate material-icons
+                q-table__sort-icon q-table__sort-icon--left" aria-hidden="true"
+                >arrow_upward</i></th>
+          </tr></thead>
+          <tbody>
+            <tr v-for="row in sorted" :key="row[rowKey]" v-memo="[row.__v, colsKey]">
+              <td v-for="c in cols" :key="c.name" :class="'text-' + (c.align || 'right')"
+                  :style="c.style" :title="c.cell === 'titled' ? row[c.field] : undefined">
+                <span v-if="c.cell === 'badge' && row[c.field]"
+                      class="q-badge flex inline items-center q-badge--multi-line
+                      bg-negative text-white" role="status"
+                      style="word-break: keep-all; text-align: center">{{ row[c.field] }}</span>
+                <template v-else-if="c.cell === 'titled'"><template
+                  v-for="part in parts(row[c.field])">{{ part }}<wbr></template></template>
+                <template v-else-if="c.cell !== 'badge'">{{ row[c.field] }}</template>
+              </td>
+            </tr>
+          </tbody>
+        </table>
+      </div>
+    </div>
   `,
   props: {
     rows: Array,
@@ -25,51 +57,134 @@ export default {
     rowKey: String,
     pagination: Object,
     visibleColumns: Array,
+    dense: Boolean,
+    flat: Boolean,
+    wrapCells: Boolean, // cells wrap here anyway: declared so it is no attribute
+    caption: String,
+    captionTestid: String,
   },
   data() {
-    return { shown: this.copy(this.rows), paging: { ...this.pagination },
-             visible: this.visibleColumns };
+    return {
+      version: 0,
+      sortBy: this.pagination?.sortBy ?? null,
+      descending: Boolean(this.pagination?.descending),
+      visible: this.visibleColumns,
+      text: this.caption,
+      height: 0,
+    };
+  },
+  created() {
+    // Not reactive on purpose: a patch bumps `version` once, whatever it touched.
+    this.store = new Map();
+    this.seq = 0;
+    this.pending = [];
+    this.load(this.rows);
+  },
+  mounted() {
+    // The rows' box is sized by hand, so that a changed cell lays out this table only
+    // (CSS containment) instead of the whole page; its height follows the table's.
+    this.observer = new ResizeObserver(() => {
+      const middle = this.$refs.middle;
+      const bar = middle.offsetHeight - middle.clientHeight; // a horizontal scroll bar
+      this.height = this.$refs.table.offsetHeight + bar;
+    });
+    this.observer.observe(this.$refs.table);
+  },
+  unmounted() {
+    this.observer.disconnect();
+    waiting.delete(this);
   },
   computed: {
-    badges() {
-      return this.columns.filter((c) => c.cell === "badge").map((c) => c.name);
+    containerClass() {
+      return "q-table__container q-table--horizontal-separator column no-wrap" +
+        (this.flat ? " q-table--flat" : "") + (this.dense ? " q-table--dense" : "");
     },
-    titled() {
-      return this.columns.filter((c) => c.cell === "titled").map((c) => c.name);
+    cols() {
+      const shown = this.visible ? new Set(this.visible) : null;
+      return this.columns.filter((c) => !shown || c.required || shown.has(c.name));
+    },
+    colsKey() {
+      return this.cols.map((c) => c.name).join(",");
+    },
+    sorted() {
+      this.version; // recomputed on every applied patch
+      const rows = [...this.store.values()];
+      const by = this.sortBy;
+      if (by === null) return rows;
+      const field = this.columns.find((c) => c.name === by)?.field ?? by;
+      const dir = this.descending ? -1 : 1;
+      return rows.sort((a, b) => dir * compare(a[field], b[field]));
     },
   },
   watch: {
     // The server re-sent the whole element (a column switch, a reconnect): start over.
     rows(rows) {
-      this.shown = this.copy(rows);
+      this.load(rows);
+    },
+    caption(text) {
+      this.text = text;
     },
     visibleColumns(columns) {
       this.visible = columns;
     },
   },
   methods: {
-    cellSlot(name) {
-      return "body-cell-" + name;
+    right(c) {
+      return (c.align || "right") === "right";
     },
-    copy(rows) {
-      return (rows || []).map((row) => ({ ...row }));
+    thClass(c) {
+      const sorted = c.name === this.sortBy;
+      return "text-" + (c.align || "right") + (c.sortable ? " sortable" : "") +
+        (sorted ? " sorted" : "") + (sorted && this.descending ? " sort-desc" : "");
+    },
+    sort(name) {
+      // A new column sorts ascending; the sorted one turns around.
+      this.descending = name === this.sortBy ? !this.descending : false;
+      this.sortBy = name;
+    },
+    parts(value) {
+      return String(value).split(/(?<=[/._])/);
+    },
+    load(rows) {
+      this.store.clear();
+      for (const row of rows || []) this.store.set(row[this.rowKey], { ...row, __v: ++this.seq });
+      this.version++;
     },
     setVisible(columns) {
       this.visible = columns;
     },
-    // changes: {set: [partial rows, each with its key], remove: [keys]}.
+    // changes: {set: [partial rows, each with its key], remove: [keys], caption?: the
+    // line above the table (a status: part of the same render)}. The first rows
+    // are shown at once; later changes wait for the other tables' (see the top).
     patch(changes) {
+      if (this.store.size === 0) {
+        this.apply(changes);
+        return;
+      }
+      this.pending.push(changes);
+      waiting.add(this);
+      if (flushTimer === null) flushTimer = setTimeout(flushAll, 1000 - (Date.now() % 1000));
+    },
+    applyWaiting() {
+      for (const changes of this.pending.splice(0)) this.apply(changes);
+    },
+    apply(changes) {
       const key = this.rowKey;
-      if (changes.remove.length) {
-        const gone = new Set(changes.remove);
-        this.shown = this.shown.filter((row) => !gone.has(row[key]));
-      }
-      const index = new Map(this.shown.map((row) => [row[key], row]));
+      if (changes.caption !== undefined) this.text = changes.caption;
+      for (const gone of changes.remove) this.store.delete(gone);
       for (const part of changes.set) {
-        const row = index.get(part[key]);
-        if (row) Object.assign(row, part);
-        else this.shown.push({ ...part });
+        const row = this.store.get(part[key]);
+        if (row) Object.assign(row, part, { __v: ++this.seq });
+        else this.store.set(part[key], { ...part, __v: ++this.seq });
       }
+      this.version++;
     },
   },
 };
+
+// Quasar's order: numbers by value, anything else as lower-case text.
+function compare(a, b) {
+  if (typeof a === "number" && typeof b === "number") return a - b;
+  const [x, y] = [String(a ?? "").toLowerCase(), String(b ?? "").toLowerCase()];
+  return x < y ? -1 : x > y ? 1 : 0;
+}
