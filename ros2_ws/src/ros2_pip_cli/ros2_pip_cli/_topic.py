@@ -13,6 +13,7 @@ import time
 from collections import deque
 from typing import Any
 
+from rclpy.duration import Duration
 from rclpy.qos import (
     QoSDurabilityPolicy,
     QoSHistoryPolicy,
@@ -34,6 +35,9 @@ BW_WINDOW = 100
 TRUNCATE_LENGTH = 128
 #: Queue depth of echo, hz and bw unless --qos-depth says otherwise (see _subscription_qos).
 FOLLOW_DEPTH = 100
+#: How long ``topic pub`` waits, after its last message, for matched reliable readers to
+#: acknowledge what it sent (see _pub).
+ACK_WAIT_S = 5.0
 
 
 def register(commands: Commands) -> None:
@@ -461,6 +465,11 @@ def _pub(args: argparse.Namespace) -> int:
                 if args.print and count % args.print == 0:
                     print(f"publishing #{count}: {msg!r}\n", flush=True)
                 pub.publish(msg)
+        # A reliable writer that has matched a reader may still be unknown to that reader
+        # (discovery is not symmetric in time): the reader takes the sample only when the
+        # writer repeats it, so exiting at once (--once) could lose it. Wait for the
+        # matched readers' acknowledgements, bounded (a best-effort writer returns at once).
+        pub.wait_for_all_acked(Duration(seconds=ACK_WAIT_S))
         end = time.monotonic() + args.keep_alive
         while time.monotonic() < end:
             node.spin_once(end - time.monotonic())
