@@ -44,10 +44,13 @@ done
 # Most tests wait (for discovery, a reply, a browser), so they run side by side in
 # TEST_WORKERS pytest-xdist workers; simulations and benchmarks, which keep a core busy, take
 # turns in one of them (conftest.py's SERIAL_GROUPS), as do the docs' commands.
+# A test that fails is run once more (--reruns 1) and listed as RERUN in the summary: a
+# stopgap while the few tests that still fail now and then under load (listed in the
+# issue notes) are fixed at their cause; a test that fails twice fails the run.
 workers=${TEST_WORKERS:-3}
 echo "test: pytest ($workers workers)"
 rc=0
-pytest -n "$workers" --dist loadgroup "$@" || rc=$?
+pytest -n "$workers" --dist loadgroup --reruns 1 -rR "$@" || rc=$?
 if ((rc == 5)); then
   echo "test: pytest collected no tests; that counts as a failure" >&2
 fi
