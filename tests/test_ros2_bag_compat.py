@@ -9,20 +9,26 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import rclpy
 import yaml
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
+from std_msgs.msg import String
 
 from efficient_comm.testing import isolated_domain_id, unique_topic
 from robot_recorder import read_messages
 
 from ._cli import cli_env, ros2, ros2_path, running
+from ._ros import Peer, peer
 
 PEER = Path(__file__).with_name("_cli_peer.py")
 STRING = "std_msgs/msg/String"
@@ -59,23 +65,26 @@ def _two_file_sqlite_bag(tmp_path: Path, topic: str) -> Path:
     return bag
 
 
-def _wait_subscribed(topic: str, domain_id: int) -> None:
-    """Until ``ros2 topic info`` counts a subscriber (a short bag is over before a
-    subscriber that is still being discovered would get it)."""
-    for _ in range(30):
-        info = ros2("topic", "info", topic, domain_id=domain_id)
-        if "Subscription count: 1" in info.stdout:
-            return
-    raise AssertionError(f"nobody subscribed to {topic}: {info.stdout}{info.stderr}")
+RESUME = ("service", "call", "/rosbag2_player/control",
+          "robot_recorder_interfaces/srv/PlayerControl", "{command: 1}")
 
 
-def _wait_published(topic: str, domain_id: int) -> None:
-    """Until ``ros2 topic info`` counts a publisher of ``topic``."""
-    for _ in range(30):
-        info = ros2("topic", "info", topic, domain_id=domain_id)
-        if "Publisher count: 1" in info.stdout:
-            return
-    raise AssertionError(f"nobody publishes {topic}: {info.stdout}{info.stderr}")
+@contextmanager
+def _listener(topic: str, domain_id: int, msg_type: Any = String) -> Iterator[
+        tuple[Peer, Any, list[Any]]]:
+    """A plain rclpy subscriber (reliable, deep enough for a whole bag) and what it got."""
+    got: list[Any] = []
+    with peer(domain_id, "listener") as listener:
+        sub = listener.node.create_subscription(msg_type, topic, got.append, 100)
+        yield listener, sub, got
+
+
+def _matched(listener: Peer, sub: Any) -> None:
+    """Until the listener's subscription has matched the player's publisher (as rosbag2's
+    own play tests do before resuming: a reader that has only been *seen* in the graph may
+    not have matched yet, and a short bag is over before it has)."""
+    assert listener.wait_for(lambda: sub.get_publisher_count() > 0, timeout_s=60), \
+        "the player's publisher never matched"
 
 
 def test_sqlite3_bags_info_and_play(tmp_path: Path) -> None:
@@ -91,23 +100,16 @@ def test_sqlite3_bags_info_and_play(tmp_path: Path) -> None:
     one = ros2("bag", "info", str(tmp_path / "a" / "a.db3"), domain_id=domain_id)
     assert one.returncode == 0 and "Messages:          3\n" in one.stdout, one.stdout + one.stderr
     replay = unique_topic("replay")
-    with running([ros2_path(), "topic", "echo", replay, STRING], domain_id=domain_id,
-                 log=tmp_path / "echo.log") as echo:
-        _wait_subscribed(replay, domain_id)
-        # A short bag is over before a new player process has discovered the echo (as with
-        # rosbag2): start it paused and resume it once its publisher is in the graph.
-        with running([ros2_path(), "bag", "play", str(bag), "--start-paused", "--remap",
-                      f"{topic}:={replay}"], domain_id=domain_id,
-                     log=tmp_path / "play.log") as play:
-            _wait_published(replay, domain_id)
-            resumed = ros2("service", "call", "/rosbag2_player/control",
-                           "robot_recorder_interfaces/srv/PlayerControl", "{command: 1}",
-                           domain_id=domain_id)
-            assert resumed.returncode == 0, resumed.stderr
-            text = echo.wait_for(lambda t: "data: m4\n---\n" in t)
-            play.proc.wait(30)
-            assert play.proc.returncode == 0, play.text()
-    assert re.findall(r"data: (m\d)", text) == ["m0", "m1", "m2", "m3", "m4"], text
+    with _listener(replay, domain_id) as (listener, sub, got), \
+         running([ros2_path(), "bag", "play", str(bag), "--start-paused", "--remap",
+                  f"{topic}:={replay}"], domain_id=domain_id, log=tmp_path / "play.log") as play:
+        _matched(listener, sub)
+        resumed = ros2(*RESUME, domain_id=domain_id)
+        assert resumed.returncode == 0, resumed.stderr
+        assert listener.wait_for(lambda: len(got) == 5, timeout_s=30), got
+        play.proc.wait(30)
+        assert play.proc.returncode == 0, play.text()
+    assert [m.data for m in got] == ["m0", "m1", "m2", "m3", "m4"]
 
 
 def test_a_bag_that_cannot_be_played_is_one_line_naming_it(tmp_path: Path) -> None:
@@ -127,20 +129,18 @@ def test_play_clock_start_paused_and_delay_are_honoured(tmp_path: Path) -> None:
     domain_id = isolated_domain_id()
     topic = unique_topic("clk")
     _sqlite_bag(tmp_path / "bag", topic, [f"m{i}" for i in range(5)])
-    with running([ros2_path(), "topic", "echo", "/clock", "rosgraph_msgs/msg/Clock"],
-                 domain_id=domain_id, log=tmp_path / "clock.log") as clock:
-        _wait_subscribed("/clock", domain_id)
-        # The delay is also the window in which the new player process and the echo
-        # discover each other: /clock is published from the start, paused or not.
-        played = ros2("bag", "play", str(tmp_path / "bag"), "--clock", "50", "-d", "3",
-                      domain_id=domain_id)
-        assert played.returncode == 0, played.stderr
-        text = clock.wait_for(lambda t: "sec: 1700000000" in t)
-    assert "sec: 1700000000" in text
-    # --start-paused: nothing is played until resumed; the player waits (stopped by SIGINT)
+    # --clock: /clock carries the bag's time, from the start, paused or not.
+    with _listener("/clock", domain_id, Clock) as (listener, _, clocks), \
+         running([ros2_path(), "bag", "play", str(tmp_path / "bag"), "--clock", "50",
+                  "--start-paused"], domain_id=domain_id, log=tmp_path / "clock.log") as play:
+        assert listener.wait_for(lambda: bool(clocks), timeout_s=60), play.text()
+        assert clocks[0].clock.sec == T0 // 1_000_000_000
+        assert ros2(*RESUME, domain_id=domain_id).returncode == 0
+        play.proc.wait(30)
+        assert play.proc.returncode == 0, play.text()
+    # --start-paused: nothing is played until resumed; the player waits.
     replay = unique_topic("paused")
-    with running([ros2_path(), "topic", "echo", replay, STRING], domain_id=domain_id,
-                 log=tmp_path / "echo.log") as echo, \
+    with _listener(replay, domain_id) as (listener, sub, got), \
          running([ros2_path(), "bag", "play", str(tmp_path / "bag"), "--start-paused",
                   "--remap", f"{topic}:={replay}"], domain_id=domain_id,
                  log=tmp_path / "play.log") as play:
@@ -150,14 +150,21 @@ def test_play_clock_start_paused_and_delay_are_honoured(tmp_path: Path) -> None:
                        domain_id=domain_id)
         assert "success=True" in stepped.stdout and "paused=True" in stepped.stdout, \
             stepped.stdout + stepped.stderr
+        _matched(listener, sub)
         assert play.proc.poll() is None
-        resumed = ros2("service", "call", "/rosbag2_player/control",
-                       "robot_recorder_interfaces/srv/PlayerControl", "{command: 1}",
-                       domain_id=domain_id)
+        resumed = ros2(*RESUME, domain_id=domain_id)
         assert resumed.returncode == 0, resumed.stderr
-        echo.wait_for(lambda t: "data: m4\n" in t)
+        assert listener.wait_for(lambda: bool(got) and got[-1].data == "m4", timeout_s=30), got
         play.proc.wait(30)
         assert play.proc.returncode == 0, play.text()
+    # -d: plays after the delay (each loop, as rosbag2), until stopped.
+    with _listener(replay, domain_id) as (listener, _, got), \
+         running([ros2_path(), "bag", "play", str(tmp_path / "bag"), "-d", "0.5", "--loop",
+                  "--remap", f"{topic}:={replay}"], domain_id=domain_id,
+                 log=tmp_path / "delay.log") as play:
+        assert listener.wait_for(lambda: [m.data for m in got[-5:]] == [
+            f"m{i}" for i in range(5)], timeout_s=60), got
+        assert play.stop(signal.SIGINT) == 0, play.text()
 
 
 def test_record_regex_and_exclude(tmp_path: Path) -> None:
