@@ -190,12 +190,13 @@ LAYERS: dict[str, frozenset[str]] = {
     "debug_probes": frozenset({"efficient_comm", "efficient_comm_interfaces",
                                "throttle_publisher"}),
     "humanoid_sim": frozenset({"efficient_comm", "throttle_publisher", "debug_probes",
-                               "robot_recorder", "soccer_field"}),
+                               "robot_recorder", "soccer_field", "soccer_interfaces"}),
     "ros2_pip_cli": frozenset({"efficient_comm", "efficient_comm_interfaces",
                                "robot_recorder"}),
     "debug_gui": frozenset({"efficient_comm", "efficient_comm_interfaces",
                             "throttle_publisher", "debug_probes", "rosbag2_layout",
-                            "robot_recorder", "robot_recorder_interfaces", "soccer_field"}),
+                            "robot_recorder", "robot_recorder_interfaces", "soccer_field",
+                            "soccer_interfaces"}),
 }
 #: Every package of the workspace, interface packages included (their package.xml).
 OURS = frozenset(p.parent.name for p in SRC.glob("*/package.xml"))
