@@ -252,7 +252,7 @@ def test_player_command_waits_for_subscribers_and_exits_at_the_end(tmp_path: Pat
         assert reply.success and reply.position_ns >= 0, reply  # -1: played to nobody
         got: list[str] = []
         viewer.node.create_subscription(String, topic, lambda m: _append(got, m), RELIABLE)
-        assert viewer.wait_for(lambda: len(got) == 20, timeout_s=30), got
+        assert viewer.wait_for(lambda: len(got) == 20, timeout_s=30), str(got)
         assert got == sent
         # At the end of the bag the command exits by itself.
         assert viewer.wait_for(lambda: proc.poll() is not None, timeout_s=30)

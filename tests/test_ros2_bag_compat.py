@@ -19,9 +19,9 @@ import yaml
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rosgraph_msgs.msg import Clock
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from efficient_comm.testing import isolated_domain_id, unique_topic
@@ -123,6 +123,18 @@ def test_a_bag_that_cannot_be_played_is_one_line_naming_it(tmp_path: Path) -> No
         (line,) = result.stderr.splitlines()
         assert line.startswith(f"error: Cannot play '{bag}': ") and reason in line, line
         assert "<locals>" not in line and "PlaybackError" not in line, line
+
+
+def test_play_waits_for_acknowledgements_as_asked(tmp_path: Path) -> None:
+    domain_id = isolated_domain_id()
+    _sqlite_bag(tmp_path / "bag", unique_topic("ack"), ["m0"])
+    bad = ros2("bag", "play", str(tmp_path / "bag"), "--wait-for-all-acked", "-2",
+               domain_id=domain_id)
+    assert bad.returncode == 1 and "--wait-for-all-acked must be >= -1" in bad.stderr, bad
+    # Nobody subscribes: there is nothing to wait for, even without a limit.
+    played = ros2("bag", "play", str(tmp_path / "bag"), "--wait-for-all-acked", "0",
+                  domain_id=domain_id)
+    assert played.returncode == 0 and not played.stderr, played
 
 
 def test_play_clock_start_paused_and_delay_are_honoured(tmp_path: Path) -> None:

@@ -70,15 +70,14 @@ def test_bag_record_info_play_reindex(tmp_path: Path) -> None:
     assert reindexed.stdout == f"Reindexed '{bag}': {count} messages\n", reindexed.stderr
     assert f"Count: {count} |" in ros2("bag", "info", str(bag), domain_id=domain_id).stdout
     replay = unique_topic("replay")
+    # --loop: a bag shorter than the new player's discovery of the echo still reaches it
+    # (one play could be over before they have matched).
     with running([ros2_path(), "topic", "echo", replay, "std_msgs/msg/String"],
-                 domain_id=domain_id, log=tmp_path / "echo.log") as echo:
-        # --loop: a bag shorter than the new player's discovery of the echo still reaches
-        # it (one play could be over before they have matched).
-        with running([ros2_path(), "bag", "play", str(bag), "--loop", "--remap",
-                      f"{topic}:={replay}"], domain_id=domain_id,
-                     log=tmp_path / "play.log") as play:
-            echo.wait_for(lambda t: re.search(r"data: hello \d+\n---\n", t) is not None)
-            assert play.stop(signal.SIGINT) == 0, play.text()
+                 domain_id=domain_id, log=tmp_path / "echo.log") as echo, \
+         running([ros2_path(), "bag", "play", str(bag), "--loop", "--remap",
+                  f"{topic}:={replay}"], domain_id=domain_id, log=tmp_path / "play.log") as play:
+        echo.wait_for(lambda t: re.search(r"data: hello \d+\n---\n", t) is not None)
+        assert play.stop(signal.SIGINT) == 0, play.text()
 
 
 def test_bag_record_split_compression_and_play_options(tmp_path: Path) -> None:
@@ -99,9 +98,9 @@ def test_bag_record_split_compression_and_play_options(tmp_path: Path) -> None:
     assert ros2("bag", "record", "-s", "sqlite3", "-a", domain_id=domain_id).returncode == 2
     played = unique_topic("played")
     with running([ros2_path(), "topic", "echo", played, "std_msgs/msg/String"],
-                 domain_id=domain_id, log=tmp_path / "echo.log") as echo:
-        with running([ros2_path(), "bag", "play", str(bag), "--topics", topic, "--remap",
-                      f"{topic}:={played}", "--rate", "4", "--start-offset", "0.5", "--loop"],
-                     domain_id=domain_id, log=tmp_path / "play.log") as play:
-            echo.wait_for(lambda t: "data: hello" in t)
-            assert play.stop(signal.SIGINT) == 0, play.text()
+                 domain_id=domain_id, log=tmp_path / "echo.log") as echo, \
+         running([ros2_path(), "bag", "play", str(bag), "--topics", topic, "--remap",
+                  f"{topic}:={played}", "--rate", "4", "--start-offset", "0.5", "--loop"],
+                 domain_id=domain_id, log=tmp_path / "play.log") as play:
+        echo.wait_for(lambda t: "data: hello" in t)
+        assert play.stop(signal.SIGINT) == 0, play.text()

@@ -22,6 +22,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ._qos import compatible, incompatible_policy, is_transient_local, queue_limit
@@ -40,6 +41,9 @@ OBSERVER_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
+
+#: rclpy's default wait: no limit.
+_NO_LIMIT = Duration(seconds=-1)
 
 class LocalSubscription:
     """A callback on a topic, with its queue for deferred (breadth-first) delivery."""
@@ -139,6 +143,10 @@ class LocalPublisher:
     def get_subscription_count(self) -> int:
         """Subscribers this publisher reaches: in this process, plus matched DDS readers."""
         return sum(not s.observer for s in self._subs) + self.dds_matched
+
+    def wait_for_all_acked(self, timeout: Duration = _NO_LIMIT) -> bool:
+        """Whether DDS readers acknowledged everything (in-process ones need not)."""
+        return self.dds is None or bool(self.dds.wait_for_all_acked(timeout))
 
     def publish(self, msg: Any, /) -> None:
         if self.closed:

@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any, Literal, Protocol, TypeAlias, TypeVar, runtime_checkable
 
+from rclpy.duration import Duration
 from rclpy.qos import QoSProfile
 
 from ._future import Future
@@ -52,6 +53,9 @@ QoSLike: TypeAlias = QoSProfile | int
 ParameterValue: TypeAlias = (
     bool | int | float | str | list[bool] | list[int] | list[float] | list[str]
 )
+#: rclpy's default wait: no limit.
+_NO_LIMIT = Duration(seconds=-1)
+
 #: The values a numeric parameter may take: ``(low, high)`` or ``(low, high, step)``, both
 #: ends included; ints for an int parameter, numbers for a float one (step 0: any value).
 ParameterRange: TypeAlias = tuple[float, float] | tuple[float, float, float]
@@ -74,6 +78,16 @@ class Publisher(Protocol):
 
     def get_subscription_count(self) -> int:
         """How many subscribers are reached: ask before computing an expensive output."""
+        ...
+
+    def wait_for_all_acked(self, timeout: Duration = _NO_LIMIT) -> bool:
+        """Whether every reliable reader in another process has acknowledged what was
+        published, waiting at most ``timeout`` (negative: no limit; rclpy's signature).
+
+        A program that ends right after its last publish calls it first: a message still
+        on its way (or waiting for a reader that has only just matched) is lost when the
+        writer goes. In-process subscribers have their messages already: ``True``.
+        """
         ...
 
     def publish(self, msg: Any, /) -> None:

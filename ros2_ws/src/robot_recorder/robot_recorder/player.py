@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import bisect
 import sys
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
+from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
@@ -32,6 +34,9 @@ from .errors import PlaybackError, RecorderConfigError
 __all__ = ["STAMP_MODES", "OffsetModel", "Player", "main"]
 
 STAMP_MODES = ("original", "aligned", "shifted")
+#: How long the player command waits at the end of the bag for its subscribers to
+#: acknowledge the last messages before it exits.
+ACK_WAIT_S = 5.0
 
 
 class OffsetModel(Protocol):
@@ -154,6 +159,21 @@ class Player:
     @property
     def end_ns(self) -> int:
         return self._times[-1]
+
+    def wait_for_acks(self, *, timeout_s: float) -> bool:
+        """Block until every reader in another process has acknowledged what was played,
+        at most ``timeout_s`` in all (0: no limit); whether they all did.
+
+        A command that exits at the end of the bag calls it first: the last messages may
+        still be on their way (a reliable reader that matched late asks for them again),
+        and they are lost when the writers go.
+        """
+        end = time.monotonic() + timeout_s
+        for publisher in self._publishers.values():
+            left = -1.0 if timeout_s == 0 else max(0.0, end - time.monotonic())
+            if not publisher.wait_for_all_acked(Duration(seconds=left)):
+                return False
+        return True
 
     def position_ns(self) -> int:
         """Recording time of the next message (-1 at the end)."""
@@ -373,14 +393,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PlaybackError as exc:
         print(f"player: error: {exc}", file=sys.stderr)
         return 1
-    return run(lambda node: Player(node, bag=ns.bag, topics=ns.topics, remappings=ns.remap,
-                                   rate=ns.rate, loop=ns.loop, start_paused=ns.paused,
-                                   stamps=ns.stamps, wait_for_subscribers=not ns.no_wait,
-                                   wait_timeout_s=ns.wait_timeout, on_end=_exit),
-               name="player", args=["player", *ros_args])
+    players: list[Player] = []
+
+    def make(node: Any) -> Player:
+        players.append(Player(node, bag=ns.bag, topics=ns.topics, remappings=ns.remap,
+                              rate=ns.rate, loop=ns.loop, start_paused=ns.paused,
+                              stamps=ns.stamps, wait_for_subscribers=not ns.no_wait,
+                              wait_timeout_s=ns.wait_timeout,
+                              on_end=lambda: _exit(players[0])))
+        return players[0]
+
+    return run(make, name="player", args=["player", *ros_args])
 
 
-def _exit() -> None:
-    """The command's end of the bag: leave the executor; the node is closed on the way out
-    (a SystemExit passes through the callback guards, which catch only Exceptions)."""
+def _exit(player: Player) -> None:
+    """The command's end of the bag: once what was played is acknowledged (at most
+    :data:`ACK_WAIT_S`), leave the executor; the node is closed on the way out (a
+    SystemExit passes through the callback guards, which catch only Exceptions)."""
+    if not player.wait_for_acks(timeout_s=ACK_WAIT_S):
+        print(f"player: not every subscriber acknowledged the last messages within "
+              f"{ACK_WAIT_S} s", file=sys.stderr)
     raise SystemExit(0)

@@ -37,6 +37,9 @@ from .errors import CliError, UsageError
 
 _RECORD_START_S = 10.0
 _LINGER_S = 0.3
+#: ``play``'s default wait for subscribers to acknowledge the last messages (rosbag2 does
+#: not wait unless asked, and a reader that matched late then loses them).
+_ACK_WAIT_S = 5.0
 
 
 def register(commands: Commands) -> None:
@@ -80,6 +83,10 @@ def register(commands: Commands) -> None:
                    help="Sleep this many seconds before playing")
     p.add_argument("--clock", type=float, nargs="?", const=40.0, default=0.0, metavar="HZ",
                    help="Publish /clock at this frequency (default 40 Hz) with the bag's time")
+    p.add_argument("--wait-for-all-acked", type=int, default=int(_ACK_WAIT_S * 1000),
+                   metavar="MS", help="At the end, wait at most this many milliseconds for "
+                   "every subscriber to acknowledge the last messages (0: no limit, -1: do not "
+                   f"wait; default {int(_ACK_WAIT_S * 1000)})")
     p.add_argument("-s", "--storage", default="", help="Storage identifier: mcap or sqlite3 "
                    "(read from the bag)")
     p = verb(verbs, "info", "Print information about a bag to the screen", _info)
@@ -219,6 +226,8 @@ def _play(args: argparse.Namespace) -> int:
         raise CliError("--rate must be > 0")
     if args.delay < 0 or args.clock < 0:
         raise CliError("--delay and --clock must be >= 0")
+    if args.wait_for_all_acked < -1:
+        raise CliError("--wait-for-all-acked must be >= -1 (0: no limit, -1: do not wait)")
     bag = args.bag_path
     if not Path(bag).exists():
         raise CliError(f"Cannot play '{bag}': no such bag")
@@ -243,6 +252,10 @@ def _play(args: argparse.Namespace) -> int:
                         resume_at = None
                         if not args.start_paused:
                             player.resume()
+                if player.finished and args.wait_for_all_acked >= 0 and not player.wait_for_acks(
+                        timeout_s=args.wait_for_all_acked / 1000):
+                    print("Not every subscriber acknowledged the last messages within "
+                          f"{args.wait_for_all_acked} ms", file=sys.stderr)
                 # A control call that ended playback (resume, step) still has its answer
                 # to send: a moment of spinning gets it out before the node goes.
                 end = time.monotonic() + _LINGER_S
