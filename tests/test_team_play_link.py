@@ -4,7 +4,8 @@ Each robot is a process of its own (tests/_team_robot.py: TeamComm and rf_bridge
 on a DDS domain of its own) in a network namespace of its own, the two joined by a veth
 pair (the link fixture of tests/test_rf_bridge_team.py, with its bandwidth limit). Robot 1
 sees the ball, robot 2 does not: over the link, robot 2 knows where the ball is, the two
-agree on striker and supporter, and each sends within the link's byte budget. Then the
+agree on striker and supporter, and each sends within the link's byte budget, as rf_bridge
+counts it and as the veth counts it (everything on the wire). Then the
 veth goes down: each robot ages its teammate out and plays striker alone.
 """
 
@@ -44,6 +45,14 @@ def _status(reader: LineReader, predicate: Callable[[dict[str, Any]], bool],
     raise AssertionError(f"not in {timeout_s} s; the last status: {last}")
 
 
+def _veth_bytes(link: Link) -> tuple[int, int]:
+    """Bytes robot 1's end of the veth has sent and received (all that crossed)."""
+    shown = subprocess.run(["ip", "-n", link.ns_a, "-s", "-j", "link", "show", link.dev_a],
+                           check=True, capture_output=True, text=True, timeout=20).stdout
+    stats = json.loads(shown)[0]["stats64"]
+    return int(stats["tx"]["bytes"]), int(stats["rx"]["bytes"])
+
+
 def test_two_robots_share_the_ball_and_roles_within_budget_and_part_when_cut(
         link: Link) -> None:
     port = free_port()
@@ -78,7 +87,9 @@ def test_two_robots_share_the_ball_and_roles_within_budget_and_part_when_cut(
                          and s["role"] == "supporter", 30)
         bx, by, sources = shared["ball"]
         assert abs(bx - 0.5) < 1e-3 and abs(by - 0.2) < 1e-3 and sources == [1]
-        # Within the budget: a few seconds of exchange, every message sent, none refused.
+        # Within the budget: a few seconds of exchange, every message sent, none refused;
+        # on the wire too (Zenoh's framing, TCP/IP and Ethernet headers, acknowledgements).
+        wire_before, wire_start = _veth_bytes(link), time.monotonic()
         for reader in readers:
             first = _status(reader, lambda s: True, 5)["usage"]
             until_s: float = first["elapsed_s"] + 4.0
@@ -94,6 +105,9 @@ def test_two_robots_share_the_ball_and_roles_within_budget_and_part_when_cut(
             assert sent / messages < 100  # bytes per message, attachment included
             assert sent / seconds <= BUDGET and later["peak_bytes_per_s"] <= BUDGET
             assert later["over_budget"] == 0 and later["received_messages"] > 0
+        wire_after, wire_s = _veth_bytes(link), time.monotonic() - wire_start
+        for before, after in zip(wire_before, wire_after, strict=True):
+            assert 0 < (after - before) / wire_s <= BUDGET, (wire_before, wire_after, wire_s)
         # The link is cut: each robot ages its teammate out and plays striker alone.
         link.ip("-n", link.ns_a, "link", "set", link.dev_a, "down")
         for reader in readers:

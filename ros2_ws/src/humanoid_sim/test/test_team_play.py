@@ -267,12 +267,16 @@ def test_own_echo_other_team_malformed_and_stale_messages_are_dropped() -> None:
     assert drops["timed_out"] == 1
 
 
-def test_wrong_parameters_are_refused_with_the_reason() -> None:
+def test_wrong_parameters_are_refused_and_right_ones_apply_at_once() -> None:
     with pytest.raises(ValueError, match="player_number"):
         Robot(0)
     me = Robot(1)
     with pytest.raises(ParameterError):
         me.node.set_parameter("role_margin_s", -1.0)
+    # the hysteresis can be turned down on a running robot
+    me.node.set_parameter("role_min_hold_s", 0.0)
+    me.node.set_parameter("teammate_timeout_s", 1.0)
+    assert me.comm.keeper.min_hold_ns == 0 and me.comm.teammates.timeout_ns == 1_000_000_000
 
 
 Relay = Callable[[], None]
