@@ -255,12 +255,13 @@ def test_own_echo_other_team_malformed_and_stale_messages_are_dropped() -> None:
     me.node.inject(MESSAGES_TOPIC, encode(_state(player=2, team=9)))
     bad = encode(_state(player=3, team=1))
     bad.x = math.nan
-    me.node.inject(MESSAGES_TOPIC, bad)
+    me.node.inject(MESSAGES_TOPIC, bad, bad)
     good = encode(_state(player=2, team=1, stamp_ns=5))
     me.node.inject(MESSAGES_TOPIC, good, encode(_state(player=2, team=1, stamp_ns=4)))
     drops = me.comm.teammates.drops
-    assert (drops["other_team"], drops["malformed"], drops["out_of_order"]) == (1, 1, 1)
-    assert any("not finite" in text for _, text in me.node.records)
+    assert (drops["other_team"], drops["malformed"], drops["out_of_order"]) == (1, 2, 1)
+    warned = [text for _, text in me.node.records if "not finite" in text]
+    assert len(warned) == 1 and "player 3" in warned[0]  # once per sender, then counted
     assert [m.state.player for m in me.comm.teammates.fresh(me.node.now_ns())] == [2]
     me.node.advance(3.1)
     assert me.comm.teammates.fresh(me.node.now_ns()) == []

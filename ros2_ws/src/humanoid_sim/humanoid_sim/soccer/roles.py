@@ -79,12 +79,12 @@ class Player:
 
 @dataclass(frozen=True, slots=True)
 class RoleRules:
-    """The figures of the decision (see the module docstring)."""
+    """The figures of the decision (see the module docstring); the hold time is the
+    :class:`RoleKeeper`'s, since only this robot's own role is held."""
 
     goalie_number: int = 0
     margin_s: float = 1.0
     position_margin_m: float = 0.5
-    min_hold_s: float = 2.0
     #: Where the own goal is (the defender is the field player nearest to it).
     own_goal: tuple[float, float] = (-KIDSIZE.half_length, 0.0)
 

@@ -178,11 +178,11 @@ class TeamComm:
         self.ball: FusedBall | None = None
         self.roles: dict[int, Role] = {}
         self.sent = 0
+        self._warned: set[int] = set()
         self.msg_pub = node.create_publisher(TeamMessage, MESSAGES_TOPIC, qos=10)
         self.ball_pub = node.create_publisher(PoseWithCovarianceStamped, "team_ball", qos=10)
         self.role_pub = node.create_publisher(String, "role", qos=LATCHED)
-        node.create_subscription(TeamMessage, MESSAGES_TOPIC, self._on_message,
-                                 qos=10)
+        node.create_subscription(TeamMessage, MESSAGES_TOPIC, self._on_message, qos=10)
         node.create_subscription(PoseWithCovarianceStamped, "localization/pose",
                                  self._on_pose, qos=10)
         node.create_subscription(PointStamped, "ball/position", self._on_ball, qos=10)
@@ -203,7 +203,12 @@ class TeamComm:
         try:
             self.teammates.offer(msg, self.node.clock.now_ns())
         except TeamMessageError as exc:
-            self.node.logger.warning(f"team message dropped: {exc}")
+            # Once per sender: one that sends garbage sends it at its rate; the rest are
+            # counted (``teammates.drops["malformed"]``).
+            if msg.player_number not in self._warned:
+                self._warned.add(msg.player_number)
+                self.node.logger.warning(f"team message dropped: {exc} (further ones from "
+                                         "this player are only counted)")
 
     def _on_pose(self, msg: PoseWithCovarianceStamped) -> None:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
@@ -284,8 +289,7 @@ class TeamComm:
         players += [Player(m.state.player, m.state.x, m.state.y, m.state.time_to_ball_s,
                            m.state.role) for m in mates]
         rules = RoleRules(goalie_number=p.goalie_number, margin_s=p.role_margin_s,
-                          position_margin_m=p.role_position_margin_m,
-                          min_hold_s=p.role_min_hold_s)
+                          position_margin_m=p.role_position_margin_m)
         self.roles = assign_roles(players, rules)
         before = self.keeper.role
         role = self.keeper.update(self.roles[me.player], now)
