@@ -12,8 +12,8 @@ from geometry_msgs.msg import PointStamped, PoseWithCovarianceStamped
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
-from efficient_comm import ParameterError, to_msg
-from efficient_comm.testing import TestHandle
+from efficient_comm import ComponentSpec, ParameterError, to_msg
+from efficient_comm.testing import TestHandle, test_container
 from humanoid_sim.errors import TeamMessageError
 from humanoid_sim.soccer.roles import Player, Role, RoleKeeper, RoleRules, assign_roles
 from humanoid_sim.soccer.shared_ball import OWN, BallBelief, fuse, observed
@@ -358,3 +358,12 @@ def test_a_cut_link_makes_every_robot_a_striker() -> None:
     assert [r.comm.keeper.role for r in robots] == [Role.STRIKER] * 3
     assert all(r.comm.teammates.fresh(r.node.now_ns()) == [] for r in robots)
     assert [r.roles()[-1] for r in robots] == ["striker"] * 3
+
+
+def test_a_container_loads_it_by_its_plugin_name() -> None:
+    with test_container() as container:
+        loaded = container.load(ComponentSpec(
+            class_path="humanoid_sim::TeamComm", name="team_comm",
+            parameters={"team_number": 2, "player_number": 3, "goalie_number": 1}))
+        assert isinstance(loaded.instance, TeamComm)
+        assert (loaded.instance.p.team_number, loaded.instance.p.goalie_number) == (2, 1)
