@@ -126,7 +126,9 @@ class Teammates:
         self.drops: Counter[str] = Counter()
 
     def offer(self, msg: TeamMessage, now_ns: int) -> PlayerState | None:
-        """Take ``msg`` if it is a teammate's news; returns what was taken."""
+        """Take ``msg`` if it is a teammate's news; returns what was taken (None: dropped,
+        counted). A malformed one is counted and raises TeamMessageError, for the caller to
+        say why."""
         if msg.team_number != self.team:
             self.drops["other_team"] += 1
             return None
