@@ -4,7 +4,8 @@
 
     HumanoidSimError
     ├── RenderError       no offscreen OpenGL, or a camera the model cannot render
-    └── SimConfigError    a parameter a component cannot work with (also a ValueError)
+    ├── SimConfigError    a parameter a component cannot work with (also a ValueError)
+    └── TeamMessageError  a team message no robot could have sent (also a ValueError)
 """
 
 from __future__ import annotations
@@ -20,3 +21,7 @@ class RenderError(HumanoidSimError):
 
 class SimConfigError(HumanoidSimError, ValueError):
     """A parameter the simulator, the driver or a soccer component cannot work with."""
+
+
+class TeamMessageError(HumanoidSimError, ValueError):
+    """A team message no robot could have sent (non-finite pose, negative sigma, ...)."""

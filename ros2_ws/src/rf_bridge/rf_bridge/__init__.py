@@ -7,13 +7,15 @@ with loop prevention, QoS mapping, throttling and statistics (``core/``). The RO
 an efficient_comm component (``adapters/ros2``), so it runs standalone or composed.
 
 Public: :class:`BridgeNode`, :func:`load_config`/:func:`parse_config`, the statistics
-snapshot and the exception tree; everything else may change.
+snapshot, the links' usage (:class:`LinkUsage`) and the exception tree; everything else
+may change.
 """
 
 from .adapters.ros2 import BridgeNode as BridgeNode
 from .config import BridgeConfig as BridgeConfig
 from .config import load_config as load_config
 from .config import parse_config as parse_config
+from .core.budget import LinkUsage as LinkUsage
 from .core.stats import TopicStatsSnapshot as TopicStatsSnapshot
 from .errors import ConfigError as ConfigError
 from .errors import LinkError as LinkError

@@ -14,7 +14,10 @@
       connect: []
       compression: zlib                # or none
       max_message_bytes: 67108864      # larger samples (after decompression) are dropped
+      budget_bytes_per_s: 2048         # what this robot may send, all topics (default: no limit)
+      budget_burst_bytes: 2048         # at most this much at once (default: 1 s of budget)
     stats_period_s: 10                 # log statistics every 10 s (default 0: never)
+    usage_period_s: 1                  # the links' usage on /diagnostics (default 1; 0: never)
     topics:
       - ros2: /chatter                 # ROS 2 topic
         type: std_msgs/msg/String      # ROS 2 type (or given by peer_type and a rule)
@@ -79,6 +82,10 @@ class TeamOptions:
     multicast_scouting: bool = False
     lease_s: float = 3.0
     max_message_bytes: int = 64 << 20
+    #: Bytes per second this robot may send over all team topics (0: no budget) and at
+    #: most at once (0: one second's worth); see core/budget.py.
+    budget_bytes_per_s: float = 0.0
+    budget_burst_bytes: int = 0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -109,6 +116,7 @@ class BridgeConfig:
     ros1: Ros1Options | None = None
     team: TeamOptions | None = None
     stats_period_s: float = 0.0  # log every topic's statistics this often (0: never)
+    usage_period_s: float = 1.0  # publish the links' usage on /diagnostics (0: never)
     errors: tuple[str, ...] = field(default=())
 
 
@@ -126,7 +134,8 @@ def load_config(path: str | os.PathLike[str]) -> BridgeConfig:
 def parse_config(data: Any, *, source: str = "<config>") -> BridgeConfig:
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: the top level must be a mapping")
-    unknown = set(data) - {"ros1", "team", "topics", "types", "stats_period_s"}
+    unknown = set(data) - {"ros1", "team", "topics", "types", "stats_period_s",
+                           "usage_period_s"}
     if unknown:
         raise ConfigError(f"{source}: unknown sections {sorted(unknown)}")
     ros1 = _ros1(data.get("ros1"), f"{source}: ros1") if "ros1" in data else None
@@ -148,9 +157,12 @@ def parse_config(data: Any, *, source: str = "<config>") -> BridgeConfig:
     period = _typed(data.get("stats_period_s", 0.0), (int, float), f"{source}: stats_period_s")
     if period < 0:
         raise ConfigError(f"{source}: stats_period_s must be >= 0, not {period!r}")
+    usage = _typed(data.get("usage_period_s", 1.0), (int, float), f"{source}: usage_period_s")
+    if usage < 0:
+        raise ConfigError(f"{source}: usage_period_s must be >= 0, not {usage!r}")
     return BridgeConfig(
         topics=tuple(topics), rules=rules, ros1=ros1, team=team, errors=tuple(errors),
-        stats_period_s=float(period),
+        stats_period_s=float(period), usage_period_s=float(usage),
     )
 
 
@@ -226,7 +238,18 @@ def _team(value: Any, where: str) -> TeamOptions:
         ),
         lease_s=_positive(m, "lease_s", 3.0, float, where),
         max_message_bytes=_positive(m, "max_message_bytes", 64 << 20, int, where),
+        budget_bytes_per_s=float(_non_negative(m, "budget_bytes_per_s", (int, float), where)),
+        budget_burst_bytes=int(_non_negative(m, "budget_burst_bytes", int, where)),
     )
+
+
+def _non_negative(m: Mapping[str, Any], key: str, kind: type | tuple[type, ...],
+                  where: str) -> Any:
+    """An option where 0 means "off" (no budget) and negative is a mistake."""
+    value = _typed(m.get(key, 0), kind, f"{where}.{key}")
+    if value < 0:
+        raise ConfigError(f"{where}.{key}: must be >= 0 (0: no limit), not {value!r}")
+    return value
 
 
 def _rule(value: Any, where: str) -> TypeRule:

@@ -15,6 +15,9 @@ foot splines (``spline``) and the legs' analytic inverse kinematics (``leg_ik``)
 ``getup_rig`` measures a fall and get-up on the walking rig;
 ``monitor`` measures what the pipeline achieves against the simulator's ground truth, and
 ``referee`` judges goals from it and puts the ball back (neither is the robot's).
+``team_comm`` is the robot's team layer (``TeamComm``): team messages out and in over the
+team link (their format in ``team_message``), the ball fused with the teammates'
+(``shared_ball``) and this robot's role (``roles``: ``Role``, with hysteresis).
 ``compose`` wires them, the simulator and the driver into one container.
 
 Messages between them (all standard types, passed by reference when composed):
@@ -39,4 +42,10 @@ Messages between them (all standard types, passed by reference when composed):
 * ``motion/getup`` (JointState): the get-up's whole-body goals while it acts, and
   ``motion/getup/active`` (Bool, transient local, on every change): whether it owns the
   joints (from ``falling`` until the robot stands again).
+* ``team/messages`` (soccer_interfaces/TeamMessage): this robot's, at 2 Hz, and its
+  teammates' (rf_bridge's team link carries the topic both ways); ``team_ball``
+  (PoseWithCovarianceStamped, frame ``field``): the fused ball; ``role`` (String,
+  transient local, on every change): ``striker``, ``supporter``, ``defender`` or
+  ``goalie`` (``roles.Role``'s values). Input: ``localization/pose``
+  (PoseWithCovarianceStamped, the team's field frame).
 """

@@ -13,10 +13,14 @@ import time
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from efficient_comm import to_msg
 from efficient_comm.handle import NodeHandle, Publisher
 
 from ..config import BridgeConfig, TopicSpec, load_config
 from ..core.adapter import ChannelAdapter, Route
+from ..core.budget import LinkUsage
 from ..core.router import Router
 from ..core.stats import TopicStats, TopicStatsSnapshot
 from ..errors import ConfigError, RfBridgeError
@@ -86,6 +90,10 @@ class BridgeNode:
         )
         if config.stats_period_s > 0:
             node.create_timer(config.stats_period_s, self.log_stats)
+        self._diagnostics: Publisher | None = None
+        if config.usage_period_s > 0 and self.link_usage():
+            self._diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", qos=10)
+            node.create_timer(config.usage_period_s, self.publish_usage)
 
     def _build_adapters(self, config: BridgeConfig) -> dict[str, ChannelAdapter]:
         out: dict[str, ChannelAdapter] = {}
@@ -151,6 +159,40 @@ class BridgeNode:
                 out.append(route.stats_in.snapshot())
         return out
 
+    def link_usage(self) -> list[LinkUsage]:
+        """What crossed each link that counts its bytes (the team link), since its start."""
+        out = []
+        for adapter in self.adapters.values():
+            usage = getattr(adapter, "usage", None)  # optional: links with a byte count
+            if callable(usage):
+                out.append(usage())
+        return out
+
+    def publish_usage(self) -> None:
+        """The links' usage on ``/diagnostics``, one status per link (``rf_bridge: <link>
+        link``, hardware id the robot id): the figures a match report reads back."""
+        if self._diagnostics is None:
+            return
+        array = DiagnosticArray()
+        array.header.stamp = to_msg(self._node.clock.now_ns())
+        for u in self.link_usage():
+            status = DiagnosticStatus(name=f"rf_bridge: {u.link} link", hardware_id=u.robot_id)
+            status.level = DiagnosticStatus.WARN if u.over_budget else DiagnosticStatus.OK
+            status.message = (f"{u.sent_bytes_per_s:.0f} B/s sent"
+                              + (f", {u.over_budget} over budget" if u.over_budget else ""))
+            figures = {
+                "sent_bytes": u.sent_bytes, "sent_messages": u.sent_messages,
+                "sent_bytes_per_s": round(u.sent_bytes_per_s, 1),
+                "peak_bytes_per_s": u.peak_bytes_per_s,
+                "received_bytes": u.received_bytes, "received_messages": u.received_messages,
+                "over_budget": u.over_budget, "elapsed_s": round(u.elapsed_s, 3),
+                "budget_bytes_per_s": u.budget_bytes_per_s or 0,
+                "budget_burst_bytes": u.budget_burst_bytes or 0,
+            }
+            status.values = [KeyValue(key=k, value=str(v)) for k, v in figures.items()]
+            array.status.append(status)
+        self._diagnostics.publish(array)
+
     def log_stats(self) -> None:
         """One line per topic and direction: what crossed, what did not and why."""
         for s in self.stats():
@@ -158,6 +200,12 @@ class BridgeNode:
             drops = ", ".join(f"{k} {v}" for k, v in sorted(s.drops.items())) or "none"
             self._node.logger.info(
                 f"{s.topic} {s.direction}: {s.messages} msgs, {s.bytes} B{latency}; drops: {drops}"
+            )
+        for u in self.link_usage():
+            budget = f" of {u.budget_bytes_per_s:.0f}" if u.budget_bytes_per_s else ""
+            self._node.logger.info(
+                f"{u.link} link: {u.sent_bytes_per_s:.0f}{budget} B/s sent (peak "
+                f"{u.peak_bytes_per_s} B in a second), {u.over_budget} over budget"
             )
 
     def close(self) -> None:

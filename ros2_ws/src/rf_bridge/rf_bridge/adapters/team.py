@@ -11,6 +11,11 @@ or the other. Throttling happens in the core before anything is sent. Publishers
 block the executor: congestion drops, and is counted by the receiver.
 A received sample is decompressed at most to ``max_message_bytes``: a few kilobytes of zlib
 can claim gigabytes, so the limit applies to what decompression produces.
+
+The link has a byte budget when ``budget_bytes_per_s`` is set (RoboCup gives a robot a few
+kB/s): every sample, payload and attachment, is judged against one token bucket for all the
+robot's team topics before it is sent (:mod:`..core.budget`); what does not fit is dropped
+and counted (``over_budget``). :meth:`TeamAdapter.usage` tells what crossed either way.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import struct
 import threading
 import time
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from rclpy.qos import ReliabilityPolicy
@@ -30,6 +35,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from .._log import Logger, RateLimitedLog
 from ..config import TeamOptions
 from ..core.adapter import Deliver, Route
+from ..core.budget import ByteBudget, LinkUsage, UsageCounter
 from ..errors import LinkError
 
 _ATTACHMENT = struct.Struct("<QBI")  # sequence number, flags, boot id; then the robot id
@@ -47,7 +53,8 @@ def _key(prefix: str, topic: str) -> str:
 class TeamAdapter:
     name = "team"
 
-    def __init__(self, options: TeamOptions, logger: Logger) -> None:
+    def __init__(self, options: TeamOptions, logger: Logger, *,
+                 now_ns: Callable[[], int] = time.monotonic_ns) -> None:
         self.options = options
         self._log = RateLimitedLog(logger)
         self._origin = options.robot_id.encode()
@@ -60,6 +67,15 @@ class TeamAdapter:
         self._seq: dict[int, int] = {}
         self._last_seen: dict[tuple[int, bytes, int], int] = {}
         self._lock = threading.Lock()
+        budget = None
+        if options.budget_bytes_per_s > 0:
+            burst = options.budget_burst_bytes or max(1, round(options.budget_bytes_per_s))
+            budget = ByteBudget(options.budget_bytes_per_s, burst, now_ns=now_ns)
+        self._usage = UsageCounter("team", options.robot_id, now_ns=now_ns, budget=budget)
+
+    def usage(self) -> LinkUsage:
+        """Bytes and messages sent and received since the start, drops for the budget."""
+        return self._usage.snapshot()
 
     def start(self, routes: Sequence[Route], deliver: Deliver) -> Sequence[Route]:
         import zenoh
@@ -115,6 +131,10 @@ class TeamAdapter:
             packed = zlib.compress(payload, 1)
             if len(packed) < len(payload):
                 payload, flags = packed, _ZLIB
+        wire = len(payload) + _ATTACHMENT.size + len(self._origin)
+        if not self._usage.admit(wire):
+            route.stats_out.dropped("over_budget")  # no sequence number used up
+            return
         with self._lock:
             seq = self._seq[id(route)] = self._seq[id(route)] + 1
         try:
@@ -123,6 +143,7 @@ class TeamAdapter:
             route.stats_out.dropped("send_failed")
             self._log.warning(f"team link: cannot send on {route.peer_topic}: {exc}")
             return
+        self._usage.sent(wire)
         route.stats_out.delivered(len(payload), time.perf_counter_ns() - received_ns)
 
     def _on_sample(self, route: Route, sample: Any, deliver: Deliver) -> None:
@@ -174,6 +195,7 @@ class TeamAdapter:
             route.stats_in.dropped("malformed")
             self._log.warning(f"team link: undecodable sample on {route.peer_topic}: {exc}")
             return
+        self._usage.received(len(payload) + len(attachment))
         deliver(route, msg, received, len(payload))
 
     def close(self) -> None:
