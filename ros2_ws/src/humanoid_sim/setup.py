@@ -35,6 +35,7 @@ setup(
             "humanoid_sim::FallDetector = humanoid_sim.soccer.fall:FallDetector",
             "humanoid_sim::WalkEngine = humanoid_sim.soccer.walk:WalkEngine",
             "humanoid_sim::GetUp = humanoid_sim.soccer.getup:GetUp",
+            "humanoid_sim::TeamReferee = humanoid_sim.soccer.team_referee:TeamReferee",
         ],
     },
 )
