@@ -95,6 +95,8 @@ def test_stamp_nanoseconds_conversions_go_through_from_msg_and_to_msg() -> None:
 
 #: The modules that use the field's dimensions; each must read them from soccer_field.
 FIELD_READERS = ("humanoid_sim/humanoid_sim/soccer/referee.py",
+                 "humanoid_sim/humanoid_sim/soccer/laws.py",
+                 "humanoid_sim/humanoid_sim/soccer/game_control.py",
                  "humanoid_sim/humanoid_sim/soccer/striker.py",
                  "debug_gui/debug_gui/models/world.py")
 

@@ -36,6 +36,7 @@ setup(
             "humanoid_sim::WalkEngine = humanoid_sim.soccer.walk:WalkEngine",
             "humanoid_sim::GetUp = humanoid_sim.soccer.getup:GetUp",
             "humanoid_sim::TeamComm = humanoid_sim.soccer.team_comm:TeamComm",
+            "humanoid_sim::TeamReferee = humanoid_sim.soccer.team_referee:TeamReferee",
         ],
     },
 )

@@ -14,7 +14,10 @@ foot splines (``spline``) and the legs' analytic inverse kinematics (``leg_ik``)
 ``getup`` gets the robot up after a fall (keyframed motions from the front and the back),
 ``getup_rig`` measures a fall and get-up on the walking rig;
 ``monitor`` measures what the pipeline achieves against the simulator's ground truth, and
-``referee`` judges goals from it and puts the ball back (neither is the robot's).
+``referee`` judges goals from it and puts the ball back (neither is the robot's);
+``team_referee`` runs a team game from ground truth as the GameController does
+(``game_state``), ``game_control`` is the robot's side of it (what the striker may do in
+each game state), and ``laws`` holds the rules both apply.
 ``team_comm`` is the robot's team layer (``TeamComm``): team messages out and in over the
 team link (their format in ``team_message``), the ball fused with the teammates'
 (``shared_ball``) and this robot's role (``roles``: ``Role``, with hysteresis).
@@ -30,7 +33,9 @@ Messages between them (all standard types, passed by reference when composed):
 * ``ball/position`` (PointStamped, frame ``base_footprint``): where the ball lies on the
   ground, x forward and y left of the torso in the level frame (m).
 * ``behaviour/state`` (String, transient local): the striker's ``search``, ``approach``,
-  ``stop``, ``kick`` or ``fallen``.
+  ``stop``, ``kick`` or ``fallen``; ``position`` or ``wait`` by the referee's order.
+* ``game_state`` (soccer_interfaces/GameState, transient local): the referee's broadcast,
+  when there is one (:mod:`.team_referee`); the striker obeys it (:mod:`.game_control`).
 * ``head/goal`` (JointState): neck_yaw and neck_pitch, stamped with the image it came from.
 * ``fall/state`` (String, transient local): ``standing``, ``falling`` or ``fallen``.
 * ``cmd_vel`` (Twist): the wanted walking velocity; ``odom`` (Odometry): the walk engine's

@@ -1,4 +1,4 @@
-"""The referee: goals and balls out of play, judged from ground truth; the ball put back.
+"""The one-robot referee: goals and balls out of play, judged from ground truth; the ball put back.
 
 A goal is the ball wholly over the goal line between the posts and under the crossbar
 (Law 10: the whole ball past the line's outer edge); ``opponent`` goals are scored at
@@ -6,7 +6,10 @@ A goal is the ball wholly over the goal line between the posts and under the cro
 goal line elsewhere is out. After ``restart_s`` the ball is put back at rest, through the
 simulator's ``place_ball`` topic: on the centre mark after a goal, just inside the field
 where it left otherwise. The referee is not the robot's: only the simulation and the
-report read it (the robot's software never sees ground truth).
+report read it (the robot's software never sees ground truth). It judges the ball by the
+same laws (:mod:`.laws`) as the team game's referee (:mod:`.team_referee`), which adds game
+states, kick-offs, two teams' scores and set plays; this one keeps the one-robot demo's
+game going without them.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from efficient_comm.handle import NodeHandle
 from soccer_field import KIDSIZE
 
 from ..errors import SimConfigError
-from .world_model import BALL_RADIUS_M
+from .laws import Line, judge_ball
 
 #: The field (soccer_field's KidSize, which ``models/soccer_field.xml`` is checked against):
 #: half length and width, the goals' half width between the posts' inner faces and the
@@ -53,11 +56,11 @@ class Referee:
                 self.place_pub.publish(where)
             return
         x, y, z = pose.pose.position.x, pose.pose.position.y, pose.pose.position.z
-        over_goal_line = abs(x) > HALF_LENGTH + BALL_RADIUS_M
-        if not over_goal_line and abs(y) <= HALF_WIDTH + BALL_RADIUS_M:
+        crossing = judge_ball(x, y, z)
+        if crossing is None:
             return
-        if over_goal_line and abs(y) < GOAL_HALF_WIDTH and z < CROSSBAR:
-            if x > 0:
+        if crossing.line is Line.GOAL:
+            if crossing.x_side > 0:
                 self.goals += 1
                 self.goal_at_ns.append(now - self._start_ns)
                 self.node.logger.info(f"GOAL ({self.goals})")

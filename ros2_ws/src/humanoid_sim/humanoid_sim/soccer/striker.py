@@ -25,7 +25,13 @@ latched, on every change):
   then starts over; a kick not begun within ``kick_start_s`` (refused) or not over within
   ``kick_timeout_s`` starts over too;
 * ``fallen``: ``fall/state`` is not ``standing`` or ``motion/state`` is ``getup`` or
-  ``fallen``: it does nothing (the get-up runs by itself) and searches when up again.
+  ``fallen``: it does nothing (the get-up runs by itself) and searches when up again;
+* ``position`` and ``wait``: the referee's game state does not let it play
+  (:mod:`.game_control`, which reads ``game_state`` and the ``robot`` parameter, e.g.
+  ``blue1``): it walks to its kick-off spot in ``ready`` (and out of the centre circle
+  during the other team's kick-off), and stands otherwise. In a team game it attacks the
+  goal of its team in this half, and a robot the referee placed for the kick-off takes its
+  kick-off spot as its pose. Without a ``game_state`` it plays, as in the one-robot demo.
 
 Every figure is a ROS parameter (see :data:`PARAMETERS`); ``rate_hz`` is the decision rate.
 """
@@ -45,8 +51,11 @@ from soccer_field import KIDSIZE
 
 from ..errors import SimConfigError
 from .fall import LATCHED, STANDING
+from .game_control import PLAY, POSITION, GameControl, Order
 
 SEARCH, APPROACH, STOP, KICK, FALLEN = "search", "approach", "stop", "kick", "fallen"
+#: Standing by the referee's order (walking to the kick-off spot is ``position``).
+WAIT = "wait"
 #: ``motion/state`` values (the motion arbiter's) during which the striker keeps still.
 DOWN_MOTIONS = ("getup", "fallen")
 
@@ -159,6 +168,7 @@ class Striker:
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
         node.create_subscription(String, "motion/state", self._on_motion, qos=LATCHED)
+        self.game = GameControl(node, on_change=self.decide)
         self.state_pub.publish(String(data=self.state))
         node.create_timer(1.0 / self.p["rate_hz"], self.decide)
 
@@ -242,7 +252,7 @@ class Striker:
             _, left = self.pose.to_local(*self.ball)
             if abs(left) > 0.03:  # hysteresis: a ball straight ahead keeps the foot
                 self.foot = "left" if left > 0 else "right"
-        return kick_pose(self.ball, self.goal, foot=self.foot,
+        return kick_pose(self.ball, self.game.goal() or self.goal, foot=self.foot,
                          kick_distance=self.p["kick_distance"],
                          foot_offset=self.p["foot_offset"])
 
@@ -254,6 +264,14 @@ class Striker:
                 self._walk(0.0, 0.0, 0.0)
                 self.ball_seen_ns = None  # lying down it lost track: look again once up
             self._set_state(FALLEN)
+            return
+        placed = self.game.placed(self.pose.x, self.pose.y)
+        if placed is not None:  # put on its kick-off spot: its heading from the IMU anew
+            self.start = self.pose = Pose(*placed)
+            self._imu_yaw0 = None
+        order = self.game.order(self.pose.x, self.pose.y)
+        if order.what != PLAY:
+            self._obey(order)
             return
         if self.state == KICK:
             self._kicking()
@@ -276,6 +294,22 @@ class Striker:
         else:
             self._set_state(APPROACH)
             self._approach(goal)
+
+    def _obey(self, order: Order) -> None:
+        """The referee does not let it play: stand, or walk to ``order.target`` and stand
+        there (within twice the tolerances; four times once there, so it does not dither)."""
+        settling = (self.node.clock.now_ns() - self._start_ns) / 1e9 < self.p["settle_s"]
+        if order.target is not None and not settling:
+            x, y = self.pose.to_local(order.target[0], order.target[1])
+            turn = _wrap(order.target[2] - self.pose.heading)
+            slack = 4.0 if self.state == WAIT else 2.0
+            if (math.hypot(x, y) > slack * self.p["position_tolerance"]
+                    or abs(turn) > slack * self.p["heading_tolerance"]):
+                self._set_state(POSITION)
+                self._walk_to(*order.target)
+                return
+        self._walk(0.0, 0.0, 0.0)
+        self._set_state(WAIT)
 
     def _search(self) -> None:
         if self.state != SEARCH:
@@ -324,11 +358,16 @@ class Striker:
         if along > -0.5 * self.p["kick_distance"] and abs(across) < 0.35:
             side = 1.0 if across >= 0 else -1.0  # beside the ball, on the robot's side
             tx, ty = bx - 0.25 * ux - side * 0.4 * uy, by - 0.25 * uy + side * 0.4 * ux
+        self._walk_to(tx, ty, goal.heading)
+
+    def _walk_to(self, tx: float, ty: float, end_heading: float) -> None:
+        """Walk to ``tx, ty``, facing the way to go while far and turning to ``end_heading``
+        on the last half metre."""
         x, y = self.pose.to_local(tx, ty)
         distance = math.hypot(x, y)
         near = min(1.0, max(0.0, (distance - 0.2) / 0.4))  # 1 far, 0 on the last 0.2 m
         facing = math.atan2(y, x) if distance > 1e-6 else 0.0
-        heading = near * facing + (1 - near) * _wrap(goal.heading - self.pose.heading)
+        heading = near * facing + (1 - near) * _wrap(end_heading - self.pose.heading)
         wz = max(-self.p["max_wz"], min(self.p["max_wz"], self.p["turn_gain"] * heading))
         vx, vy = self.p["gain"] * x, self.p["gain"] * y
         if abs(heading) > 0.8 and distance > 0.3:  # mostly turn first
