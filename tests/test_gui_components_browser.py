@@ -102,6 +102,60 @@ def test_changing_figures_and_status_line_send_no_element_update(
         assert browser.execute_script("return window.__issue18")["update"] == 0, seen
 
 
+def test_rows_out_of_sight_are_drawn_when_they_come_into_sight(tmp_path: Path, browser) -> None:
+    """Issue 18, 4a: a row below the window keeps its figures undrawn (most rows of three
+    robots' tables are, and drawing them kept a loaded machine's browser busy) and shows
+    the current ones as soon as it is scrolled into sight."""
+    domain = isolated_domain_id()
+    key = f"{domain}:/robot1"
+    table = f"components-{key}"
+    with fake_robot(tmp_path, domain_id=domain, namespace="/robot1", period_s=0.5,
+                    callbacks=60) as robot, gui(tmp_path, domains=[domain]) as server:
+        alive = [robot, server]
+        browser.get(server.url)
+        wait_for(lambda: (browser.execute_script(_ENDS, table) or [0, 0, 0])[2] == 60,
+                 what="60 rows", alive=alive)
+        click(browser, f"components-columns-{key}")
+        by_testid(browser, table).find_element(
+            By.XPATH, ".//th[contains(., 'component')]").click()  # a steady order: by name
+        calls = ALL.index("calls")
+
+        def ends() -> tuple[int, int, bool]:
+            first, last, _, below = browser.execute_script(_ENDS, table)
+            try:
+                return int(first[calls]), int(last[calls]), below
+            except (ValueError, IndexError):
+                return -1, -1, below
+
+        top0, bottom0, below = wait_for(lambda: (e := ends())[0] > 0 and e,
+                                        what="the calls column", alive=alive)
+        assert below, "the last row is in sight: the window shows the whole table"
+        wait_for(lambda: ends()[0] > top0, what="the first row's calls to grow", alive=alive)
+        top1 = ends()[0]
+        wait_for(lambda: ends()[0] > top1, what="the first row's calls to grow again",
+                 alive=alive)
+        assert ends()[1] == bottom0, "a row out of sight was drawn again"
+        browser.execute_script(_SHOW_LAST, table)
+        wait_for(lambda: ends()[1] > bottom0, what="the last row's current calls",
+                 alive=alive)
+
+
+#: The first and the last row's cell texts of table ``arguments[0]``, the number of rows
+#: and whether the last one is below the window.
+_ENDS = """
+const rows = [...document.querySelectorAll('[data-testid="' + arguments[0] + '"] tbody tr')];
+if (!rows.length) return [[], [], 0, false];
+const cells = (tr) => [...tr.querySelectorAll('td')].map(td => td.textContent.trim());
+const last = rows[rows.length - 1];
+return [cells(rows[0]), cells(last), rows.length,
+        last.getBoundingClientRect().top > window.innerHeight + 300];
+"""
+_SHOW_LAST = """
+const rows = document.querySelectorAll('[data-testid="' + arguments[0] + '"] tbody tr');
+rows[rows.length - 1].scrollIntoView();
+"""
+
+
 #: Counts the server's messages to the page: element updates and the others.
 _COUNT_MESSAGES = """
 window.__issue18 = {update: 0, other: 0};

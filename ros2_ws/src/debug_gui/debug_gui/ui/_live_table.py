@@ -12,7 +12,8 @@ shows (:func:`row_changes`), through a method call on the component: no element 
 no page re-render. The component draws plain rows in Quasar's table classes, each row
 memoised, rather than a QTable (which re-rendered all its rows, with a QTd component per
 slotted cell, for any changed cell), and applies the changes that reach the page's tables
-within one second together, in one render and one layout. The rows the browser shows are
+within one second together, in one render and one layout; a row out of sight (below the
+window) is drawn when it comes into sight, not on every change. The rows the browser shows are
 kept on the server too, so a page that NiceGUI re-sends (a column switch, a reconnect)
 starts from the current figures.
 

@@ -6,6 +6,9 @@
 // together at the second's end: one render, not one per table. The rows' box is contained
 // (CSS `contain: strict`, its height set from the table's), so a changed cell lays out its
 // own table, not the page around it (a page layout was most of an update's cost).
+// Rows out of sight (scrolled away, an IntersectionObserver says) keep their new figures
+// unrendered until they come into sight: with three robots' tables of 40 callbacks, most
+// rows are below the window, and a loaded machine's browser spent its time on them.
 
 // Tables with patches waiting, and the one timer that applies them all.
 const waiting = new Set();
@@ -34,7 +37,8 @@ export default {
                 >arrow_upward</i></th>
           </tr></thead>
           <tbody>
-            <tr v-for="row in sorted" :key="row[rowKey]" v-memo="[row.__v, colsKey]">
+            <tr v-for="row in sorted" :key="row[rowKey]" v-memo="[row.__v, colsKey]"
+                :data-row="row[rowKey]">
               <td v-for="c in cols" :key="c.name" :class="'text-' + (c.align || 'right')"
                   :style="c.style" :title="c.cell === 'titled' ? row[c.field] : undefined">
                 <span v-if="c.cell === 'badge' && row[c.field]"
@@ -78,9 +82,16 @@ export default {
     this.store = new Map();
     this.seq = 0;
     this.pending = [];
+    // Keys (as text) of rows out of sight, and of those among them whose figures changed.
+    this.away = new Set();
+    this.stale = new Set();
+    this.watched = new WeakSet();
     this.load(this.rows);
   },
   mounted() {
+    this.sight = new IntersectionObserver((entries) => this.onSight(entries),
+                                          { rootMargin: "200px" });
+    this.watchRows();
     // The rows' box is sized by hand, so that a changed cell lays out this table only
     // (CSS containment) instead of the whole page; its height follows the table's.
     this.observer = new ResizeObserver(() => {
@@ -90,8 +101,12 @@ export default {
     });
     this.observer.observe(this.$refs.table);
   },
+  updated() {
+    this.watchRows();
+  },
   unmounted() {
     this.observer.disconnect();
+    this.sight.disconnect();
     waiting.delete(this);
   },
   computed: {
@@ -145,7 +160,41 @@ export default {
     parts(value) {
       return String(value).split(/(?<=[/._])/);
     },
+    // Rows rendered since the last look are watched for coming into and out of sight.
+    watchRows() {
+      for (const tr of this.$refs.table.tBodies[0]?.rows ?? []) {
+        if (!this.watched.has(tr)) {
+          this.watched.add(tr);
+          this.sight.observe(tr);
+        }
+      }
+    },
+    onSight(entries) {
+      let shown = false;
+      for (const entry of entries) {
+        const key = entry.target.dataset.row;
+        if (!entry.target.isConnected) {
+          this.sight.unobserve(entry.target);
+        } else if (!entry.isIntersecting) {
+          this.away.add(key);
+        } else {
+          this.away.delete(key);
+          if (this.stale.delete(key)) {
+            const row = this.store.get(this.keyOf(key));
+            if (row) row.__v = ++this.seq;
+            shown = true;
+          }
+        }
+      }
+      if (shown) this.version++;
+    },
+    // The store's key for a row's text key (row keys may be numbers).
+    keyOf(text) {
+      for (const k of this.store.keys()) if (String(k) === text) return k;
+      return text;
+    },
     load(rows) {
+      this.stale.clear();
       this.store.clear();
       for (const row of rows || []) this.store.set(row[this.rowKey], { ...row, __v: ++this.seq });
       this.version++;
@@ -170,14 +219,29 @@ export default {
     },
     apply(changes) {
       const key = this.rowKey;
-      if (changes.caption !== undefined) this.text = changes.caption;
-      for (const gone of changes.remove) this.store.delete(gone);
+      let render = changes.remove.length > 0;
+      if (changes.caption !== undefined && changes.caption !== this.text) {
+        this.text = changes.caption;
+      }
+      for (const gone of changes.remove) {
+        this.store.delete(gone);
+        this.stale.delete(String(gone));
+      }
       for (const part of changes.set) {
         const row = this.store.get(part[key]);
-        if (row) Object.assign(row, part, { __v: ++this.seq });
-        else this.store.set(part[key], { ...part, __v: ++this.seq });
+        if (!row) {
+          this.store.set(part[key], { ...part, __v: ++this.seq });
+          render = true;
+        } else if (this.away.has(String(part[key]))) {
+          Object.assign(row, part); // drawn when it comes into sight
+          this.stale.add(String(part[key]));
+        } else {
+          Object.assign(row, part, { __v: ++this.seq });
+          render = true;
+        }
       }
-      this.version++;
+      // Sorted by a column, a change out of sight may still move a row into sight.
+      if (render || (this.sortBy !== null && changes.set.length)) this.version++;
     },
   },
 };
