@@ -141,5 +141,7 @@ def test_a_robot_without_a_camera_says_so_instead_of_a_broken_image(
                  "/plainbot/camera/image_raw/compressed"
                  in text_of(browser, f"image-placeholder-{key}"),
                  what="the view saying there is no image topic", alive=alive, timeout_s=60)
+        wait_for(lambda: text_of(browser, f"image-status-{key}").startswith("no camera;"),
+                 what="the status line saying there is no camera", alive=alive)
         assert not browser.execute_script(_BROKEN, f"image-{key}")
         screenshot(browser, "image_view_no_camera")

@@ -96,10 +96,13 @@ window.debugGuiImage = window.debugGuiImage || {
 
 
 def live_state(*, online: bool, position: tuple[int, int] | None, fps: float,
-               asked: float) -> str:
-    """What the status line says the picture is: a robot that has gone is not "live"."""
+               asked: float, camera: bool = True) -> str:
+    """What the status line says the picture is: a robot that has gone is not "live", nor
+    is one without a camera (it would read "live, 0.0 fps")."""
     if not online:
         return "robot gone: its last frame"
+    if not camera:
+        return "no camera"
     if position is not None:
         return f"paused at frame {position[0] + 1} of {position[1]}"
     return f"live, {fps:.1f} fps received (asked {asked:g})"
@@ -238,7 +241,8 @@ def build(ctx: ViewContext) -> None:
         position = model.position()
         shown_now = model.current()
         online = robot in ctx.hub.robots()
-        where = live_state(online=online, position=position, fps=fps, asked=model.rate_hz)
+        where = live_state(online=online, position=position, fps=fps, asked=model.rate_hz,
+                           camera=bool(model.received) or model.has_camera())
         if online != counts["online"]:
             counts["online"] = online
             if not online:
