@@ -49,6 +49,82 @@ _CLIENT_MESSAGE_DATA = 0x01
 _SERVICE_CALL_REQUEST = 0x02
 _STATUS_ERROR = 2
 _START_TIMEOUT_S = 10.0
+_UNKNOWN_CHANNEL = "Unknown channel ID: "
+#: How soon and how often a subscription the SDK's race refused is sent again.
+_RESUBSCRIBE_S = 0.05
+_RESUBSCRIBE_TRIES = 40
+
+
+class _Resubscriber:
+    """One connection's advertised channels and the viewer's subscriptions, to take a race
+    in the SDK's server out of the viewer's way.
+
+    The SDK's server (foxglove-sdk 0.30, ``ConnectedClient::advertise_channels``) sends a
+    channel's advertisement first and records the channel as advertised to that client
+    afterwards. A viewer that subscribes at once can be answered "Unknown channel ID" for
+    the channel it was just offered, when the server's sending thread has not got on yet
+    (a loaded machine); the subscription is then dropped and the viewer shows nothing. The
+    gate sees both directions: such an answer, for a channel advertised on this connection
+    and still subscribed, is not forwarded, and the subscription is sent again shortly
+    (at most :data:`_RESUBSCRIBE_TRIES` times). An unknown channel the server never
+    advertised here is the viewer's mistake: that answer passes.
+    """
+
+    def __init__(self) -> None:
+        self.advertised: set[int] = set()
+        self.subscriptions: dict[int, dict[str, int]] = {}  # channel id -> {id, channelId}
+        self.tries: dict[int, int] = {}
+        self.pending: set[asyncio.Future[None]] = set()  # kept until done (asyncio's rule)
+
+    def downstream(self, message: str) -> int | None:
+        """Note what the server advertised; the channel to subscribe to again if
+        ``message`` is the race's answer (then it must not reach the viewer)."""
+        if '"advertise"' not in message and '"unadvertise"' not in message and (
+                _UNKNOWN_CHANNEL not in message):
+            return None
+        try:
+            parsed = json.loads(message)
+            op = parsed.get("op")
+            if op == "advertise":
+                self.advertised.update(int(c["id"]) for c in parsed["channels"])
+            elif op == "unadvertise":
+                for channel in parsed["channelIds"]:
+                    self.advertised.discard(int(channel))
+                    self.subscriptions.pop(int(channel), None)
+            elif op == "status" and str(parsed.get("message", "")).startswith(_UNKNOWN_CHANNEL):
+                channel = int(str(parsed["message"]).removeprefix(_UNKNOWN_CHANNEL))
+                tries = self.tries.get(channel, 0)
+                if (channel in self.advertised and channel in self.subscriptions
+                        and tries < _RESUBSCRIBE_TRIES):
+                    self.tries[channel] = tries + 1
+                    return channel
+        except (ValueError, KeyError, TypeError, AttributeError):
+            pass  # not ours to judge: forwarded as it came
+        return None
+
+    def upstream(self, message: str | bytes) -> None:
+        """Note the viewer's subscriptions."""
+        if not isinstance(message, str) or "subscribe" not in message:
+            return
+        try:
+            parsed = json.loads(message)
+            if parsed.get("op") == "subscribe":
+                for sub in parsed["subscriptions"]:
+                    self.subscriptions[int(sub["channelId"])] = {
+                        "id": int(sub["id"]), "channelId": int(sub["channelId"])}
+            elif parsed.get("op") == "unsubscribe":
+                gone = {int(i) for i in parsed["subscriptionIds"]}
+                self.subscriptions = {c: s for c, s in self.subscriptions.items()
+                                      if s["id"] not in gone}
+        except (ValueError, KeyError, TypeError, AttributeError):
+            pass  # the SDK answers malformed requests itself
+
+    def again(self, channel: int) -> str | None:
+        """The subscribe request to send again for ``channel``, if still wanted."""
+        sub = self.subscriptions.get(channel)
+        if sub is None or channel not in self.advertised:
+            return None
+        return json.dumps({"op": "subscribe", "subscriptions": [sub]})
 
 
 def presented_token(request: Request) -> str | None:
@@ -163,17 +239,18 @@ class Gate:
         try:
             async with connect(self._backend, subprotocols=[SDK_SUBPROTOCOL], compression=None,
                                max_size=None, ping_interval=None) as backend:
-                await self._introduce_to(backend, client, writes=writes)
-                down = asyncio.ensure_future(self._pump(backend, client))
-                up = asyncio.ensure_future(self._pump_up(client, backend, writes=writes))
+                link = _Resubscriber()
+                await self._introduce_to(backend, client, link, writes=writes)
+                down = asyncio.ensure_future(self._pump(backend, client, link))
+                up = asyncio.ensure_future(self._pump_up(client, backend, link, writes=writes))
                 _, pending = await asyncio.wait({down, up}, return_when=asyncio.FIRST_COMPLETED)
                 for task in pending:
                     task.cancel()
         except (OSError, ConnectionClosed, TimeoutError):
             pass  # the SDK server stopped or the viewer left: the connection ends either way
 
-    async def _introduce_to(self, backend: ClientConnection, client: ServerConnection, *,
-                            writes: bool) -> None:
+    async def _introduce_to(self, backend: ClientConnection, client: ServerConnection,
+                            link: _Resubscriber, *, writes: bool) -> None:
         """Tell the endpoint who this SDK client is; forward what arrives meanwhile."""
         nonce = secrets.token_hex(16)
         self._introduce(nonce, writes)
@@ -183,22 +260,41 @@ class Gate:
             async for message in backend:
                 if isinstance(message, str) and nonce in message:
                     return  # the answer to the introduction: the viewer never asked for it
+                if isinstance(message, str):
+                    link.downstream(message)
                 await client.send(message)
 
     @staticmethod
-    async def _pump(source: ClientConnection, sink: ServerConnection) -> None:
+    async def _pump(source: ClientConnection, sink: ServerConnection,
+                    link: _Resubscriber) -> None:
         with contextlib.suppress(ConnectionClosed):
             async for message in source:
+                if isinstance(message, str) and (
+                        channel := link.downstream(message)) is not None:
+                    task = asyncio.ensure_future(Gate._subscribe_again(source, link, channel))
+                    link.pending.add(task)
+                    task.add_done_callback(link.pending.discard)
+                    continue
                 await sink.send(message)
 
     @staticmethod
-    async def _pump_up(source: ServerConnection, sink: ClientConnection, *,
-                       writes: bool) -> None:
+    async def _subscribe_again(backend: ClientConnection, link: _Resubscriber,
+                               channel: int) -> None:
+        await asyncio.sleep(_RESUBSCRIBE_S)
+        request = link.again(channel)
+        if request is not None:
+            with contextlib.suppress(ConnectionClosed):
+                await backend.send(request)
+
+    @staticmethod
+    async def _pump_up(source: ServerConnection, sink: ClientConnection,
+                       link: _Resubscriber, *, writes: bool) -> None:
         why = "this connection may not write: present the token (ws://HOST:PORT/?token=TOKEN)"
         with contextlib.suppress(ConnectionClosed):
             async for message in source:
                 refusal = None if writes else _refusal(message, why)
                 if refusal is None:
+                    link.upstream(message)
                     await sink.send(message)
                 else:
                     await source.send(refusal)
