@@ -1,6 +1,7 @@
 """The simulator component: MuJoCo physics behind the emulated servo bus, camera, IMU, truth.
 
-It owns the world (``models/soccer_field.xml``) and serves the robot's 20 servos on a
+It owns the one-robot world (``models/soccer_field.xml``; several robots share one in
+:mod:`.world_simulator`) and serves the robot's 20 servos on a
 pseudo-terminal, so the servo driver runs unchanged against it: the only thing the driver
 sees of the simulation is a serial port. Every timer tick advances physics by one period:
 
@@ -213,11 +214,10 @@ class Simulator:
             mujoco.mj_forward(self.model, self.data)
 
     def place_robot(self, *, x: float, y: float, heading: float) -> None:
-        """Put the robot's torso above (x, y) on the field, facing ``heading`` (rad)."""
+        """Put the robot's torso above (x, y) on the field, facing ``heading`` (rad), at rest
+        (see :meth:`~.mujoco_plant.RobotPlant.place`)."""
         with self.pty.lock:
-            q = self.model.joint("root").qposadr[0]
-            self.data.qpos[q : q + 2] = [x, y]
-            self.data.qpos[q + 3 : q + 7] = [math.cos(heading / 2), 0, 0, math.sin(heading / 2)]
+            self.plant.place(x=x, y=y, heading=heading)
             mujoco.mj_forward(self.model, self.data)
 
     def _on_place_ball(self, point: Point) -> None:
