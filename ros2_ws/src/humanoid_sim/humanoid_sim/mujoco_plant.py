@@ -59,6 +59,20 @@ JOINTS: dict[int, str] = {
 
 ROBOT_MODEL = MODEL.with_name("robot.xml")
 FIELD_MODEL = MODEL.with_name("field.xml")
+BALL_RADIUS_M = 0.07
+
+
+def set_ball(model: mujoco.MjModel, data: mujoco.MjData, *,
+             position: tuple[float, float] | None = None,
+             velocity: tuple[float, float] = (0.0, 0.0)) -> None:
+    """Put the ball (the field's ``ball`` joint) on the ground at ``position`` (if given) and
+    set it rolling at ``velocity`` (m/s)."""
+    ball = model.joint("ball")
+    q, v = ball.qposadr[0], ball.dofadr[0]
+    if position is not None:
+        data.qpos[q : q + 7] = [position[0], position[1], BALL_RADIUS_M, 1, 0, 0, 0]
+    data.qvel[v : v + 6] = [velocity[0], velocity[1], 0, 0, 0, 0]
+    mujoco.mj_forward(model, data)
 
 
 class RobotPlant:
