@@ -55,6 +55,8 @@ from .dynamixel.bus import Bus
 from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus, make_port_link, remove_port_link
 from .errors import SimConfigError
 from .mujoco_plant import JOINTS, MujocoPlant, set_ball
+from .pacing import MAX_CATCH_UP as MAX_CATCH_UP
+from .pacing import Pacer
 from .render import OffscreenCamera
 from .sensors import CAMERA
 
@@ -64,7 +66,6 @@ KICK_AREA = ((0.8, 2.5), (-1.2, 1.2))
 #: ``models/soccer_field.xml`` (``test_field.py`` measures it); a kick that should reach a
 #: point rolls the ball off with the speed that stops it there.
 ROLLING_DECELERATION = 0.8
-MAX_CATCH_UP = 4
 #: How long a push that arrives as an impulse on the ``push`` topic lasts.
 PUSH_SECONDS = 0.1
 TRANSIENT_LOCAL = latched_qos()
@@ -147,12 +148,9 @@ class Simulator:
             self.frames = 0
             self.frames_skipped = 0
             self.render_ns = 0
-            #: Simulated time given up because the machine fell behind (real time only).
-            self.skipped_s = 0.0
             self._next_frame_ns: int | None = None
             self._next_kick_s = self.kick_period_s
-            self._wall_start: float | None = None  # wall time that sim time 0 stands for
-            self._wall_first: float | None = None  # wall time of the first tick
+            self._pacer = Pacer(period_s=self.period_s, monotonic=time.monotonic)
             self._lockstep = node.clock_kind == "manual"
             node.create_timer(self.period_s, self.tick)
             self._opened = opened.pop_all()
@@ -256,31 +254,15 @@ class Simulator:
     @property
     def real_time_factor(self) -> float:
         """Simulated seconds per wall-clock second since the first tick."""
-        if self._wall_first is None:
-            return 0.0
-        wall = time.monotonic() - self._wall_first
-        return self.sim_time_s / wall if wall > 0 else 0.0
+        return self._pacer.real_time_factor(self.sim_time_s)
 
-    def _step_s(self) -> float:
-        """How far to step now: one period in lockstep, up to the wall clock otherwise.
-
-        A machine that falls further behind than :data:`MAX_CATCH_UP` periods gives the
-        rest up (counted in :attr:`skipped_s`): the world slows down for a moment instead
-        of racing through the backlog afterwards.
-        """
-        if self._lockstep or self._wall_start is None:
-            return self.period_s
-        limit = MAX_CATCH_UP * self.period_s
-        behind = time.monotonic() - self._wall_start - self.sim_time_s
-        if behind > limit:
-            self._wall_start += behind - limit
-            self.skipped_s += behind - limit
-        return min(max(behind, self.period_s / 2), limit)
+    @property
+    def skipped_s(self) -> float:
+        """Simulated time given up because the machine fell behind (real time only)."""
+        return self._pacer.skipped_s
 
     def tick(self) -> None:
-        step = self._step_s()
-        if self._wall_start is None:
-            self._wall_first = self._wall_start = time.monotonic() - self.period_s
+        step = self._pacer.step_s(self.sim_time_s, lockstep=self._lockstep)
         if self.kick_period_s > 0 and self.sim_time_s >= self._next_kick_s:
             self._next_kick_s += self.kick_period_s
             self._kick()
