@@ -3,10 +3,10 @@
 It owns one :class:`~.world.World` (the field, the ball, up to six robots) and, per robot,
 an emulated servo bus on a pty of its own, so each robot's servo driver runs unchanged,
 in this process or another one (``port_dir``: a symlink ``<port_dir>/<robot>`` to the
-robot's pty). Every timer tick steps the shared world once for all robots, paced as the
-one-robot :class:`~.simulator.Simulator` is (:mod:`.pacing`): real time with catch-up on a
-wall clock, lockstep on a manual clock (each bus is synced first, so every driver's last
-writes are applied before the step).
+robot's pty; the directory is made if missing). Every timer tick steps the shared world
+once for all robots, paced as the one-robot :class:`~.simulator.Simulator` is
+(:mod:`.pacing`): real time with catch-up on a wall clock, lockstep on a manual clock (each
+bus is synced first, so every driver's last writes are applied before the step).
 
 Topics, relative to the component's namespace (``/`` in the world process, so a robot's
 topics are ``/<robot>/...``):
@@ -29,6 +29,7 @@ heading; default :data:`~.world.DEFAULT_START`), ``ball_position``,
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from contextlib import ExitStack
@@ -108,7 +109,12 @@ class WorldSimulator:
                 opened.callback(pty.close)
                 port = pty.port
                 if port_dir:
-                    port = f"{port_dir.rstrip('/')}/{name}"
+                    port = os.path.join(port_dir, name)
+                    try:
+                        os.makedirs(port_dir, exist_ok=True)
+                    except OSError as exc:
+                        raise SimConfigError(f"cannot make port_dir {port_dir!r}: {exc}"
+                                             ) from exc
                     make_port_link(pty.port, port)
                     opened.callback(remove_port_link, pty.port, port)
                 node.create_publisher(
