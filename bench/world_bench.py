@@ -13,7 +13,9 @@ the same run:
   (frames per step = robots x 0.3: the upper bound, as the component renders a camera only
   while someone wants its frames);
 * ``render_separate``: the same frames from one GL context per camera, as one-robot
-  simulators side by side would draw them: what sharing the context saves.
+  simulators side by side would draw them: what sharing the context saves;
+* ``render_fine``: the same frames at MuJoCo's default tessellation (the one-robot
+  simulator's), what the world's coarser ``RENDER_QUALITY`` saves.
 
 The sum per step against 10 ms is the real-time factor physics and cameras alone would allow
 (bus emulation and robot software come on top). Run:
@@ -39,6 +41,9 @@ ORDER = ("blue1", "blue2", "blue3", "red1", "red2", "red3")
 STEP_S = 0.01
 CAMERA_HZ = 30.0
 WIDTH, HEIGHT = 320, 240
+#: MuJoCo's default ``<visual><quality>`` (numslices, numstacks, numquads); the world uses
+#: ``humanoid_sim.world.RENDER_QUALITY``.
+MUJOCO_QUALITY = (28, 16, 4)
 
 
 def measure(robots: int, *, steps: int, frames: int) -> dict[str, float]:
@@ -81,10 +86,16 @@ def measure(robots: int, *, steps: int, frames: int) -> dict[str, float]:
     separate_ms = render_ms(separate)
     for renderer in separate:
         renderer.close()
+    quality = world.model.vis.quality  # what the world's coarser tessellation saves
+    quality.numslices, quality.numstacks, quality.numquads = MUJOCO_QUALITY
+    fine = OffscreenRenderer(world.model, width=WIDTH, height=HEIGHT)
+    fine_ms = render_ms([fine] * robots)
+    fine.close()
     frames_per_step = robots * CAMERA_HZ * STEP_S
     return {"physics_ms": physics_ms, "render_frame_ms": shared_ms,
             "render_ms": shared_ms * frames_per_step,
-            "render_separate_frame_ms": separate_ms, "standing": float(standing)}
+            "render_separate_frame_ms": separate_ms, "render_fine_frame_ms": fine_ms,
+            "standing": float(standing)}
 
 
 def main() -> int:
@@ -120,7 +131,7 @@ def main() -> int:
     summary: dict[str, Any] = {}
     print(f"medians of {args.repeat} run(s); CPU per {STEP_S * 1e3:g} ms world step, every "
           f"camera at {CAMERA_HZ:g} Hz ({WIDTH}x{HEIGHT}); ratios against 1 robot")
-    print("robots | physics ms/step (x1) | render ms/frame, one context (separate) | "
+    print("robots | physics ms/step (x1) | render ms/frame, one context (separate; fine) | "
           "render ms/step (x1) | total ms/step | RTF bound")
     for n in SIZES:
         physics, render = med(n, "physics_ms"), med(n, "render_ms")
@@ -128,12 +139,14 @@ def main() -> int:
         row = {"physics_ms": physics, "physics_ratio": physics / med(1, "physics_ms"),
                "render_frame_ms": med(n, "render_frame_ms"),
                "render_separate_frame_ms": med(n, "render_separate_frame_ms"),
+               "render_fine_frame_ms": med(n, "render_fine_frame_ms"),
                "render_ms": render, "render_ratio": render / med(1, "render_ms"),
                "total_ms": total, "rtf_bound": STEP_S * 1e3 / total,
                "standing": med(n, "standing")}
         summary[str(n)] = row
         print(f"{n:6d} | {physics:7.2f} ({row['physics_ratio']:.2f}) | "
-              f"{row['render_frame_ms']:6.2f} ({row['render_separate_frame_ms']:.2f}) | "
+              f"{row['render_frame_ms']:6.2f} ({row['render_separate_frame_ms']:.2f}; "
+              f"{row['render_fine_frame_ms']:.2f}) | "
               f"{render:6.2f} ({row['render_ratio']:.2f}) | {total:6.2f} | "
               f"{row['rtf_bound']:.2f}")
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -40,7 +40,7 @@ from geometry_msgs.msg import Point, PoseStamped
 from sensor_msgs.msg import CameraInfo, Image, Imu
 
 from efficient_comm import Container, latched_qos
-from efficient_comm.handle import NodeHandle
+from efficient_comm.handle import NodeHandle, Publisher
 from efficient_comm.standalone import standalone_main
 from throttle_publisher import ThrottledPublisher
 
@@ -64,7 +64,7 @@ class _Robot:
     pty: PtyBus
     port: str
     image_pub: ThrottledPublisher
-    imu_pub: Any
+    imu_pub: Publisher
     truth_pub: ThrottledPublisher
 
 
@@ -137,6 +137,7 @@ class WorldSimulator:
             self.frames_skipped = 0
             self.render_ns = 0
             self.physics_ns = 0
+            self.ticks = 0
             node.create_timer(self.period_s, self.tick)
             self._opened = opened.pop_all()
         node.logger.info(
@@ -207,6 +208,7 @@ class WorldSimulator:
         with self.lock:
             self.world.step(step)
         self.physics_ns += time.perf_counter_ns() - started
+        self.ticks += 1
         now = self.node.clock.now_ns()
         for name, robot in self.robots.items():
             robot.imu_pub.publish(sensors.imu(self.data, prefix=f"{name}/", stamp_ns=now))
@@ -243,6 +245,7 @@ class WorldSimulator:
             "frames": self.frames,
             "frames_skipped": self.frames_skipped,
             "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
+            "physics_ms_mean": self.physics_ns / self.ticks / 1e6 if self.ticks else 0.0,
             "bus_exceptions": {n: len(r.pty.errors) for n, r in self.robots.items()},
         }
 
