@@ -27,13 +27,15 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run as a script: the repo root holds the bench package
+from bench._children import run_child  # noqa: E402
+
 DEFAULT_OUT = ROOT / "bench" / "out" / "world_bench.json"
 SIZES = (1, 3, 6)
 #: One team, then both: blue first, as ``--robots 3`` and ``3v3`` would field them.
@@ -105,25 +107,20 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=40, help="frames per camera per run")
     ap.add_argument("--quick", action="store_true", help="1 short run each: a smoke test")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
-    ap.add_argument("--child", type=int, choices=SIZES, help=argparse.SUPPRESS)
+    ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.quick:
         args.repeat, args.steps, args.frames = 1, 20, 3
     if args.child:
-        print(json.dumps(measure(args.child, steps=args.steps, frames=args.frames)))
+        task = json.loads(args.child)
+        print(json.dumps(measure(task["robots"], steps=task["steps"], frames=task["frames"])))
         return 0
 
     runs: dict[int, list[dict[str, float]]] = {n: [] for n in SIZES}
     for _ in range(args.repeat):  # interleaved, so drifting machine load hits all alike
         for n in SIZES:
-            result = subprocess.run(
-                [sys.executable, __file__, "--child", str(n), "--steps", str(args.steps),
-                 "--frames", str(args.frames)],
-                capture_output=True, text=True, timeout=600, check=False)
-            if result.returncode:
-                print(result.stdout + result.stderr, file=sys.stderr)
-                return 1
-            runs[n].append(json.loads(result.stdout.strip().splitlines()[-1]))
+            task = {"kind": "world", "robots": n, "steps": args.steps, "frames": args.frames}
+            runs[n].append(run_child(__file__, task, name="world_bench"))
 
     def med(n: int, key: str) -> float:
         return statistics.median(r[key] for r in runs[n])

@@ -37,6 +37,7 @@ import math
 import random
 import time
 from contextlib import ExitStack
+from dataclasses import dataclass
 from typing import Any
 
 import mujoco
@@ -71,27 +72,48 @@ PUSH_SECONDS = 0.1
 TRANSIENT_LOCAL = latched_qos()
 
 
+@dataclass(frozen=True)
+class SimParameters:
+    """What every simulator component declares alike: rates, camera size, line noise."""
+
+    step_hz: float
+    camera_hz: float
+    width: int
+    height: int
+    line_noise: float
+    seed: int
+
+    @classmethod
+    def declare(cls, node: NodeHandle) -> SimParameters:
+        """Declare them on ``node``; SimConfigError for values no simulator can work with."""
+        p = cls(step_hz=node.declare_parameter("step_hz", 100.0),
+                camera_hz=node.declare_parameter("camera_hz", 30.0),
+                width=node.declare_parameter("camera_width", 320),
+                height=node.declare_parameter("camera_height", 240),
+                line_noise=node.declare_parameter("line_noise", 0.0),
+                seed=node.declare_parameter("seed", 0))
+        if p.step_hz <= 0 or p.camera_hz < 0 or not 0.0 <= p.line_noise < 1.0:
+            raise SimConfigError(
+                f"need step_hz > 0, camera_hz >= 0, 0 <= line_noise < 1; got {p.step_hz}, "
+                f"{p.camera_hz}, {p.line_noise}"
+            )
+        return p
+
+
 class Simulator:
     def __init__(self, node: NodeHandle) -> None:
         self.node = node
-        step_hz = node.declare_parameter("step_hz", 100.0)
-        camera_hz = node.declare_parameter("camera_hz", 30.0)
-        width = node.declare_parameter("camera_width", 320)
-        height = node.declare_parameter("camera_height", 240)
+        common = SimParameters.declare(node)
+        step_hz, camera_hz, width, height = (common.step_hz, common.camera_hz, common.width,
+                                             common.height)
+        line_noise, seed = common.line_noise, common.seed
         port_link = node.declare_parameter("port_link", "")
-        line_noise = node.declare_parameter("line_noise", 0.0)
-        seed = node.declare_parameter("seed", 0)
         ball_position = node.declare_parameter("ball_position", [1.5, 0.0])
         ball_velocity = node.declare_parameter("ball_velocity", [0.0, 0.0])
         robot_pose = node.declare_parameter("robot_pose", [0.0, 0.0, 0.0])
         self.kick_period_s = node.declare_parameter("ball_kick_period", 0.0)
         self._push_at_s = node.declare_parameter("push_at", 0.0)
         push_force = node.declare_parameter("push_force", [40.0, 0.0, 0.0])
-        if step_hz <= 0 or camera_hz < 0 or not 0.0 <= line_noise < 1.0:
-            raise SimConfigError(
-                f"need step_hz > 0, camera_hz >= 0, 0 <= line_noise < 1; got {step_hz}, "
-                f"{camera_hz}, {line_noise}"
-            )
         if len(ball_position) != 2 or len(ball_velocity) != 2:
             raise SimConfigError("ball_position and ball_velocity are [x, y] in metres (per s)")
         if len(robot_pose) != 3 or not all(map(math.isfinite, robot_pose)):

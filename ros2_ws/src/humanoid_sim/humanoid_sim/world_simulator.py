@@ -53,6 +53,7 @@ from .mujoco_plant import JOINTS
 from .pacing import Pacer
 from .render import OffscreenRenderer
 from .sensors import CAMERA
+from .simulator import SimParameters
 from .world import DEFAULT_START, Pose2D, World, team_of
 
 
@@ -73,17 +74,10 @@ class WorldSimulator:
         self.node = node
         names = node.declare_parameter("robots", ["blue1"])
         ball = node.declare_parameter("ball_position", [0.0, 0.0])
-        step_hz = node.declare_parameter("step_hz", 100.0)
-        camera_hz = node.declare_parameter("camera_hz", 30.0)
-        width = node.declare_parameter("camera_width", 320)
-        height = node.declare_parameter("camera_height", 240)
         port_dir = node.declare_parameter("port_dir", "")
-        line_noise = node.declare_parameter("line_noise", 0.0)
-        seed = node.declare_parameter("seed", 0)
-        if step_hz <= 0 or camera_hz < 0 or not 0.0 <= line_noise < 1.0:
-            raise SimConfigError(
-                f"need step_hz > 0, camera_hz >= 0, 0 <= line_noise < 1; got {step_hz}, "
-                f"{camera_hz}, {line_noise}")
+        common = SimParameters.declare(node)
+        step_hz, camera_hz, width, height = (common.step_hz, common.camera_hz, common.width,
+                                             common.height)
         if len(set(names)) != len(names):
             raise SimConfigError(f"robots: each name once, got {names}")
         if len(ball) != 2:
@@ -103,8 +97,8 @@ class WorldSimulator:
                 self.renderer = OffscreenRenderer(self.model, width=width, height=height)
                 opened.callback(self.renderer.close)
             for index, name in enumerate(names):
-                pty = PtyBus(Bus(JOINTS, self.world.robots[name]), corrupt=line_noise,
-                             seed=seed + index, lock=self.lock,
+                pty = PtyBus(Bus(JOINTS, self.world.robots[name]), corrupt=common.line_noise,
+                             seed=common.seed + index, lock=self.lock,
                              packet_timeout_s=None if self._lockstep else PACKET_TIMEOUT_S)
                 opened.callback(pty.close)
                 port = pty.port
