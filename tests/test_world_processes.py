@@ -28,9 +28,10 @@ def test_drivers_in_their_own_processes_drive_their_robots_and_the_referee_place
     domain = isolated_domain_id()
     ports = tmp_path / "ports"
     ports.mkdir()
-    world = [executable("humanoid_sim", "world"), "--ros-args",
-             "-p", f"robots:={_list(list(ROBOTS))}", "-p", f"port_dir:={ports}",
-             "-p", "camera_hz:=5.0", "-p", "camera_width:=64", "-p", "camera_height:=48"]
+    world: list[str | Path] = [
+        executable("humanoid_sim", "world"), "--ros-args",
+        "-p", f"robots:={_list(list(ROBOTS))}", "-p", f"port_dir:={ports}",
+        "-p", "camera_hz:=5.0", "-p", "camera_width:=64", "-p", "camera_height:=48"]
     log = tmp_path / "world.log"
     with peer(domain) as p, child(world, domain_id=domain, log=log) as proc:
         assert wait_until(lambda: "servos on" in log.read_text(), proc), log.read_text()
