@@ -40,6 +40,9 @@ TEAM_COLOURS: dict[str, tuple[float, float, float, float]] = {
     "blue": (0.1, 0.25, 0.85, 1.0),
     "red": (0.8, 0.05, 0.08, 1.0),
 }
+#: Start poses closer than this (torso to torso) would put two robots inside each other
+#: (shoulder to shoulder a robot is 0.24 m wide, toe to heel 0.13 m long).
+MIN_START_DISTANCE_M = 0.3
 #: The world's ``<visual><quality numslices numstacks numquads>`` (MuJoCo's: 28, 16, 4).
 RENDER_QUALITY = (16, 8, 1)
 _NAME = re.compile(r"^(blue|red)([1-9][0-9]*)$")
@@ -93,6 +96,14 @@ def build_model(robots: Mapping[str, Pose2D]) -> mujoco.MjModel:
     for name, pose in robots.items():
         team_of(name)
         check_on_field(name, pose)
+    named = list(robots.items())
+    for i, (a, pa) in enumerate(named):
+        for b, pb in named[i + 1:]:
+            if math.hypot(pa.x - pb.x, pa.y - pb.y) < MIN_START_DISTANCE_M:
+                raise SimConfigError(
+                    f"robots {a} and {b} start {math.hypot(pa.x - pb.x, pa.y - pb.y):.2f} m "
+                    f"apart: closer than {MIN_START_DISTANCE_M} m they would start inside "
+                    "each other")
     spec = mujoco.MjSpec.from_file(str(FIELD_MODEL))
     robot_options = mujoco.MjSpec.from_file(str(ROBOT_MODEL)).option
     # The world steps as the robot's model was tuned to (the field has no say).

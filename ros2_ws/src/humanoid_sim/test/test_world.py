@@ -77,6 +77,8 @@ def test_six_robots_have_prefixed_names_team_colours_and_their_start_poses() -> 
     ({"green1": Pose2D(0, 0, 0)}, "robot 'green1': robots are named blue1, .*red3"),
     ({"blue4": Pose2D(0, 0, 0)}, "robot 'blue4'"),
     ({}, "at least one robot"),
+    ({"blue1": Pose2D(0, 0, 0), "red1": Pose2D(0.1, 0.1, 0)}, "robots blue1 and red1 start "
+                                                              "0.14 m apart"),
 ])
 def test_a_bad_start_is_refused_naming_the_robot(robots: dict[str, Pose2D], match: str) -> None:
     with pytest.raises(SimConfigError, match=match):
@@ -98,9 +100,10 @@ def test_each_robot_drives_only_its_own_servos() -> None:
 
 
 def test_robots_collide_with_each_other_and_with_the_ball() -> None:
-    # Facing each other 0.12 m apart: their feet (0.07 m in front of the torso) overlap.
-    world = World({"blue1": Pose2D(0.0, 0.0, 0.0), "red1": Pose2D(0.12, 0.0, math.pi)},
+    world = World({"blue1": Pose2D(0.0, 0.0, 0.0), "red1": Pose2D(1.0, 0.0, math.pi)},
                   ball=(-1.0, 0.0))
+    # Placed facing each other 0.12 m apart: their feet (0.07 m in front of the torso) overlap.
+    world.place_robot("red1", Pose2D(0.12, 0.0, math.pi))
     world.step(0.01)
     assert _penetration_between(world, "blue1", "red1") > 0.005
     world.step(0.2)
