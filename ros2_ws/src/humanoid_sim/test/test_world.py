@@ -184,6 +184,11 @@ def test_two_robots_each_on_its_own_bus_stand_in_lockstep_and_collide(
             assert falls[name] and falls[name][-1].data == "standing"
         assert len(imu) == 200 and truth[-1].header.frame_id == "field"
         assert truth[-1].pose.position.x == pytest.approx(1.0, abs=0.05)
+        # red1's IMU is red1's: it sits square on red1's torso, which faces -x.
+        assert imu[-1].header.stamp == truth[-1].header.stamp
+        q, r = imu[-1].orientation, truth[-1].pose.orientation
+        assert abs(q.w * r.w + q.x * r.x + q.y * r.y + q.z * r.z) == pytest.approx(1, abs=1e-6)
+        assert abs(r.z) > 0.99  # heading pi
         # The referee puts red1 right in front of blue1: their feet overlap, they collide.
         place = PoseStamped()
         place.header.frame_id = "red1"
