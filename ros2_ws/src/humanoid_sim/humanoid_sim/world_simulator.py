@@ -58,8 +58,8 @@ from .world import DEFAULT_START, Pose2D, World, team_of
 
 
 @dataclass
-class _Robot:
-    """One robot's bus and topics."""
+class ServedRobot:
+    """One robot as the world serves it: its bus, the port its driver opens, its topics."""
 
     name: str
     pty: PtyBus
@@ -91,7 +91,7 @@ class WorldSimulator:
         #: Held by every robot's bus while it answers, and while the world steps.
         self.lock = threading.Lock()
         self.renderer: OffscreenRenderer | None = None
-        self.robots: dict[str, _Robot] = {}
+        self.robots: dict[str, ServedRobot] = {}
         with ExitStack() as opened:
             if camera_hz > 0:
                 self.renderer = OffscreenRenderer(self.model, width=width, height=height)
@@ -115,7 +115,7 @@ class WorldSimulator:
                     CameraInfo, f"{name}/camera/camera_info", qos=latched_qos(),
                 ).publish(sensors.camera_info(self.model, camera=f"{name}/{CAMERA}",
                                               width=width, height=height))
-                self.robots[name] = _Robot(
+                self.robots[name] = ServedRobot(
                     name=name, pty=pty, port=port,
                     image_pub=ThrottledPublisher(node, Image, f"{name}/camera/image_raw", qos=2),
                     imu_pub=node.create_publisher(Imu, f"{name}/imu/data", qos=10),
