@@ -21,10 +21,12 @@ setup(
         "console_scripts": [
             "soccer_demo = humanoid_sim.demo:main",
             "simulator = humanoid_sim.simulator:main",
+            "world = humanoid_sim.world_simulator:main",
             "servo_driver = humanoid_sim.driver:main",
         ],
         "efficient_comm.components": [
             "humanoid_sim::Simulator = humanoid_sim.simulator:Simulator",
+            "humanoid_sim::WorldSimulator = humanoid_sim.world_simulator:WorldSimulator",
             "humanoid_sim::ServoDriver = humanoid_sim.driver:ServoDriver",
             "humanoid_sim::BallDetector = humanoid_sim.soccer.vision:BallDetector",
             "humanoid_sim::BallModel = humanoid_sim.soccer.world_model:BallModel",

@@ -21,7 +21,7 @@ back-EMF's damping drop to zero (the motor driver's output is off, so no current
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import mujoco
@@ -57,26 +57,58 @@ JOINTS: dict[int, str] = {
 }
 
 
-class MujocoPlant:
-    def __init__(self, *, model_path: Path = MODEL, joints: Mapping[int, str] = JOINTS) -> None:
-        self.model = mujoco.MjModel.from_xml_path(str(model_path))
-        self.data = mujoco.MjData(self.model)
-        self._joint = {i: self.model.joint(name) for i, name in joints.items()}
-        self._actuator = {i: self.model.actuator(name).id for i, name in joints.items()}
-        self._kp = {i: float(self.model.actuator_gainprm[a, 0]) for i, a in self._actuator.items()}
-        self._kv = {i: float(-self.model.actuator_biasprm[a, 2]) for i, a in self._actuator.items()}
-        self._dof = {i: int(self.model.joint(name).dofadr[0]) for i, name in joints.items()}
-        self._damping = {i: float(self.model.dof_damping[d]) for i, d in self._dof.items()}
+ROBOT_MODEL = MODEL.with_name("robot.xml")
+FIELD_MODEL = MODEL.with_name("field.xml")
+BALL_RADIUS_M = 0.07
+
+
+def set_ball(model: mujoco.MjModel, data: mujoco.MjData, *,
+             position: tuple[float, float] | None = None,
+             velocity: tuple[float, float] = (0.0, 0.0)) -> None:
+    """Put the ball (the field's ``ball`` joint) on the ground at ``position`` (if given) and
+    set it rolling at ``velocity`` (m/s)."""
+    ball = model.joint("ball")
+    q, v = ball.qposadr[0], ball.dofadr[0]
+    if position is not None:
+        data.qpos[q : q + 7] = [position[0], position[1], BALL_RADIUS_M, 1, 0, 0, 0]
+    data.qvel[v : v + 6] = [velocity[0], velocity[1], 0, 0, 0, 0]
+    mujoco.mj_forward(model, data)
+
+
+class RobotPlant:
+    """One robot's servos in a MuJoCo world that may hold several robots: the
+    :class:`~humanoid_sim.dynamixel.plant.Plant` its emulated bus drives.
+
+    Every name of the robot's model (``torso``, ``root``, the joints, the actuators, the IMU
+    sensors, ``head_camera``) is looked up with ``prefix`` in front (``blue1/torso``), so each
+    robot of a shared world has a view of its own; ``prefix=""`` is the one-robot model. The
+    view never steps: the world does, once for all robots (:func:`step_world`).
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, *, prefix: str = "",
+                 joints: Mapping[int, str] = JOINTS) -> None:
+        self.model, self.data, self.prefix = model, data, prefix
+        self._joint = {i: model.joint(prefix + name) for i, name in joints.items()}
+        self._actuator = {i: model.actuator(prefix + name).id for i, name in joints.items()}
+        self._kp = {i: float(model.actuator_gainprm[a, 0]) for i, a in self._actuator.items()}
+        self._kv = {i: float(-model.actuator_biasprm[a, 2]) for i, a in self._actuator.items()}
+        self._dof = {i: int(j.dofadr[0]) for i, j in self._joint.items()}
+        self._damping = {i: float(model.dof_damping[d]) for i, d in self._dof.items()}
         self._goal: dict[int, tuple[bool, float, float]] = {}
         # Set-point slewing for all torqued joints at once: actuator index, goal, speed.
-        self._slew_index = np.zeros(0, dtype=np.intp)
-        self._slew_goal = np.zeros(0)
-        self._slew_speed = np.zeros(0)
+        self.slew_index = np.zeros(0, dtype=np.intp)
+        self.slew_goal = np.zeros(0)
+        self.slew_speed = np.zeros(0)
         #: Pushes under way: body id, the simulated time at which it ends, its force.
-        self._pushes: list[tuple[int, float, npt.NDArray[np.float64]]] = []
+        self.pushes: list[tuple[int, float, npt.NDArray[np.float64]]] = []
+        self._torso = model.body(prefix + "torso").id
+        self._root = model.joint(prefix + "root")
         for dxl_id in joints:
             self._set_torque(dxl_id, on=False)
-        mujoco.mj_forward(self.model, self.data)
+
+    def name(self, name: str) -> str:
+        """``name`` of the robot's model as the world calls it (``torso`` -> ``blue1/torso``)."""
+        return self.prefix + name
 
     def _set_torque(self, dxl_id: int, *, on: bool) -> None:
         a = self._actuator[dxl_id]
@@ -96,14 +128,15 @@ class MujocoPlant:
         self._goal[dxl_id] = (torque, goal_rad, max_speed_rad_s)
         self._set_torque(dxl_id, on=torque)
         on = [(self._actuator[i], g, s) for i, (t, g, s) in self._goal.items() if t]
-        self._slew_index = np.array([a for a, _, _ in on], dtype=np.intp)
-        self._slew_goal = np.array([g for _, g, _ in on])
-        self._slew_speed = np.array([s for _, _, s in on])
+        self.slew_index = np.array([a for a, _, _ in on], dtype=np.intp)
+        self.slew_goal = np.array([g for _, g, _ in on])
+        self.slew_speed = np.array([s for _, _, s in on])
 
     def push(self, force_n: tuple[float, float, float], *, duration_s: float,
              body: str = "torso") -> None:
-        """Push ``body`` at its centre of mass with ``force_n`` (field frame, newtons) for
-        the next ``duration_s`` of simulated time: a shove, as in a push-recovery test.
+        """Push the robot's ``body`` at its centre of mass with ``force_n`` (field frame,
+        newtons) for the next ``duration_s`` of simulated time: a shove, as in a
+        push-recovery test.
 
         Pushes on the same body add up while they overlap.
         """
@@ -112,32 +145,31 @@ class MujocoPlant:
             raise SimConfigError(f"a push needs a finite (x, y, z) force and a duration > 0, "
                                  f"got {force_n} for {duration_s} s")
         try:
-            body_id = self.model.body(body).id
+            body_id = self.model.body(self.prefix + body).id
         except KeyError:
-            raise SimConfigError(f"no body {body!r} to push in the model") from None
+            raise SimConfigError(f"no body {self.prefix + body!r} to push in the model") from None
         self.data.xfrc_applied[body_id, :3] += force
-        self._pushes.append((body_id, self.data.time + duration_s, force))
+        self.pushes.append((body_id, self.data.time + duration_s, force))
 
-    def _end_pushes(self) -> None:
+    def end_pushes(self) -> None:
+        """Take back the forces of pushes whose time is up."""
         now = self.data.time + 1e-9
-        for push in list(self._pushes):
+        for push in list(self.pushes):
             body_id, until, force = push
             if now >= until:
                 self.data.xfrc_applied[body_id, :3] -= force
-                self._pushes.remove(push)
+                self.pushes.remove(push)
 
-    def step(self, seconds: float) -> None:
-        """Advance the simulation; set-points move toward goals at the allowed speed."""
-        steps = max(1, round(seconds / self.model.opt.timestep))
-        dt = self.model.opt.timestep
-        index, goal, limit = self._slew_index, self._slew_goal, self._slew_speed * dt
-        for _ in range(steps):
-            if len(index):
-                ctrl = self.data.ctrl[index]
-                self.data.ctrl[index] = ctrl + np.clip(goal - ctrl, -limit, limit)
-            mujoco.mj_step(self.model, self.data)
-            if self._pushes:
-                self._end_pushes()
+    def place(self, *, x: float, y: float, heading: float) -> None:
+        """Put the torso above (x, y) on the field, upright and facing ``heading`` (rad), its
+        body at rest. A robot that is down is stood up at the model's start height (it drops
+        onto its feet with the joint angles it has); call ``mj_forward`` afterwards."""
+        q, v = self._root.qposadr[0], self._root.dofadr[0]
+        if self.data.xmat[self._torso][8] < math.cos(math.radians(30)):  # tilted: down
+            self.data.qpos[q + 2] = self.model.qpos0[q + 2]
+        self.data.qpos[q : q + 2] = [x, y]
+        self.data.qpos[q + 3 : q + 7] = [math.cos(heading / 2), 0, 0, math.sin(heading / 2)]
+        self.data.qvel[v : v + 6] = 0.0
 
     def motor_torque(self, dxl_id: int) -> float:
         """The motor's torque at the output (N m): what the PWM asks for less the back-EMF's."""
@@ -159,4 +191,41 @@ class MujocoPlant:
         return float(self.data.time)
 
     def torso_height(self) -> float:
-        return float(self.data.xpos[self.model.body("torso").id][2])
+        return float(self.data.xpos[self._torso][2])
+
+
+def step_world(model: mujoco.MjModel, data: mujoco.MjData, robots: Sequence[RobotPlant],
+               seconds: float) -> None:
+    """Advance the world by ``seconds``; every robot's set-points move toward their goals at
+    the allowed speed, all robots' at once in each physics step."""
+    steps = max(1, round(seconds / model.opt.timestep))
+    dt = model.opt.timestep
+    if len(robots) == 1:
+        (robot,) = robots
+        index, goal, limit = robot.slew_index, robot.slew_goal, robot.slew_speed * dt
+    else:
+        index = np.concatenate([r.slew_index for r in robots])
+        goal = np.concatenate([r.slew_goal for r in robots])
+        limit = np.concatenate([r.slew_speed for r in robots]) * dt
+    for _ in range(steps):
+        if len(index):
+            ctrl = data.ctrl[index]
+            data.ctrl[index] = ctrl + np.clip(goal - ctrl, -limit, limit)
+        mujoco.mj_step(model, data)
+        for robot in robots:
+            if robot.pushes:
+                robot.end_pushes()
+
+
+class MujocoPlant(RobotPlant):
+    """The one-robot world (``models/soccer_field.xml``): the robot's names unprefixed, and
+    :meth:`step` advances the world."""
+
+    def __init__(self, *, model_path: Path = MODEL, joints: Mapping[int, str] = JOINTS) -> None:
+        model = mujoco.MjModel.from_xml_path(str(model_path))
+        super().__init__(model, mujoco.MjData(model), joints=joints)
+        mujoco.mj_forward(self.model, self.data)
+
+    def step(self, seconds: float) -> None:
+        """Advance the simulation; set-points move toward goals at the allowed speed."""
+        step_world(self.model, self.data, [self], seconds)

@@ -53,14 +53,18 @@ def gl_backend() -> str:
     )
 
 
-class OffscreenCamera:
-    """Renders one MJCF camera into RGB arrays (row 0 at the top, as images are stored).
+class OffscreenRenderer:
+    """Renders any camera of a model into RGB arrays (row 0 at the top, as images are
+    stored), all from one offscreen GL context.
 
-    Shadows and reflections are off: they cost ~10x the frame time in a software
-    rasteriser and do not matter to colour-based ball detection.
+    One context serves every robot of a shared world: a context costs its framebuffers and
+    the model's uploaded textures and meshes, and switching between contexts costs a flush,
+    while the cameras differ only in the view. Shadows and reflections are off: they cost
+    ~10x the frame time in a software rasteriser and do not matter to colour-based ball
+    detection.
     """
 
-    def __init__(self, model: mujoco.MjModel, *, camera: str, width: int, height: int) -> None:
+    def __init__(self, model: mujoco.MjModel, *, width: int, height: int) -> None:
         if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
             raise RenderError(
                 f"{width}x{height} exceeds the model's offscreen buffer "
@@ -89,14 +93,26 @@ class OffscreenCamera:
         self._option = mujoco.MjvOption()
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
-        self._camera.fixedcamid = model.camera(camera).id
         self._rect = mujoco.MjrRect(0, 0, width, height)
         self._flipped = np.empty((height, width, 3), dtype=np.uint8)
+        #: Frames rendered, per camera name: what consumers asked for.
+        self.frames: dict[str, int] = {}
+        self._ids: dict[str, int] = {}
 
-    def render(self, data: mujoco.MjData, out: npt.NDArray[np.uint8]) -> None:
-        """Draw the camera's view of ``data`` into ``out`` (height x width x 3, uint8)."""
+    def camera_id(self, camera: str) -> int:
+        """The model's id of ``camera``; RenderError if the model has no such camera."""
+        if camera not in self._ids:
+            try:
+                self._ids[camera] = int(self._model.camera(camera).id)
+            except KeyError:
+                raise RenderError(f"no camera {camera!r} in the model") from None
+        return self._ids[camera]
+
+    def render(self, data: mujoco.MjData, out: npt.NDArray[np.uint8], *, camera: str) -> None:
+        """Draw ``camera``'s view of ``data`` into ``out`` (height x width x 3, uint8)."""
         if self._context is None:
-            raise RenderError("the camera is closed")
+            raise RenderError("the renderer is closed")
+        self._camera.fixedcamid = self.camera_id(camera)
         self._gl.make_current()
         mujoco.mjv_updateScene(self._model, data, self._option, None, self._camera,
                                mujoco.mjtCatBit.mjCAT_ALL, self._scene)
@@ -105,6 +121,7 @@ class OffscreenCamera:
         mujoco.mjr_render(self._rect, self._scene, self._context)
         mujoco.mjr_readPixels(self._flipped, None, self._rect, self._context)
         np.copyto(out, self._flipped[::-1])  # OpenGL's rows run bottom-up
+        self.frames[camera] = self.frames.get(camera, 0) + 1
 
     def close(self) -> None:
         """Free the GL context; a second call does nothing (a double free would crash)."""
@@ -113,3 +130,26 @@ class OffscreenCamera:
         context, self._context = self._context, None
         context.free()
         self._gl.free()
+
+
+class OffscreenCamera:
+    """One camera on a renderer of its own: the one-robot simulator's head camera."""
+
+    def __init__(self, model: mujoco.MjModel, *, camera: str, width: int, height: int) -> None:
+        self.renderer = OffscreenRenderer(model, width=width, height=height)
+        try:
+            self.renderer.camera_id(camera)
+        except RenderError:
+            self.renderer.close()
+            raise
+        self.camera = camera
+        self.backend = self.renderer.backend
+        self.width, self.height = width, height
+
+    def render(self, data: mujoco.MjData, out: npt.NDArray[np.uint8]) -> None:
+        """Draw the camera's view of ``data`` into ``out`` (height x width x 3, uint8)."""
+        self.renderer.render(data, out, camera=self.camera)
+
+    def close(self) -> None:
+        """Free the GL context; a second call does nothing (a double free would crash)."""
+        self.renderer.close()

@@ -1,6 +1,7 @@
 """The simulator component: MuJoCo physics behind the emulated servo bus, camera, IMU, truth.
 
-It owns the world (``models/soccer_field.xml``) and serves the robot's 20 servos on a
+It owns the one-robot world (``models/soccer_field.xml``; several robots share one in
+:mod:`.world_simulator`) and serves the robot's 20 servos on a
 pseudo-terminal, so the servo driver runs unchanged against it: the only thing the driver
 sees of the simulation is a serial port. Every timer tick advances physics by one period:
 
@@ -32,72 +33,87 @@ frame) does the same from anywhere, spread over :data:`PUSH_SECONDS`. For get-up
 
 from __future__ import annotations
 
-import array
 import math
-import os
 import random
 import time
-from contextlib import ExitStack, suppress
+from contextlib import ExitStack
+from dataclasses import dataclass
 from typing import Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
+from geometry_msgs.msg import Point, PoseStamped, Vector3
 from sensor_msgs.msg import CameraInfo, Image, Imu
 
-from efficient_comm import latched_qos, to_msg
+from efficient_comm import latched_qos
 from efficient_comm.handle import NodeHandle
 from efficient_comm.standalone import standalone_main
 from throttle_publisher import ThrottledPublisher
 
+from . import sensors
 from .dynamixel.bus import Bus
-from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus
+from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus, make_port_link, remove_port_link
 from .errors import SimConfigError
-from .mujoco_plant import JOINTS, MujocoPlant
+from .mujoco_plant import JOINTS, MujocoPlant, set_ball
+from .pacing import MAX_CATCH_UP as MAX_CATCH_UP
+from .pacing import Pacer
 from .render import OffscreenCamera
+from .sensors import CAMERA
 
-CAMERA = "head_camera"
-BALL_RADIUS_M = 0.07
 #: Where kicked balls go: in front of the robot, where its head can follow them.
 KICK_AREA = ((0.8, 2.5), (-1.2, 1.2))
 #: How fast the field slows a rolling ball (m/s²): the ball's rolling friction in
 #: ``models/soccer_field.xml`` (``test_field.py`` measures it); a kick that should reach a
 #: point rolls the ball off with the speed that stops it there.
 ROLLING_DECELERATION = 0.8
-MAX_CATCH_UP = 4
 #: How long a push that arrives as an impulse on the ``push`` topic lasts.
 PUSH_SECONDS = 0.1
 TRANSIENT_LOCAL = latched_qos()
 
 
-def _pose(position: npt.ArrayLike, quat_wxyz: npt.ArrayLike) -> Pose:
-    p, q = np.asarray(position, dtype=float), np.asarray(quat_wxyz, dtype=float)
-    return Pose(position=Point(x=p[0], y=p[1], z=p[2]),
-                orientation=Quaternion(w=q[0], x=q[1], y=q[2], z=q[3]))
+@dataclass(frozen=True)
+class SimParameters:
+    """What every simulator component declares alike: rates, camera size, line noise."""
+
+    step_hz: float
+    camera_hz: float
+    width: int
+    height: int
+    line_noise: float
+    seed: int
+
+    @classmethod
+    def declare(cls, node: NodeHandle) -> SimParameters:
+        """Declare them on ``node``; SimConfigError for values no simulator can work with."""
+        p = cls(step_hz=node.declare_parameter("step_hz", 100.0),
+                camera_hz=node.declare_parameter("camera_hz", 30.0),
+                width=node.declare_parameter("camera_width", 320),
+                height=node.declare_parameter("camera_height", 240),
+                line_noise=node.declare_parameter("line_noise", 0.0),
+                seed=node.declare_parameter("seed", 0))
+        if p.step_hz <= 0 or p.camera_hz < 0 or not 0.0 <= p.line_noise < 1.0:
+            raise SimConfigError(
+                f"need step_hz > 0, camera_hz >= 0, 0 <= line_noise < 1; got {p.step_hz}, "
+                f"{p.camera_hz}, {p.line_noise}"
+            )
+        return p
 
 
 class Simulator:
     def __init__(self, node: NodeHandle) -> None:
         self.node = node
-        step_hz = node.declare_parameter("step_hz", 100.0)
-        camera_hz = node.declare_parameter("camera_hz", 30.0)
-        width = node.declare_parameter("camera_width", 320)
-        height = node.declare_parameter("camera_height", 240)
+        common = SimParameters.declare(node)
+        step_hz, camera_hz, width, height = (common.step_hz, common.camera_hz, common.width,
+                                             common.height)
+        line_noise, seed = common.line_noise, common.seed
         port_link = node.declare_parameter("port_link", "")
-        line_noise = node.declare_parameter("line_noise", 0.0)
-        seed = node.declare_parameter("seed", 0)
         ball_position = node.declare_parameter("ball_position", [1.5, 0.0])
         ball_velocity = node.declare_parameter("ball_velocity", [0.0, 0.0])
         robot_pose = node.declare_parameter("robot_pose", [0.0, 0.0, 0.0])
         self.kick_period_s = node.declare_parameter("ball_kick_period", 0.0)
         self._push_at_s = node.declare_parameter("push_at", 0.0)
         push_force = node.declare_parameter("push_force", [40.0, 0.0, 0.0])
-        if step_hz <= 0 or camera_hz < 0 or not 0.0 <= line_noise < 1.0:
-            raise SimConfigError(
-                f"need step_hz > 0, camera_hz >= 0, 0 <= line_noise < 1; got {step_hz}, "
-                f"{camera_hz}, {line_noise}"
-            )
         if len(ball_position) != 2 or len(ball_velocity) != 2:
             raise SimConfigError("ball_position and ball_velocity are [x, y] in metres (per s)")
         if len(robot_pose) != 3 or not all(map(math.isfinite, robot_pose)):
@@ -114,7 +130,6 @@ class Simulator:
         self.period_s = 1.0 / step_hz
         self.camera: OffscreenCamera | None = None
         self.camera_period_ns = round(1e9 / camera_hz) if camera_hz > 0 else 0
-        self._link = port_link
         # What is opened here is closed again if a later step fails: the container never
         # sees a half-built simulator, so its close() would not run.
         with ExitStack() as opened:
@@ -130,10 +145,9 @@ class Simulator:
             opened.callback(self.pty.close)
             self.port = self.pty.port
             if port_link:
-                self._make_link(port_link)
-                opened.callback(self._remove_link)
+                make_port_link(self.pty.port, port_link)
+                opened.callback(remove_port_link, self.pty.port, port_link)
                 self.port = port_link
-            self._ball = self.model.joint("ball")
             self.place_robot(x=robot_pose[0], y=robot_pose[1], heading=robot_pose[2])
             self.roll_ball(position=(ball_position[0], ball_position[1]),
                            velocity=(ball_velocity[0], ball_velocity[1]))
@@ -156,12 +170,9 @@ class Simulator:
             self.frames = 0
             self.frames_skipped = 0
             self.render_ns = 0
-            #: Simulated time given up because the machine fell behind (real time only).
-            self.skipped_s = 0.0
             self._next_frame_ns: int | None = None
             self._next_kick_s = self.kick_period_s
-            self._wall_start: float | None = None  # wall time that sim time 0 stands for
-            self._wall_first: float | None = None  # wall time of the first tick
+            self._pacer = Pacer(period_s=self.period_s, monotonic=time.monotonic)
             self._lockstep = node.clock_kind == "manual"
             node.create_timer(self.period_s, self.tick)
             self._opened = opened.pop_all()
@@ -170,54 +181,22 @@ class Simulator:
             f"({self.camera.backend if self.camera else 'off'})"
         )
 
-    def _make_link(self, link: str) -> None:
-        """Point ``link`` at the pty; only a symlink (a stale one from an earlier run) is
-        replaced, never a file or device someone else owns."""
-        if os.path.lexists(link) and not os.path.islink(link):
-            raise SimConfigError(f"port_link {link!r} exists and is not a symlink")
-        staging = f"{link}.{os.getpid()}.new"
-        try:
-            os.symlink(self.pty.port, staging)
-            os.replace(staging, link)  # atomic: a driver never sees the link missing
-        except OSError as exc:
-            with suppress(OSError):
-                os.unlink(staging)
-            raise SimConfigError(f"cannot make port_link {link!r}: {exc}") from exc
-
-    def _remove_link(self) -> None:
-        """Remove the link if it is still ours (a newer simulator may have taken the path)."""
-        with suppress(OSError):
-            if os.readlink(self._link) == self.pty.port:
-                os.unlink(self._link)
-
     # -- the world ------------------------------------------------------------------------
 
     def camera_info(self, width: int, height: int) -> CameraInfo:
-        fovy = math.radians(float(self.model.cam_fovy[self.model.camera(CAMERA).id]))
-        f = (height / 2) / math.tan(fovy / 2)
-        info = CameraInfo(width=width, height=height, distortion_model="plumb_bob")
-        info.header.frame_id = CAMERA
-        info.k = [f, 0.0, width / 2, 0.0, f, height / 2, 0.0, 0.0, 1.0]
-        info.p = [f, 0.0, width / 2, 0.0, 0.0, f, height / 2, 0.0, 0.0, 0.0, 1.0, 0.0]
-        info.d = [0.0] * 5
-        return info
+        return sensors.camera_info(self.model, camera=CAMERA, width=width, height=height)
 
     def roll_ball(self, *, position: tuple[float, float] | None = None,
                   velocity: tuple[float, float] = (0.0, 0.0)) -> None:
         """Put the ball at ``position`` (if given) and set it rolling at ``velocity`` (m/s)."""
         with self.pty.lock:
-            q, v = self._ball.qposadr[0], self._ball.dofadr[0]
-            if position is not None:
-                self.data.qpos[q : q + 7] = [position[0], position[1], BALL_RADIUS_M, 1, 0, 0, 0]
-            self.data.qvel[v : v + 6] = [velocity[0], velocity[1], 0, 0, 0, 0]
-            mujoco.mj_forward(self.model, self.data)
+            set_ball(self.model, self.data, position=position, velocity=velocity)
 
     def place_robot(self, *, x: float, y: float, heading: float) -> None:
-        """Put the robot's torso above (x, y) on the field, facing ``heading`` (rad)."""
+        """Put the robot's torso above (x, y) on the field, facing ``heading`` (rad), at rest
+        (see :meth:`~.mujoco_plant.RobotPlant.place`)."""
         with self.pty.lock:
-            q = self.model.joint("root").qposadr[0]
-            self.data.qpos[q : q + 2] = [x, y]
-            self.data.qpos[q + 3 : q + 7] = [math.cos(heading / 2), 0, 0, math.sin(heading / 2)]
+            self.plant.place(x=x, y=y, heading=heading)
             mujoco.mj_forward(self.model, self.data)
 
     def _on_place_ball(self, point: Point) -> None:
@@ -297,31 +276,15 @@ class Simulator:
     @property
     def real_time_factor(self) -> float:
         """Simulated seconds per wall-clock second since the first tick."""
-        if self._wall_first is None:
-            return 0.0
-        wall = time.monotonic() - self._wall_first
-        return self.sim_time_s / wall if wall > 0 else 0.0
+        return self._pacer.real_time_factor(self.sim_time_s)
 
-    def _step_s(self) -> float:
-        """How far to step now: one period in lockstep, up to the wall clock otherwise.
-
-        A machine that falls further behind than :data:`MAX_CATCH_UP` periods gives the
-        rest up (counted in :attr:`skipped_s`): the world slows down for a moment instead
-        of racing through the backlog afterwards.
-        """
-        if self._lockstep or self._wall_start is None:
-            return self.period_s
-        limit = MAX_CATCH_UP * self.period_s
-        behind = time.monotonic() - self._wall_start - self.sim_time_s
-        if behind > limit:
-            self._wall_start += behind - limit
-            self.skipped_s += behind - limit
-        return min(max(behind, self.period_s / 2), limit)
+    @property
+    def skipped_s(self) -> float:
+        """Simulated time given up because the machine fell behind (real time only)."""
+        return self._pacer.skipped_s
 
     def tick(self) -> None:
-        step = self._step_s()
-        if self._wall_start is None:
-            self._wall_first = self._wall_start = time.monotonic() - self.period_s
+        step = self._pacer.step_s(self.sim_time_s, lockstep=self._lockstep)
         if self.kick_period_s > 0 and self.sim_time_s >= self._next_kick_s:
             self._next_kick_s += self.kick_period_s
             self._kick()
@@ -347,31 +310,14 @@ class Simulator:
             self.image_pub.skip()  # so every_nth keeps counting the camera's frames
             self.frames_skipped += 1
             return
-        w, h = self.camera.width, self.camera.height
-        buffer = array.array("B", bytes(w * h * 3))
         started = time.perf_counter_ns()
-        self.camera.render(self.data, np.frombuffer(buffer, dtype=np.uint8).reshape(h, w, 3))
+        image = sensors.image(self.camera.renderer, self.data, camera=CAMERA, stamp_ns=now)
         self.render_ns += time.perf_counter_ns() - started
-        image = Image(height=h, width=w, encoding="rgb8", step=w * 3)
-        image.header.stamp = to_msg(now)
-        image.header.frame_id = CAMERA
-        image.data = buffer  # an array.array is taken as is: no copy, no per-byte check
         self.frames += 1
         self.image_pub.publish(image)
 
     def _publish_imu(self, now: int) -> None:
-        imu = Imu()
-        imu.header.stamp = to_msg(now)
-        imu.header.frame_id = "imu"
-        w, x, y, z = self.data.sensor("imu_orientation").data
-        imu.orientation = Quaternion(w=float(w), x=float(x), y=float(y), z=float(z))
-        gx, gy, gz = self.data.sensor("imu_gyro").data
-        imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z = (
-            float(gx), float(gy), float(gz))
-        ax, ay, az = self.data.sensor("imu_accel").data
-        imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = (
-            float(ax), float(ay), float(az))
-        self.imu_pub.publish(imu)
+        self.imu_pub.publish(sensors.imu(self.data, stamp_ns=now))
 
     def _publish_truth(self, now: int) -> None:
         torso, ball = self.model.body("torso").id, self.model.body("ball").id
@@ -379,15 +325,12 @@ class Simulator:
         cam_quat = np.zeros(4)
         mujoco.mju_mat2Quat(cam_quat, self.data.cam_xmat[cam])
         poses = {
-            "robot": _pose(self.data.xpos[torso], self.data.xquat[torso]),
-            "ball": _pose(self.data.xpos[ball], self.data.xquat[ball]),
-            "camera": _pose(self.data.cam_xpos[cam], cam_quat),
+            "robot": (self.data.xpos[torso], self.data.xquat[torso]),
+            "ball": (self.data.xpos[ball], self.data.xquat[ball]),
+            "camera": (self.data.cam_xpos[cam], cam_quat),
         }
-        for what, pose in poses.items():
-            msg = PoseStamped(pose=pose)
-            msg.header.stamp = to_msg(now)
-            msg.header.frame_id = "field"
-            self.truth_pubs[what].publish(msg)
+        for what, (position, quat) in poses.items():
+            self.truth_pubs[what].publish(sensors.pose_stamped(position, quat, stamp_ns=now))
 
     def status(self) -> dict[str, Any]:
         return {

@@ -26,11 +26,13 @@ import select
 import threading
 import time
 import tty
+from contextlib import suppress
 
 from dynamixel_sdk import PortHandler
 
 from efficient_comm import Closing
 
+from ..errors import SimConfigError
 from .bus import Bus
 from .protocol import BROADCAST_ID, Parser, encode
 
@@ -42,16 +44,45 @@ SYNC_INSTRUCTION = 0x7F
 PACKET_TIMEOUT_S = 0.5
 
 
+def make_port_link(port: str, link: str) -> None:
+    """Point ``link`` at ``port`` (a pty), where a driver in another process opens it. Only
+    a symlink (a stale one from an earlier run) is replaced, never a file or device someone
+    else owns; SimConfigError if it cannot be made."""
+    if os.path.lexists(link) and not os.path.islink(link):
+        raise SimConfigError(f"port_link {link!r} exists and is not a symlink")
+    staging = f"{link}.{os.getpid()}.new"
+    try:
+        os.symlink(port, staging)
+        os.replace(staging, link)  # atomic: a driver never sees the link missing
+    except OSError as exc:
+        with suppress(OSError):
+            os.unlink(staging)
+        raise SimConfigError(f"cannot make port_link {link!r}: {exc}") from exc
+
+
+def remove_port_link(port: str, link: str) -> None:
+    """Remove ``link`` if it still points at ``port`` (a newer simulator may have taken the
+    path)."""
+    with suppress(OSError):
+        if os.readlink(link) == port:
+            os.unlink(link)
+
+
 class PtyBus(Closing):
     """A context manager: the bus answers on a pty until closed."""
 
     def __init__(self, bus: Bus, *, corrupt: float = 0.0, seed: int = 0,
-                 packet_timeout_s: float | None = PACKET_TIMEOUT_S) -> None:
+                 packet_timeout_s: float | None = PACKET_TIMEOUT_S,
+                 lock: threading.Lock | None = None) -> None:
         """``corrupt``: line noise, the share of packets either way with one bit flipped.
 
         ``packet_timeout_s``: drop a packet not complete this long (wall time) after its
         first bytes; None never does (lockstep: a loaded machine may split a write by any
         time, and the run must not change with the load).
+
+        ``lock``: the lock the emulator holds while it handles a packet (default: one of its
+        own). Robots of one world share theirs, since every bus reads the world that the
+        simulator steps under that lock.
         """
         self.bus = bus
         self.packet_timeout_s = packet_timeout_s
@@ -76,7 +107,7 @@ class PtyBus(Closing):
         #: Bytes of replies written to the pty (what a reader on the port can receive).
         self.sent_bytes = 0
         self._closed = False
-        self._lock = threading.Lock()
+        self._lock = lock or threading.Lock()
         self._synced = threading.Condition()
         self._sync_sent = itertools.count(1)
         self._sync_seen = 0
