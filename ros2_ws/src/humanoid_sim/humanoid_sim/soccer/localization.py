@@ -115,10 +115,12 @@ class FilterParameters:
     """The particle filter's figures; each is also a ROS parameter of the same name."""
 
     particles: int = 300
-    #: Odometry noise: of the distance walked, of the angle turned, and rad per m walked.
-    odom_trans_noise: float = 0.2
+    #: Odometry noise, as the spread it adds over a whole metre walked (m, and rad of
+    #: veering) or radian turned (rad); it grows with the square root of the way, so the
+    #: spread does not depend on how often odometry arrives.
+    odom_trans_noise: float = 0.1
+    odom_rot_per_m: float = 0.15
     odom_rot_noise: float = 0.1
-    odom_rot_per_m: float = 0.1
     #: A line point's spread (m) at the robot's feet, and its growth per m of range.
     line_sigma_m: float = 0.1
     line_sigma_per_m: float = 0.05
@@ -198,13 +200,14 @@ class ParticleFilter:
         distance = math.hypot(forward, left)
         if distance == 0 and turn == 0:
             return
-        sigma_t = p.odom_trans_noise * distance
+        sigma_t = p.odom_trans_noise * math.sqrt(distance)
         f = forward + self.rng.normal(0.0, sigma_t, n)
         lt = left + self.rng.normal(0.0, sigma_t, n)
         c, s = np.cos(self.heading), np.sin(self.heading)
         self.x = self.x + c * f - s * lt
         self.y = self.y + s * f + c * lt
-        sigma_r = p.odom_rot_noise * abs(turn) + p.odom_rot_per_m * distance
+        sigma_r = math.hypot(p.odom_rot_noise * math.sqrt(abs(turn)),
+                             p.odom_rot_per_m * math.sqrt(distance))
         self.heading = self.heading + turn + self.rng.normal(0.0, sigma_r, n)
 
     def spread(self, sigma_m: float, sigma_rad: float) -> None:
