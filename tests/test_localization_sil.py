@@ -8,13 +8,19 @@ believes, which never sees the truth (except the noisy stand-in, which is made o
 from __future__ import annotations
 
 import math
+import re
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import PoseArray, Twist
+from geometry_msgs.msg import Twist
+from sensor_msgs.msg import PointCloud2
 
 from efficient_comm.testing import TestHandle, test_container
 from humanoid_sim.soccer.compose import compose
+from humanoid_sim.soccer.landmarks import read_points
 from humanoid_sim.soccer.localization import (
     NOISY_GROUND_TRUTH,
     PARTICLE_FILTER,
@@ -34,10 +40,10 @@ def _torso(robot: object) -> tuple[float, float, float]:
     return x, y, math.atan2(m[1, 0], m[0, 0])
 
 
-def _on_field(points: PoseArray, pose: tuple[float, float, float]) -> np.ndarray:
+def _on_field(points: PointCloud2, pose: tuple[float, float, float]) -> np.ndarray:
     x, y, h = pose
     c, s = math.cos(h), math.sin(h)
-    local = np.array([(p.position.x, p.position.y) for p in points.poses]).reshape(-1, 2)
+    local = read_points(points)
     return np.stack([x + c * local[:, 0] - s * local[:, 1],
                      y + s * local[:, 0] + c * local[:, 1]], axis=1)
 
@@ -54,9 +60,9 @@ def test_landmarks_seen_in_rendered_images_lie_where_the_field_has_them(
         robot = compose(container, simulator={"robot_pose": robot_pose, "ball_position": ball},
                         play=False, localization=PARTICLE_FILTER)
         probe = TestHandle("probe", namespace=NAMESPACE, container=container)
-        seen: dict[str, list[PoseArray]] = {"posts": [], "lines": []}
+        seen: dict[str, list[PointCloud2]] = {"posts": [], "lines": []}
         for kind, store in seen.items():
-            probe.create_subscription(PoseArray, f"landmarks/{kind}", store.append)
+            probe.create_subscription(PointCloud2, f"landmarks/{kind}", store.append)
         container.advance(1.0)  # the head has turned to the ball; about 30 images
         truth = _torso(robot)
         assert len(seen["lines"]) >= 25
@@ -131,10 +137,40 @@ def test_noisy_ground_truth_stands_in_on_the_same_topic_and_says_so() -> None:
                                                  "seed": 3})
         container.advance(2.0)
         assert robot.pose_error is not None
-        summary = robot.pose_error.errors.summary()
-    assert summary["source"] == NOISY_GROUND_TRUTH
+        errors = robot.pose_error.errors
+        summary = errors.summary()
+    assert errors.source == NOISY_GROUND_TRUTH
     assert summary["estimates"] >= 15
     # Two-dimensional Gaussian noise of 5 cm: 6.3 cm on average (the robot stands still,
     # so the delay adds nothing).
     assert 0.03 < summary["position_error_mean_m"] < 0.1, summary
     assert summary["heading_error_mean_deg"] < 3.0, summary
+
+
+@pytest.mark.timeout(180)
+@pytest.mark.parametrize("source", [PARTICLE_FILTER, NOISY_GROUND_TRUTH])
+def test_the_demo_report_says_which_localization_ran_and_its_error(tmp_path: Path,
+                                                                   source: str) -> None:
+    report = tmp_path / "report.md"
+    result = subprocess.run(
+        [sys.executable, "-m", "humanoid_sim.demo", "--lockstep", "--no-dds", "--duration", "3",
+         "--localization", source, "--report", str(report)],
+        capture_output=True, text=True, timeout=150, check=False,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    row = next(line for line in report.read_text().splitlines()
+               if line.startswith("| localization (vs ground truth) |"))
+    found = re.search(rf"\| {source}: (\d+) estimates, position error mean ([\d.]+) m", row)
+    assert found is not None, row
+    assert int(found[1]) >= 25 and float(found[2]) < 0.2, row  # 10 Hz; a settled filter
+
+
+def test_the_demo_refuses_an_unknown_localization_in_one_line(tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "humanoid_sim.demo", "--localization", "gps", "--report",
+         str(tmp_path / "report.md")],
+        capture_output=True, text=True, timeout=60, check=False,
+    )
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert "particle_filter" in result.stderr

@@ -10,14 +10,21 @@ import statistics
 import mujoco
 import numpy as np
 import pytest
-from geometry_msgs.msg import Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Image, PointCloud2, PointField
+from std_msgs.msg import String
 
 from efficient_comm import from_msg, to_msg
-from efficient_comm.testing import TestHandle
+from efficient_comm.testing import TestHandle, test_container
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.mujoco_plant import MujocoPlant
-from humanoid_sim.soccer.landmarks import CameraPose
+from humanoid_sim.soccer.landmarks import (
+    CameraPose,
+    LandmarkDetector,
+    points_message,
+    read_points,
+)
 from humanoid_sim.soccer.localization import (
     NOISY_GROUND_TRUTH,
     PARTICLE_FILTER,
@@ -26,6 +33,7 @@ from humanoid_sim.soccer.localization import (
     Localization,
     NoisyTruthPose,
     ParticleFilter,
+    add_localization,
     wrap,
     yaw_of,
 )
@@ -162,15 +170,8 @@ def test_the_field_model_measures_from_the_lines_of_the_kidsize_field() -> None:
         KIDSIZE.penalty_area_length - KIDSIZE.penalty_mark_distance, abs=0.015)
 
 
-def _points(points: np.ndarray, stamp_ns: int = 0) -> PoseArray:
-    out = PoseArray()
-    out.header.stamp = to_msg(stamp_ns)
-    out.header.frame_id = "base_footprint"
-    for x, y in points:
-        pose = Pose()
-        pose.position.x, pose.position.y = float(x), float(y)
-        out.poses.append(pose)
-    return out
+def _points(points: np.ndarray, stamp_ns: int = 0) -> PointCloud2:
+    return points_message(points, stamp=to_msg(stamp_ns))
 
 
 def _odom(x: float, y: float, yaw: float) -> Odometry:
@@ -204,6 +205,25 @@ def test_the_component_corrects_a_wrong_start_from_what_it_sees_and_says_it_is_t
     assert abs(wrap(yaw_of(p.orientation) - 0.6)) < math.radians(5)
     assert 0 < last.pose.covariance[0] < 0.05 and last.pose.covariance[35] > 0
     assert len(node.published("localization/pose")) == 30  # rate_hz 10 over 3 s
+
+
+def test_landmark_points_round_trip_and_a_message_of_other_points_is_refused_not_fatal(
+        ) -> None:
+    points = np.array([[1.25, -0.5], [3.0, 0.75]])
+    assert read_points(points_message(points, stamp=to_msg(0))) == pytest.approx(points)
+    assert read_points(points_message(np.zeros((0, 2)), stamp=to_msg(0))).shape == (0, 2)
+    node = TestHandle("localization")
+    localization = Localization(node)
+    other = PointCloud2(height=1, width=1, point_step=4, row_step=4, data=[0, 0, 0, 0],
+                        fields=[PointField(name="intensity", offset=0,
+                                           datatype=PointField.FLOAT32, count=1)])
+    node.inject("landmarks/lines", other)
+    node.inject("landmarks/posts", other)
+    assert localization.lines_used == localization.posts_used == 0
+    errors = [text for level, text in node.records if level == "error"]
+    assert len(errors) == 2 and "need x, y, z float32" in errors[0]
+    node.inject("landmarks/lines", _points(points))
+    assert localization.lines_used == 2
 
 
 @pytest.mark.parametrize("parameters", [
@@ -261,10 +281,9 @@ def test_the_error_monitor_compares_each_estimate_with_the_truth_at_its_stamp() 
     estimate.pose.pose.position.x, estimate.pose.pose.position.y = 0.8, 0.4
     estimate.pose.pose.orientation = _yaw_quaternion(0.1)
     node.inject("localization/pose", estimate)
-    from std_msgs.msg import String
     node.inject("localization/source", String(data=NOISY_GROUND_TRUTH))
     summary = monitor.errors.summary()
-    assert summary["source"] == NOISY_GROUND_TRUTH
+    assert monitor.errors.source == NOISY_GROUND_TRUTH
     assert summary["estimates"] == 1
     assert summary["position_error_mean_m"] == pytest.approx(0.5)
     assert summary["heading_error_mean_deg"] == pytest.approx(math.degrees(0.1))
@@ -303,3 +322,18 @@ def test_the_camera_pose_from_the_neck_and_imu_matches_the_robots_kinematics(
     axes = to_level @ data.cam_xmat[cam].reshape(3, 3)
     expected = np.stack([-axes[:, 2], -axes[:, 0], axes[:, 1]], axis=1)
     assert camera.rotation == pytest.approx(expected, abs=1e-9)
+
+
+def test_the_landmark_detector_skips_an_image_it_cannot_read_and_says_why() -> None:
+    node = TestHandle("landmarks")
+    detector = LandmarkDetector(node)
+    node.inject("camera/image_raw", Image(height=2, width=2, encoding="bgr8", step=6,
+                                          data=[0] * 12))
+    assert detector.rejected == 1 and detector.frames == 0
+    assert node.published("landmarks/lines") == []
+    assert any("need rgb8" in text for level, text in node.records if level == "warning")
+
+
+def test_an_unknown_localization_source_is_refused_with_the_choices() -> None:
+    with test_container() as container, pytest.raises(SimConfigError, match="particle_filter"):
+        add_localization(container, namespace="/robot", source="gps")

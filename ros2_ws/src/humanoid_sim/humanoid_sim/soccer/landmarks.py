@@ -12,11 +12,13 @@ onto the ground; line points are the centres of white runs along every ``scan_st
 row and column below the horizon, projected alike.
 
 Published, stamped with the image's stamp, frame ``base_footprint`` (the level frame under
-the torso: x forward, y left, z up; positions in m, orientation unused):
+the torso: x forward, y left, z up), as sensor_msgs/PointCloud2 of x, y, z float32 points on
+the ground (z = 0; :func:`points_message` writes them, :func:`read_points` reads them: one
+buffer per image, where an array of Pose messages cost more than finding the points):
 
-* ``landmarks/posts`` (geometry_msgs/PoseArray): the feet of the goal posts seen;
-* ``landmarks/lines`` (geometry_msgs/PoseArray): points on field lines, at most
-  ``max_line_points``, nearer than ``max_range_m``.
+* ``landmarks/posts``: the feet of the goal posts seen;
+* ``landmarks/lines``: points on field lines, at most ``max_line_points``, nearer than
+  ``max_range_m``.
 
 Both are published for every image read (empty arrays say "looked, saw none", which a
 filter needs as much as a sighting). While someone looks, ``landmarks/debug_markers``
@@ -25,19 +27,22 @@ draws the horizon, the posts and the line points in the image.
 
 from __future__ import annotations
 
+import array
 import math
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 import numpy.typing as npt
-from geometry_msgs.msg import Pose, PoseArray, Quaternion
-from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Quaternion
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, PointCloud2, PointField
 
 from debug_probes import CYAN, MAGENTA, YELLOW, DebugDrawing
 from efficient_comm import from_msg, latched_qos
 from efficient_comm.handle import NodeHandle
 
+from ..errors import SimConfigError
 from .vision import FALLBACK_FOVY_DEG
 from .world_model import (
     CAMERA_FROM_PITCH,
@@ -162,6 +167,19 @@ def _runs(line: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.intp], npt.NDArra
     return edges[0::2], edges[1::2]
 
 
+def _run_centres(mask: npt.NDArray[np.bool_], *, max_run_px: int
+                 ) -> tuple[npt.NDArray[np.intp], Array]:
+    """The white runs of each row of ``mask`` no longer than ``max_run_px``: their rows
+    and centres (all rows at once: starts and ends come in the same row-major order)."""
+    padded = np.zeros((mask.shape[0], mask.shape[1] + 2), dtype=np.int8)
+    padded[:, 1:-1] = mask
+    edges = np.diff(padded, axis=1)
+    rows, starts = np.nonzero(edges == 1)
+    _, ends = np.nonzero(edges == -1)
+    keep = ends - starts <= max_run_px
+    return rows[keep], (starts[keep] + ends[keep] - 1) / 2
+
+
 def _march(mask: npt.NDArray[np.bool_], u: float, v: float, du: float, dv: float, *,
            limit: int) -> tuple[float, float, int] | None:
     """From (u, v), step by (du, dv) while the mask is white, at most ``limit`` steps:
@@ -217,18 +235,12 @@ def find_landmarks(mask: npt.NDArray[np.bool_], camera: CameraPose, *,
                  (round(foot[0]), round(foot[1])), 0, thickness=int(end - start) + 4)
     post_pixels = np.array(posts_px, dtype=float).reshape(-1, 2)
     # Lines: run centres along scan rows and columns, below the horizon, off the posts.
-    centres: list[tuple[float, float]] = []
-    for v in range(scan_step_px // 2, height, scan_step_px):
-        starts, ends = _runs(ground[v])
-        keep = ends - starts <= max_run_px
-        centres.extend(((s + e - 1) / 2, float(v)) for s, e in zip(starts[keep], ends[keep],
-                                                                    strict=True))
-    for u in range(scan_step_px // 2, width, scan_step_px):
-        starts, ends = _runs(ground[:, u])
-        keep = ends - starts <= max_run_px
-        centres.extend((float(u), (s + e - 1) / 2) for s, e in zip(starts[keep], ends[keep],
-                                                                    strict=True))
-    line_pixels = np.array(centres, dtype=float).reshape(-1, 2)
+    first = scan_step_px // 2
+    rows, across = _run_centres(ground[first::scan_step_px], max_run_px=max_run_px)
+    columns, along = _run_centres(ground[:, first::scan_step_px].T, max_run_px=max_run_px)
+    line_pixels = np.concatenate([
+        np.stack([across, first + rows * scan_step_px], axis=1),
+        np.stack([first + columns * scan_step_px, along], axis=1)]).astype(float)
     lines, ok = camera.on_ground(line_pixels[:, 0], line_pixels[:, 1], k=k)
     ok &= np.hypot(lines[:, 0], lines[:, 1]) <= max_range_m
     lines, line_pixels = lines[ok], line_pixels[ok]
@@ -260,15 +272,33 @@ class _Neck:
         return position + velocity * dt
 
 
-def _pose_array(points: Array, image: Image) -> PoseArray:
-    out = PoseArray()
-    out.header.stamp = image.header.stamp  # shared, never modified
-    out.header.frame_id = "base_footprint"
-    for x, y in points:
-        pose = Pose()
-        pose.position.x, pose.position.y = float(x), float(y)
-        out.poses.append(pose)
+#: The fields of a landmark message's points: x, y, z as float32, 12 bytes a point.
+POINT_FIELDS = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                for i, name in enumerate("xyz")]
+
+
+def points_message(points: Array, *, stamp: Time, frame_id: str = "base_footprint"
+                   ) -> PointCloud2:
+    """Ground points (n x 2, m) as a PointCloud2 (z = 0): one buffer, not n messages."""
+    xyz = np.zeros((len(points), 3), dtype=np.float32)
+    xyz[:, :2] = points
+    out = PointCloud2(height=1, width=len(points), fields=POINT_FIELDS, is_bigendian=False,
+                      point_step=12, row_step=12 * len(points), is_dense=True)
+    out.header.stamp = stamp  # shared, never modified
+    out.header.frame_id = frame_id
+    out.data = array.array("B", xyz.tobytes())
     return out
+
+
+def read_points(cloud: PointCloud2) -> Array:
+    """The ground points (n x 2, m) of a message from :func:`points_message`."""
+    if (cloud.point_step != 12 or [f.name for f in cloud.fields][:3] != ["x", "y", "z"]
+            or len(cloud.data) != cloud.width * cloud.height * 12):
+        raise SimConfigError(f"landmark points: need x, y, z float32 (12 bytes a point), got "
+                             f"{[f.name for f in cloud.fields]} with point_step "
+                             f"{cloud.point_step} and {len(cloud.data)} bytes")
+    xyz = np.frombuffer(bytes(cloud.data), dtype=np.float32).reshape(-1, 3)
+    return xyz[:, :2].astype(float)
 
 
 class LandmarkDetector:
@@ -289,8 +319,8 @@ class LandmarkDetector:
         self.frames = self.rejected = self.posts_seen = 0
         #: What the last image showed (for inspection and tests).
         self.last: Landmarks | None = None
-        self.posts_pub = node.create_publisher(PoseArray, "landmarks/posts", qos=10)
-        self.lines_pub = node.create_publisher(PoseArray, "landmarks/lines", qos=10)
+        self.posts_pub = node.create_publisher(PointCloud2, "landmarks/posts", qos=10)
+        self.lines_pub = node.create_publisher(PointCloud2, "landmarks/lines", qos=10)
         self.drawing = DebugDrawing(node, "landmarks/debug_markers")
         node.create_subscription(CameraInfo, "camera/camera_info", self._on_info,
                                  qos=latched_qos())
@@ -328,8 +358,8 @@ class LandmarkDetector:
             max_line_points=self.max_line_points)
         self.posts_seen += len(found.posts)
         self.last = found
-        self.posts_pub.publish(_pose_array(found.posts, image))
-        self.lines_pub.publish(_pose_array(found.lines, image))
+        self.posts_pub.publish(points_message(found.posts, stamp=image.header.stamp))
+        self.lines_pub.publish(points_message(found.lines, stamp=image.header.stamp))
         if self.drawing.wants():
             self._draw(camera, image.width, found)
             self.drawing.publish(image.header.stamp, frame_id=image.header.frame_id)

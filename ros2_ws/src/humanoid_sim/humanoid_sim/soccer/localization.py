@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, PointCloud2
 from std_msgs.msg import String
 
 from efficient_comm import Container, bind_parameters, from_msg, latched_qos, to_msg
@@ -45,7 +45,7 @@ from soccer_field import KIDSIZE, FieldDimensions
 
 from ..errors import SimConfigError
 from .fall import STANDING
-from .landmarks import LandmarkDetector
+from .landmarks import LandmarkDetector, read_points
 
 Array = npt.NDArray[np.float64]
 PARTICLE_FILTER = "particle_filter"
@@ -349,8 +349,8 @@ class Localization:
         node.create_subscription(Odometry, "odom", self._on_odom, qos=10)
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
-        node.create_subscription(PoseArray, "landmarks/lines", self._on_lines, qos=10)
-        node.create_subscription(PoseArray, "landmarks/posts", self._on_posts, qos=10)
+        node.create_subscription(PointCloud2, "landmarks/lines", self._on_lines, qos=10)
+        node.create_subscription(PointCloud2, "landmarks/posts", self._on_posts, qos=10)
         node.create_timer(period, self.publish)
 
     def _on_posture(self, posture: String) -> None:
@@ -385,20 +385,24 @@ class Localization:
         self._imu_turn = 0.0
         self.filter.predict(c * dx + s * dy, -s * dx + c * dy, turn)
 
-    @staticmethod
-    def _points(array: PoseArray) -> Array:
-        return np.array([(p.position.x, p.position.y) for p in array.poses],
-                        dtype=float).reshape(-1, 2)
+    def _points(self, cloud: PointCloud2) -> Array | None:
+        """The points, or None for a message that holds none we can read (logged)."""
+        try:
+            return read_points(cloud)
+        except SimConfigError as exc:
+            self.node.logger.error(str(exc))
+            return None
 
-    def _on_lines(self, lines: PoseArray) -> None:
-        if self.standing:  # a robot on the ground sees the field from nowhere we know
-            self.lines_used += len(lines.poses)
-            self.filter.update_lines(self._points(lines))
+    def _on_lines(self, lines: PointCloud2) -> None:
+        # A robot on the ground sees the field from nowhere we know: nothing is weighed.
+        if self.standing and (points := self._points(lines)) is not None:
+            self.lines_used += len(points)
+            self.filter.update_lines(points)
 
-    def _on_posts(self, posts: PoseArray) -> None:
-        if self.standing:
-            self.posts_used += len(posts.poses)
-            self.filter.update_posts(self._points(posts))
+    def _on_posts(self, posts: PointCloud2) -> None:
+        if self.standing and (points := self._points(posts)) is not None:
+            self.posts_used += len(points)
+            self.filter.update_posts(points)
 
     def publish(self) -> None:
         self.pub.publish(_pose_message(self.filter.estimate(), self.node.clock.now_ns()))

@@ -49,10 +49,10 @@ class PoseErrors:
         return PoseErrors(self.source, self.times_s[start:], self.position_m[start:],
                           self.heading_rad[start:])
 
-    def summary(self) -> dict[str, float | str]:
+    def summary(self) -> dict[str, float]:
+        """Mean, p95 and max of the errors (:attr:`source` says whose they are)."""
         heading_deg = [math.degrees(abs(h)) for h in self.heading_rad]
         return {
-            "source": self.source,
             "estimates": len(self.position_m),
             "position_error_mean_m": (statistics.fmean(self.position_m) if self.position_m
                                       else math.nan),
