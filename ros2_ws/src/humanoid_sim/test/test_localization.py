@@ -13,7 +13,7 @@ import pytest
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, PointCloud2, PointField
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 
 from efficient_comm import from_msg, to_msg
 from efficient_comm.testing import TestHandle, test_container
@@ -223,6 +223,24 @@ def test_landmark_points_round_trip_and_a_message_of_other_points_is_refused_not
     errors = [text for level, text in node.records if level == "error"]
     assert len(errors) == 2 and "need x, y, z float32" in errors[0]
     node.inject("landmarks/lines", _points(points))
+    assert localization.lines_used == 2
+
+
+def test_nothing_seen_while_kicking_getting_up_or_down_is_weighed() -> None:
+    # The landmarks assume the walk's crouch: on one leg, on the ground, they are wrong.
+    node = TestHandle("localization")
+    localization = Localization(node)
+    points = _points(np.array([[1.0, 0.0], [1.5, 0.5]]))
+    for topic, message in [("motion/kick/active", Bool(data=True)),
+                           ("motion/getup/active", Bool(data=True)),
+                           ("motion/kick/active", Bool(data=False)),
+                           ("fall/state", String(data="fallen"))]:
+        node.inject(topic, message)
+        node.inject("landmarks/lines", points)
+        assert localization.lines_used == 0, topic
+    node.inject("motion/getup/active", Bool(data=False))
+    node.inject("fall/state", String(data="standing"))
+    node.inject("landmarks/lines", points)
     assert localization.lines_used == 2
 
 

@@ -18,7 +18,15 @@ buffer per image, where an array of Pose messages cost more than finding the poi
 
 * ``landmarks/posts``: the feet of the goal posts seen;
 * ``landmarks/lines``: points on field lines, at most ``max_line_points``, nearer than
-  ``max_range_m``.
+  ``max_range_m`` and further than ``min_range_m`` (nearer, what is white is more likely
+  the robot's own feet than a line).
+
+White is bright and unsaturated (``min_value``, ``max_saturation``, 10 of 255): line pixels
+have a saturation near 0, the turf at least 36 even where the headlight makes it shine near
+the robot, the robot's own light grey arms and legs 14 to 16 (at 70, both passed for lines
+and pulled the filter off by up to 1.5 m as it walked past the centre circle).
+Posts are followed in a laxer mask (``max_saturation_posts``, 70): far away, their feet
+blend with the turf, and each row lost is decimetres of range.
 
 Both are published for every image read (empty arrays say "looked, saw none", which a
 filter needs as much as a sighting). While someone looks, ``landmarks/debug_markers``
@@ -155,10 +163,14 @@ class Landmarks:
     line_pixels: Array
 
 
-def white_mask(rgb: npt.NDArray[np.uint8], *, min_value: int, max_saturation: int
-               ) -> npt.NDArray[np.bool_]:
+def white_masks(rgb: npt.NDArray[np.uint8], *, min_value: int, max_saturation: int,
+                max_saturation_posts: int
+                ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """The white pixels for posts and for lines: a post's foot on the far goal line is a
+    blend of white and turf, one row of which is decimetres of range at 7 m."""
     hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)
-    return (hsv[..., 2] >= min_value) & (hsv[..., 1] <= max_saturation)
+    bright = hsv[..., 2] >= min_value
+    return bright & (hsv[..., 1] <= max_saturation_posts), bright & (hsv[..., 1] <= max_saturation)
 
 
 def _runs(line: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
@@ -196,11 +208,13 @@ def _march(mask: npt.NDArray[np.bool_], u: float, v: float, du: float, dv: float
 
 
 def find_landmarks(mask: npt.NDArray[np.bool_], camera: CameraPose, *,
-                   k: tuple[float, float, float, float], scan_step_px: int = 6,
-                   max_run_px: int = 60, max_range_m: float = 5.0, max_line_points: int = 80,
+                   k: tuple[float, float, float, float],
+                   line_mask: npt.NDArray[np.bool_] | None = None, scan_step_px: int = 6,
+                   max_run_px: int = 60, min_range_m: float = 0.35, max_range_m: float = 5.0,
+                   max_line_points: int = 80,
                    above_px: int = 4, below_px: int = 2) -> Landmarks:
-    """Goal posts and line points in a white ``mask`` seen from ``camera`` (see the module
-    docstring for how they are told apart)."""
+    """Goal posts in a white ``mask`` and line points in ``line_mask`` (default: the same)
+    seen from ``camera`` (see the module docstring for how they are told apart)."""
     height, width = mask.shape
     horizon = camera.horizon_rows(width, k=k)
     # Posts: white runs along the horizon whose whiteness goes on above_px above it and at
@@ -212,7 +226,7 @@ def find_landmarks(mask: npt.NDArray[np.bool_], camera: CameraPose, *,
     on_horizon[inside] = mask[rows[inside], np.flatnonzero(inside)]
     down = camera.down_image(k=k)
     posts_px: list[tuple[float, float]] = []
-    ground = mask.copy()
+    ground = (mask if line_mask is None else line_mask).copy()
     ground &= np.arange(height)[:, None] > horizon[None, :] + below_px
     for start, end in zip(*_runs(on_horizon), strict=True):
         u0 = (start + end - 1) / 2
@@ -242,7 +256,8 @@ def find_landmarks(mask: npt.NDArray[np.bool_], camera: CameraPose, *,
         np.stack([across, first + rows * scan_step_px], axis=1),
         np.stack([first + columns * scan_step_px, along], axis=1)]).astype(float)
     lines, ok = camera.on_ground(line_pixels[:, 0], line_pixels[:, 1], k=k)
-    ok &= np.hypot(lines[:, 0], lines[:, 1]) <= max_range_m
+    ranges = np.hypot(lines[:, 0], lines[:, 1])
+    ok &= (ranges >= min_range_m) & (ranges <= max_range_m)
     lines, line_pixels = lines[ok], line_pixels[ok]
     if len(lines) > max_line_points:  # evenly thinned, the same for the same image
         pick = np.linspace(0, len(lines) - 1, max_line_points).round().astype(int)
@@ -307,8 +322,11 @@ class LandmarkDetector:
     def __init__(self, node: NodeHandle) -> None:
         self.node = node
         self.min_value = node.declare_parameter("min_value", 140, range=(0, 255))
-        self.max_saturation = node.declare_parameter("max_saturation", 70, range=(0, 255))
+        self.max_saturation = node.declare_parameter("max_saturation", 10, range=(0, 255))
+        self.max_saturation_posts = node.declare_parameter("max_saturation_posts", 70,
+                                                           range=(0, 255))
         self.scan_step_px = node.declare_parameter("scan_step_px", 6, range=(1, 64))
+        self.min_range_m = node.declare_parameter("min_range_m", 0.35, range=(0.0, 5.0))
         self.max_range_m = node.declare_parameter("max_range_m", 5.0, range=(0.5, 20.0))
         self.max_line_points = node.declare_parameter("max_line_points", 80, range=(0, 1000))
         self.torso_height = node.declare_parameter("torso_height", TORSO_HEIGHT_M,
@@ -352,9 +370,12 @@ class LandmarkDetector:
             orientation=self.orientation, torso_height=self.torso_height)
         pixels = np.frombuffer(image.data, dtype=np.uint8).reshape(
             image.height, image.step // 3, 3)[:, : image.width]
+        posts, lines = white_masks(pixels, min_value=self.min_value,
+                                   max_saturation=self.max_saturation,
+                                   max_saturation_posts=self.max_saturation_posts)
         found = find_landmarks(
-            white_mask(pixels, min_value=self.min_value, max_saturation=self.max_saturation),
-            camera, k=self.k, scan_step_px=self.scan_step_px, max_range_m=self.max_range_m,
+            posts, camera, k=self.k, line_mask=lines, scan_step_px=self.scan_step_px,
+            min_range_m=self.min_range_m, max_range_m=self.max_range_m,
             max_line_points=self.max_line_points)
         self.posts_seen += len(found.posts)
         self.last = found

@@ -25,6 +25,7 @@ reports and logs. :mod:`.pose_error` measures either against ground truth.
 
 from __future__ import annotations
 
+import functools
 import math
 import random
 from collections import deque
@@ -37,7 +38,7 @@ import numpy.typing as npt
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, PointCloud2
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 
 from efficient_comm import Container, bind_parameters, from_msg, latched_qos, to_msg
 from efficient_comm.handle import NodeHandle
@@ -52,6 +53,8 @@ PARTICLE_FILTER = "particle_filter"
 NOISY_GROUND_TRUTH = "noisy_ground_truth"
 SOURCES = (PARTICLE_FILTER, NOISY_GROUND_TRUTH)
 LATCHED = latched_qos()
+#: Motions during which the camera is not where the landmarks assume.
+NOT_UPRIGHT_MOTIONS = ("kick", "getup")
 
 
 def wrap(angle: float) -> float:
@@ -338,6 +341,9 @@ class Localization:
         else:
             self.filter.reset_in_half(-1.0 if own_half == "-x" else 1.0)
         self.standing = True
+        #: Whether the camera's pose is what the landmarks assume (not on one leg kicking).
+        self.upright = True
+        self._moving: set[str] = set()
         self.fell = False
         self.lines_used = self.posts_used = 0
         self._odom: tuple[float, float, float] | None = None
@@ -349,6 +355,9 @@ class Localization:
         node.create_subscription(Odometry, "odom", self._on_odom, qos=10)
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
+        for motion in NOT_UPRIGHT_MOTIONS:
+            node.create_subscription(Bool, f"motion/{motion}/active",
+                                     functools.partial(self._on_motion, motion), qos=LATCHED)
         node.create_subscription(PointCloud2, "landmarks/lines", self._on_lines, qos=10)
         node.create_subscription(PointCloud2, "landmarks/posts", self._on_posts, qos=10)
         node.create_timer(period, self.publish)
@@ -359,6 +368,19 @@ class Localization:
             self.filter.spread(0.15, 0.3)  # where a fall and a get-up left it, roughly
         self.fell = self.fell or not standing
         self.standing = standing
+
+    def _on_motion(self, motion: str, active: Bool) -> None:
+        """A kick stands on one leg and a get-up on none: the camera is not where the
+        landmark detector assumes it (the walk's crouch), so nothing seen then is weighed.
+
+        Each motion's own ``active`` flag, not the arbiter's ``motion/state``: composed
+        depth-first, a ``stand`` that caused a kick request reached later subscribers after
+        the ``kick`` it caused, so the last state seen there was the stale one."""
+        if active.data:
+            self._moving.add(motion)
+        else:
+            self._moving.discard(motion)
+        self.upright = not self._moving
 
     def _on_imu(self, imu: Imu) -> None:
         q = imu.orientation
@@ -395,12 +417,12 @@ class Localization:
 
     def _on_lines(self, lines: PointCloud2) -> None:
         # A robot on the ground sees the field from nowhere we know: nothing is weighed.
-        if self.standing and (points := self._points(lines)) is not None:
+        if self.standing and self.upright and (points := self._points(lines)) is not None:
             self.lines_used += len(points)
             self.filter.update_lines(points)
 
     def _on_posts(self, posts: PointCloud2) -> None:
-        if self.standing and (points := self._points(posts)) is not None:
+        if self.standing and self.upright and (points := self._points(posts)) is not None:
             self.posts_used += len(points)
             self.filter.update_posts(points)
 
