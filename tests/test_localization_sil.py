@@ -174,3 +174,26 @@ def test_the_demo_refuses_an_unknown_localization_in_one_line(tmp_path: Path) ->
     assert result.returncode == 2
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "particle_filter" in result.stderr
+
+
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize(("own_half", "mirrored"), [("-x", False), ("+x", True)])
+def test_knowing_only_its_half_the_robot_finds_itself_or_the_fields_mirror_image(
+        own_half: str, mirrored: bool) -> None:
+    # Standing at START, looking at the ball and the opponent goal beyond it. Told only
+    # its half, the filter finds the truth; told the wrong half, the point-symmetric image
+    # of the truth, which looks the same on this field: the half is what decides.
+    with test_container(guard_mutation=False) as container:
+        robot = compose(container, simulator={"robot_pose": list(START),
+                                              "ball_position": [-0.5, 1.2]},
+                        play=False, localization=PARTICLE_FILTER,
+                        localization_parameters={"initial_pose": [0.0], "own_half": own_half,
+                                                 "particles": 2000})
+        container.advance(5.0)
+        assert isinstance(robot.localization, Localization)
+        estimate = robot.localization.filter.estimate()
+    x, y, heading = START
+    if mirrored:
+        x, y, heading = -x, -y, heading + math.pi
+    assert math.hypot(estimate.x - x, estimate.y - y) < 0.2, estimate
+    assert abs(math.remainder(estimate.heading - heading, 2 * math.pi)) < math.radians(5)
