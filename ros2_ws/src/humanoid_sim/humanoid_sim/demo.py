@@ -51,6 +51,7 @@ from soccer_field import KIDSIZE
 
 from .errors import HumanoidSimError
 from .soccer.compose import SoccerRobot, compose
+from .soccer.localization import SOURCES
 from .soccer.monitor import Figures
 
 EXIT_OK, EXIT_BUG, EXIT_USAGE, EXIT_FELL = 0, 1, 2, 3
@@ -119,6 +120,19 @@ def play(robot: SoccerRobot) -> list[str]:
     ]
 
 
+def localization(robot: SoccerRobot) -> str:
+    """Which source published ``localization/pose`` and its error, for the report."""
+    if robot.pose_error is None:
+        return "none"
+    errors = robot.pose_error.errors
+    e = errors.summary()
+    return (f"{errors.source}: {e['estimates']:.0f} estimates, position error mean "
+            f"{_f(e['position_error_mean_m'], '.3f')} m, p95 "
+            f"{_f(e['position_error_p95_m'], '.3f')} m; heading error mean "
+            f"{_f(e['heading_error_mean_deg'], '.1f')}°, p95 "
+            f"{_f(e['heading_error_p95_deg'], '.1f')}°")
+
+
 def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
            wall_s: float) -> str:
     totals = robot.monitor.totals()
@@ -162,6 +176,7 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         f"{sim['bus_dropped_replies']} replies nobody read |",
         f"| head behaviour | {robot.behaviour.state}, {robot.behaviour.switches} switches |",
         f"| posture (fall detector) | {posture(robot, totals.frames_down)} |",
+        f"| localization (vs ground truth) | {localization(robot)} |",
         "",
         "## Callbacks",
         "",
@@ -306,6 +321,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                         default=0.0, metavar="SECONDS",
                         help="push the robot along +x of the field (towards the opponent "
                         "goal) at this simulated time (0: never)")
+    parser.add_argument("--localization", choices=(*SOURCES, "none"), default="none",
+                        help="the robot's localization/pose: the particle filter, noisy "
+                        "ground truth standing in, or none (default); the report gives its "
+                        "error against ground truth")
     parser.add_argument("--push-newtons", type=_number(low=0, what="newtons >= 0"),
                         default=40.0, help="force of that push, for 0.1 s (default 40)")
     args = parser.parse_args(argv)
@@ -324,7 +343,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "seed": args.seed, "robot_pose": args.robot_pose, "ball_position": args.ball,
                 "line_noise": args.line_noise,
                 "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
-            })
+            }, localization=None if args.localization == "none" else args.localization)
         except HumanoidSimError as exc:  # what the parser let through and a component refused
             parser.error(str(exc))
         add_recorder(container, args.namespace, bag_dir)

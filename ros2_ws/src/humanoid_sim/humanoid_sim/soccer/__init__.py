@@ -13,6 +13,9 @@ foot splines (``spline``) and the legs' analytic inverse kinematics (``leg_ik``)
 ``walk_rig`` is a robot that only walks, with a measured trial, for walking tests and bench;
 ``getup`` gets the robot up after a fall (keyframed motions from the front and the back),
 ``getup_rig`` measures a fall and get-up on the walking rig;
+``landmarks`` finds goal posts and line points on the ground in camera images,
+``localization`` places the robot on the field from them and odometry (a particle filter),
+or stands in with noisy ground truth, and ``pose_error`` measures either against the truth;
 ``monitor`` measures what the pipeline achieves against the simulator's ground truth, and
 ``referee`` judges goals from it and puts the ball back (neither is the robot's);
 ``team_referee`` runs a team game from ground truth as the GameController does
@@ -44,6 +47,11 @@ Messages between them (all standard types, passed by reference when composed):
   each motion (walk, kick, getup); ``motion/state`` (String, transient local): ``stand``,
   ``walk``, ``kick``, ``getup`` or ``fallen``; ``motion/kick/request`` (String): ``left`` or
   ``right``.
+* ``landmarks/posts``, ``landmarks/lines`` (PointCloud2, frame ``base_footprint``): the
+  goal posts' feet and points on field lines seen in an image, on the ground (m).
+* ``localization/pose`` (PoseWithCovarianceStamped, frame ``field``) and
+  ``localization/source`` (String, transient local: ``particle_filter`` or
+  ``noisy_ground_truth``).
 * ``motion/getup`` (JointState): the get-up's whole-body goals while it acts, and
   ``motion/getup/active`` (Bool, transient local, on every change): whether it owns the
   joints (from ``falling`` until the robot stands again).

@@ -10,6 +10,7 @@ path as its port; everything else it does is what it would do on the robot.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -25,7 +26,9 @@ from .behaviour import HeadBehaviour
 from .fall import FallDetector
 from .getup import GetUp
 from .kick import Kick
+from .localization import PARTICLE_FILTER, Localization, NoisyTruthPose, add_localization
 from .monitor import SoccerMonitor
+from .pose_error import PoseErrorMonitor
 from .referee import Referee
 from .striker import Striker
 from .vision import BallDetector
@@ -59,6 +62,10 @@ class SoccerRobot:
     referee: Referee
     #: ``camera/image_raw/compressed`` for viewers off the robot (encodes only on demand).
     compressor: JpegCompressor
+    #: ``localization/pose`` from the particle filter or noisy ground truth (None: neither
+    #: runs), and its error against ground truth.
+    localization: Localization | NoisyTruthPose | None = None
+    pose_error: PoseErrorMonitor | None = None
 
 
 def add_body(container: Container, *, namespace: str,
@@ -91,11 +98,17 @@ def add_body(container: Container, *, namespace: str,
 def compose(container: Container, *, namespace: str = "/robot",
             simulator: Mapping[str, Any] | None = None,
             driver: Mapping[str, Any] | None = None,
-            striker: Mapping[str, Any] | None = None, play: bool = True) -> SoccerRobot:
+            striker: Mapping[str, Any] | None = None, play: bool = True,
+            localization: str | None = None,
+            localization_parameters: Mapping[str, Any] | None = None) -> SoccerRobot:
     """Add the robot to ``container``; ``simulator``/``driver``/``striker`` override their
     parameters. The striker's ``start_pose`` is the simulator's ``robot_pose`` unless given:
     where the robot was placed is what it knows at kick-off. ``play=False`` leaves the
     striker out: the robot stands and its head tracks (the tracking tests' robot).
+    ``localization`` picks this robot's source of ``localization/pose``
+    (:data:`.localization.SOURCES`; None: none) with ``localization_parameters``, measured by
+    a :class:`.pose_error.PoseErrorMonitor`; the filter starts where the robot was placed
+    unless its ``initial_pose`` is given.
 
     Order matters on a shared timer deadline: the simulator steps (and renders, and the
     pipeline reacts to the image in the same pass) before the driver reads and writes the
@@ -123,4 +136,13 @@ def compose(container: Container, *, namespace: str = "/robot",
         referee=container.add(Referee, name="referee", namespace=namespace),
         compressor=container.add(JpegCompressor, name="jpeg_compressor", namespace=namespace),
     )
+    if localization is not None:
+        if localization == PARTICLE_FILTER:  # placed there: what it knows at kick-off
+            localization_parameters = {"initial_pose": striker["start_pose"],
+                                       **(localization_parameters or {})}
+        return dataclasses.replace(
+            robot, localization=add_localization(container, namespace=namespace,
+                                                 source=localization,
+                                                 parameters=localization_parameters),
+            pose_error=container.add(PoseErrorMonitor, name="pose_error", namespace=namespace))
     return robot
