@@ -181,7 +181,7 @@ class _OverheadRenderer:
     the match needs)."""
 
     def __init__(self, model: mujoco.MjModel, view: OverheadView, width: int,
-                 height: int) -> None:
+                 height: int, *, samples: int) -> None:
         if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
             raise RenderError(
                 f"a {width}x{height} match video exceeds the model's offscreen buffer "
@@ -193,14 +193,20 @@ class _OverheadRenderer:
             gl: Any = importlib.import_module(f"mujoco.{backend}").GLContext(width, height)
         except Exception as exc:
             raise RenderError(f"cannot create a {backend} OpenGL context: {exc}") from exc
+        # The context takes its multisampling from the model when it is made: this one's
+        # own, the model's restored at once (the robots' cameras keep theirs).
+        model_samples = model.vis.quality.offsamples
         try:
             gl.make_current()
+            model.vis.quality.offsamples = samples
             self._context: mujoco.MjrContext | None = mujoco.MjrContext(
                 model, mujoco.mjtFontScale.mjFONTSCALE_100)
             mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
         except Exception as exc:
             gl.free()
             raise RenderError(f"cannot set up {backend} rendering: {exc}") from exc
+        finally:
+            model.vis.quality.offsamples = model_samples
         self._gl = gl
         self._model = model
         self._scene = mujoco.MjvScene(model, maxgeom=4000)
@@ -326,6 +332,11 @@ class MatchVideo:
     may be called at every physics step; ``close()`` finishes the file and writes the
     sidecar. ``lock`` is held while the scene is read (the simulator's bus lock: the
     servo thread writes into ``data``).
+
+    ``samples`` is the multisampling (antialiasing) of the frames: 0 by default, since 4
+    (MuJoCo's default) triples the CPU of a frame in Mesa's software rasteriser (29 ms
+    against 9.5 ms at 640x360, bench/match_video_bench.py). ``crf`` and ``preset`` are
+    libx264's quality and speed.
     """
 
     def __init__(
@@ -342,15 +353,17 @@ class MatchVideo:
         view: OverheadView | None = None,
         lock: AbstractContextManager[Any] | None = None,
         truth_path: str | os.PathLike[str] | None = None,
+        samples: int = 0,
         crf: int = 28,
         preset: str = "veryfast",
         queue_frames: int = 8,
     ) -> None:
         if not (0 < fps <= 120 and width > 0 and height > 0 and width % 2 == 0
-                and height % 2 == 0 and abs(drift_ppm) < 1e5):
+                and height % 2 == 0 and abs(drift_ppm) < 1e5 and 0 <= samples <= 16):
             raise SimConfigError(
-                f"match video: need 0 < fps <= 120, even width and height > 0 and a drift "
-                f"under 1e5 ppm; got {fps} fps, {width}x{height}, {drift_ppm} ppm")
+                f"match video: need 0 < fps <= 120, even width and height > 0, a drift "
+                f"under 1e5 ppm and 0..16 samples; got {fps} fps, {width}x{height}, "
+                f"{drift_ppm} ppm, {samples} samples")
         self.path = Path(path)
         self.fps = fps
         self.offset_ns, self.drift_ppm = int(offset_ns), float(drift_ppm)
@@ -366,9 +379,13 @@ class MatchVideo:
         self._first_world_ns = 0
         self._calibration: Calibration | None = None
         self.frames = 0
-        self.render_ns = 0  # CPU time spent rendering, on the caller's thread
+        #: Wall time spent rendering (not CPU: Mesa's llvmpipe rasterises in threads of
+        #: its own, so the caller's thread time would miss most of it; the benchmark
+        #: measures the process's CPU).
+        self.render_ns = 0
         with ExitStack() as opened:
-            self._renderer = _OverheadRenderer(model, self.view, width, height)
+            self._renderer = _OverheadRenderer(model, self.view, width, height,
+                                               samples=samples)
             opened.callback(self._renderer.close)
             self._encoder = _Encoder(self.path, width=width, height=height, fps=fps, crf=crf,
                                      preset=preset, depth=queue_frames)
@@ -383,7 +400,8 @@ class MatchVideo:
 
     @property
     def encode_ns(self) -> int:
-        """CPU time spent encoding so far, in the writer thread."""
+        """CPU time spent encoding so far, in the writer thread (libx264 runs in it: one
+        thread)."""
         return self._encoder.encode_ns
 
     def camera_ns(self, world_ns: int) -> int:
@@ -410,10 +428,10 @@ class MatchVideo:
             return False
         self._next_due_ns = max(self._next_due_ns + self._period_ns, camera + DUE_SLACK_NS)
         image = np.empty((self.height, self.width, 3), dtype=np.uint8)
-        started = time.thread_time_ns()
+        started = time.perf_counter_ns()
         with self._lock:
             self._renderer.render(self._data, image)
-        self.render_ns += time.thread_time_ns() - started
+        self.render_ns += time.perf_counter_ns() - started
         if self._calibration is None:
             self._calibration = self._renderer.calibration()
         pts = round((camera - self._start_ns) * TIME_BASE.denominator
