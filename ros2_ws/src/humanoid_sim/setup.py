@@ -22,6 +22,7 @@ setup(
             "soccer_demo = humanoid_sim.demo:main",
             "simulator = humanoid_sim.simulator:main",
             "servo_driver = humanoid_sim.driver:main",
+            "match_log = humanoid_sim.match_log:main",
         ],
         "efficient_comm.components": [
             "humanoid_sim::Simulator = humanoid_sim.simulator:Simulator",
