@@ -519,8 +519,12 @@ class MatchCamera:
         self.video = MatchVideo(model, data, path, offset_ns=round(offset_s * 1e9),
                                 drift_ppm=drift_ppm, fps=fps, width=width, height=height,
                                 view=view, lock=lock, truth_path=truth or None)
-        self.video.offer(node.clock.now_ns())  # the first frame: the world as it starts
-        node.create_timer(self.video.period_s, self._tick)
+        try:
+            self.video.offer(node.clock.now_ns())  # the first frame: the world as it starts
+            node.create_timer(self.video.period_s, self._tick)
+        except BaseException:
+            self.video.close()  # the container never sees a half-made component
+            raise
         node.logger.info(f"match video {path}: {fps:g} fps {width}x{height}, camera clock "
                          f"{offset_s:+g} s off the world's")
 
