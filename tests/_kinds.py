@@ -50,6 +50,8 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("ros2_ws/src/efficient_comm/test/test_signals.py", "process"),
     ("ros2_ws/src/rf_bridge/test/test_ros1_types.py", "process"),
     ("ros2_ws/src/humanoid_sim/test/test_render.py", "process"),
+    # Renders and encodes simulated seconds of video (and probes EGL in a subprocess).
+    ("ros2_ws/src/humanoid_sim/test/test_match_video.py", "sil"),
     # Top-level suites: cross-package, separate processes unless a row says otherwise.
     ("tests/test_*.py", "process"),
     ("tests/test_*_sil.py", "sil"),
@@ -62,6 +64,8 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("tests/test_owners.py", "fast"),
     ("tests/test_gui_world_model.py", "fast"),
     ("tests/test_team_clock_recorder.py", "fast"),
+    ("ros2_ws/src/humanoid_sim/test/test_match_log.py::test_the_installed_command*",
+     "process"),
     # Root only: network namespaces, a tmpfs of our own.
     ("tests/test_rf_bridge_team.py::test_team_link_over_lossy_limited_link*", "root"),
     ("tests/test_recorder_robustness.py::test_real_small_file_system*", "root"),

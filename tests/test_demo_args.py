@@ -85,3 +85,24 @@ def test_starts_drawn_from_seeds_differ_and_follow_the_rules() -> None:
         assert -4.5 < x < 0 and abs(y) < 3 and -math.pi <= heading <= math.pi  # own half
         assert abs(ball[0]) <= 1.5 and abs(ball[1]) <= 1.5  # in the middle of the field
         assert math.dist((x, y), ball) >= 0.6
+
+
+def test_the_demo_films_the_match_and_refuses_a_video_it_cannot_write(tmp_path: Path) -> None:
+    import av
+
+    from humanoid_sim.match_video import read_sidecar
+
+    result = run_demo(["--lockstep", "--no-dds", "--duration", "1", "--stats-period", "0",
+                       "--report", "r.md", "--video", "match.mp4"], tmp_path)
+    assert "report written" in result.stdout and "Traceback" not in result.stderr, (
+        result.stdout + result.stderr)
+    sidecar, _ = read_sidecar(tmp_path / "match.mp4")
+    with av.open(str(tmp_path / "match.mp4")) as video:
+        frames = sum(1 for _ in video.decode(video=0))
+    assert frames == sidecar["frames"] >= 12  # 12.5 fps for 1 simulated second
+    assert sidecar["start_ns"] == 2_500_000_000  # lockstep starts at 0; the camera is 2.5 s off
+    bad = run_demo(["--lockstep", "--no-dds", "--duration", "1", "--video",
+                    str(tmp_path / "missing" / "match.mp4")], tmp_path)
+    lines = bad.stderr.splitlines()
+    assert bad.returncode == EXIT_USAGE and len(lines) == 1, bad.stderr
+    assert lines[0].startswith("soccer_demo: error: --video: cannot write the match video")

@@ -190,7 +190,8 @@ LAYERS: dict[str, frozenset[str]] = {
     "debug_probes": frozenset({"efficient_comm", "efficient_comm_interfaces",
                                "throttle_publisher"}),
     "humanoid_sim": frozenset({"efficient_comm", "throttle_publisher", "debug_probes",
-                               "robot_recorder", "soccer_field", "soccer_interfaces"}),
+                               "robot_recorder", "team_clock", "soccer_field",
+                               "soccer_interfaces"}),
     "ros2_pip_cli": frozenset({"efficient_comm", "efficient_comm_interfaces",
                                "robot_recorder"}),
     "debug_gui": frozenset({"efficient_comm", "efficient_comm_interfaces",
@@ -203,7 +204,7 @@ OURS = frozenset(p.parent.name for p in SRC.glob("*/package.xml"))
 
 #: Python modules whose rosdep key is not their import name.
 ROSDEP_KEYS = {"yaml": "python3-yaml", "numpy": "python3-numpy", "cv2": "python3-opencv",
-               "serial": "python3-serial"}
+               "serial": "python3-serial", "av": "python3-av"}
 #: Python modules from PyPI with no rosdep key (tools/requirements.txt installs them); a
 #: package.xml cannot name them, so they are the only imports it may leave out.
 PIP_ONLY = frozenset({"mujoco", "nicegui", "fastapi", "foxglove", "websockets", "zenoh",

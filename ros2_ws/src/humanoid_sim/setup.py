@@ -23,6 +23,7 @@ setup(
             "simulator = humanoid_sim.simulator:main",
             "world = humanoid_sim.world_simulator:main",
             "servo_driver = humanoid_sim.driver:main",
+            "match_log = humanoid_sim.match_log:main",
         ],
         "efficient_comm.components": [
             "humanoid_sim::Simulator = humanoid_sim.simulator:Simulator",

@@ -24,6 +24,9 @@ same ``--seed``; by default the simulation runs in real time. ``--push-at`` push
 along the field's +x (towards the opponent goal) at that simulated second
 (``--push-newtons`` for 0.1 s; 40 N fells it).
 
+``--video match.mp4`` also films the field from above into an MP4 on a camera clock of its
+own (:mod:`humanoid_sim.match_video`: ``match.mp4.json`` beside it), for offline analysis.
+
 A bad argument is refused with one line and exit status 2 (:class:`DemoArguments`).
 
 Exit status: 0 the robot played (falls it got up from included); 1 a bug (the ball was
@@ -40,16 +43,24 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import NoReturn
 
 from rclpy.validate_namespace import validate_namespace
 
-from efficient_comm import Container, ManualClock, format_stats, stop_on_sigterm
+from efficient_comm import (
+    ComponentError,
+    Container,
+    ManualClock,
+    format_stats,
+    stop_on_sigterm,
+)
 from robot_recorder import Recorder
 from soccer_field import KIDSIZE
 
 from .errors import HumanoidSimError
+from .match_video import MatchCamera
 from .soccer.compose import SoccerRobot, compose
 from .soccer.localization import SOURCES
 from .soccer.monitor import Figures
@@ -317,6 +328,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="where the robot's recorder writes bags "
                         "(default recordings/<namespace>)")
     parser.add_argument("--report", type=Path, default=Path("soccer_report.md"))
+    parser.add_argument("--video", type=Path, default=None, metavar="MP4",
+                        help="also film the field from above into this MP4 (a sidecar "
+                        "MP4.json beside it), on a camera clock 2.5 s off the world's")
     parser.add_argument("--push-at", type=_number(low=0, what="simulated seconds >= 0"),
                         default=0.0, metavar="SECONDS",
                         help="push the robot along +x of the field (towards the opponent "
@@ -347,6 +361,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         except HumanoidSimError as exc:  # what the parser let through and a component refused
             parser.error(str(exc))
         add_recorder(container, args.namespace, bag_dir)
+        if args.video is not None:
+            try:
+                sim = robot.simulator
+                container.add(partial(MatchCamera, model=sim.model, data=sim.data,
+                                      lock=sim.pty.lock), name="match_camera",
+                              namespace=args.namespace,
+                              parameters={"video_path": str(args.video)})
+            except ComponentError as exc:  # a bad path or size: the camera's own one line
+                if not isinstance(exc.__cause__, HumanoidSimError):
+                    raise
+                parser.error(f"--video: {exc.__cause__}")
         print(f"soccer demo: {robot.simulator.camera.backend if robot.simulator.camera else 'no'}"
               f" camera, servos on {robot.simulator.port}; "
               f"{'lockstep' if args.lockstep else 'real time'}, "

@@ -5,7 +5,8 @@
     HumanoidSimError
     ├── RenderError       no offscreen OpenGL, or a camera the model cannot render
     ├── SimConfigError    a parameter a component cannot work with (also a ValueError)
-    └── TeamMessageError  a team message no robot could have sent (also a ValueError)
+    ├── TeamMessageError  a team message no robot could have sent (also a ValueError)
+    └── VideoError        the match video cannot be written or its sidecar read (also an OSError)
 """
 
 from __future__ import annotations
@@ -25,3 +26,7 @@ class SimConfigError(HumanoidSimError, ValueError):
 
 class TeamMessageError(HumanoidSimError, ValueError):
     """A team message no robot could have sent (non-finite pose, negative sigma, ...)."""
+
+
+class VideoError(HumanoidSimError, OSError):
+    """The match video or its sidecar cannot be written, or a sidecar cannot be read."""

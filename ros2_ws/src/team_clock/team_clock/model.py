@@ -86,15 +86,18 @@ class OffsetModel:
                 f"drift_ppm={first.drift_ppm:.3f})")
 
     @classmethod
-    def identity(cls, *, robot: str = "") -> OffsetModel:
+    def identity(cls, *, robot: str = "", reference: str = "") -> OffsetModel:
         """For a log whose clock is the reference, or is said to be on reference time.
 
-        The reference robot is left unnamed: the claim is the caller's (a log synchronised
-        by other means), so a merge cannot hold it against the other logs' reference. Its
-        bound is zero at every time (no holdover growth): nothing was estimated that could
-        drift away, and a bound grown from the epoch (±900 s today) would say nothing.
+        Without ``reference`` the reference robot is left unnamed: the claim is the
+        caller's (a log synchronised by other means), so a merge cannot hold it against the
+        other logs' reference. With it (a log of the reference itself, such as a simulated
+        world whose time the robots synchronise to, which measures nothing and so records
+        no estimate), a merge refuses logs aligned to any other reference. Its bound is
+        zero at every time (no holdover growth): nothing was estimated that could drift
+        away, and a bound grown from the epoch (±900 s today) would say nothing.
         """
-        return cls([Knot(0, 0, 0.0, 0)], robot=robot, holdover_ppm=0.0)
+        return cls([Knot(0, 0, 0.0, 0)], robot=robot, reference=reference, holdover_ppm=0.0)
 
     @classmethod
     def constant(cls, offset_ns: int, *, drift_ppm: float = 0.0, stamp_ns: int = 0,

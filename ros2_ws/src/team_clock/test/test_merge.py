@@ -367,3 +367,20 @@ def test_split_bag_with_renumbered_channels_merges_each_topic_whole(tmp_path):
         merge([RobotLog(clash, namespace="r", model=model)], tmp_path / "clash_merged")
     assert not (tmp_path / "clash_merged").exists()
 
+
+
+def test_a_reference_log_without_estimates_is_held_against_the_others_reference(tmp_path):
+    """The reference itself measures nothing (a simulated world whose time the robots
+    synchronise to need not run a ClockSync): named as the reference, its log merges
+    beside logs aligned to it, and refuses logs aligned to another robot."""
+    world = _log(tmp_path / "world", [])
+    aligned = _log(tmp_path / "b", [_offset("b", 10, 5)])  # reference "ref"
+    report = merge([RobotLog(world, namespace="ref",
+                             model=OffsetModel.identity(robot="ref", reference="ref")),
+                    RobotLog(aligned, namespace="b")], tmp_path / "ok")
+    assert [r.model.reference for r in report.robots] == ["ref", "ref"]
+    with pytest.raises(MergeError, match=r"different reference robots \['ref', 'world'\]"):
+        merge([RobotLog(world, namespace="world",
+                        model=OffsetModel.identity(robot="world", reference="world")),
+               RobotLog(aligned, namespace="b")], tmp_path / "refused")
+    assert not (tmp_path / "refused").exists()
