@@ -360,6 +360,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             }, localization=None if args.localization == "none" else args.localization)
         except HumanoidSimError as exc:  # what the parser let through and a component refused
             parser.error(str(exc))
+        except ComponentError as exc:  # the container wraps what a constructor raised
+            if not isinstance(exc.__cause__, HumanoidSimError):
+                raise
+            parser.error(str(exc.__cause__))
         add_recorder(container, args.namespace, bag_dir)
         if args.video is not None:
             try:
