@@ -1,0 +1,172 @@
+"""Lockstep across processes: a toy world steps robots, each a container of its own.
+
+    python -m efficient_comm.examples.lockstep robot --name blue1 --peer red1 --seed 1 &
+    python -m efficient_comm.examples.lockstep robot --name red1 --peer blue1 --seed 1 &
+    python -m efficient_comm.examples.lockstep world --robots blue1 red1 --steps 100
+
+Each robot runs a :class:`Counter` in a container with ``lockstep=<name>``: every period its
+timer mixes its tick count, a seeded random number and the last value heard from its peer
+(another process) into a new value, published on ``/<name>/value``. The world is a
+:class:`~efficient_comm.simtime.StepCoordinator` plus a container that hears every robot;
+it prints each value with its simulated time and the stamp of the peer value it used,
+sorted, then ``done``. Two runs with the same seed print the same lines; a peer value is
+always from exactly one step before (a message crosses a process boundary in one step).
+Stop the robots with Ctrl-C. A robot that dies makes the world exit 1 with one line
+naming it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import random
+import sys
+from collections.abc import Sequence
+
+from geometry_msgs.msg import PointStamped
+
+from efficient_comm import (
+    Container,
+    EfficientCommError,
+    LockstepError,
+    ManualClock,
+    StepCoordinator,
+    from_msg,
+    latched_qos,
+    stop_on_sigterm,
+    to_msg,
+)
+from efficient_comm.handle import NodeHandle
+
+#: Values are reduced modulo this prime (exact in a float64's mantissa).
+MODULUS = 1_000_003
+
+
+def value_topic(robot: str) -> str:
+    return f"/{robot}/value"
+
+
+class Counter:
+    """Publishes (latched: reliable, as the barrier covers reliable topics) ``PointStamped`` every ``period_s``: ``x`` tick, ``y`` value, ``z`` the
+    stamp (s) of the peer value it used (-1 before any), ``header.frame_id`` the robot."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.robot = node.declare_parameter("robot", node.name, read_only=True)
+        peer = node.declare_parameter("peer", "", read_only=True)
+        seed = node.declare_parameter("seed", 0, read_only=True)
+        self._rng = random.Random(f"{seed}/{self.robot}")  # one stream per robot and seed
+        period = node.declare_parameter("period_s", 0.01, read_only=True)
+        self._node = node
+        self._ticks = 0
+        self._value = 0
+        self._peer: PointStamped | None = None
+        self.pub = node.create_publisher(PointStamped, value_topic(self.robot), qos=latched_qos())
+        if peer:
+            node.create_subscription(PointStamped, value_topic(peer), self._on_peer, qos=latched_qos())
+        node.create_timer(period, self._tick)
+
+    def _on_peer(self, msg: PointStamped) -> None:
+        self._peer = msg
+
+    def _tick(self) -> None:
+        self._ticks += 1
+        peer_value = int(self._peer.point.y) if self._peer is not None else 0
+        self._value = (self._value * 31 + peer_value + self._rng.randrange(1000)) % MODULUS
+        msg = PointStamped()
+        msg.header.stamp = to_msg(self._node.clock.now_ns())
+        msg.header.frame_id = self.robot
+        msg.point.x = float(self._ticks)
+        msg.point.y = float(self._value)
+        msg.point.z = from_msg(self._peer.header.stamp) / 1e9 if self._peer is not None else -1.0
+        self.pub.publish(msg)
+
+
+class Listener:
+    """The world's ear: keeps every robot value it hears (parameter ``robots``)."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        self.heard: list[PointStamped] = []
+        for robot in node.declare_parameter("robots", [""], read_only=True):
+            node.create_subscription(PointStamped, value_topic(robot), self.heard.append,
+                                     qos=latched_qos())
+
+
+def robot(args: argparse.Namespace) -> int:
+    """One robot: a lockstep participant hosting a Counter; spins until Ctrl-C."""
+    with Container(f"{args.name}_container", lockstep=args.name) as container:
+        counter: Counter = container.add(
+            Counter, name=args.name,
+            parameters={"robot": args.name, "peer": args.peer or "", "seed": args.seed,
+                        "period_s": args.period},
+        )
+        # The barrier covers matched endpoints: wait until the world (and the peer) hear us.
+        needed = 2 if args.peer else 1
+        if not container.spin_until(lambda: counter.pub.get_subscription_count() >= needed,
+                                    timeout_s=args.timeout):
+            print(f"error: {args.name}: nobody subscribed to {value_topic(args.name)} within "
+                  f"{args.timeout:g} s (is the world running on this domain?)", file=sys.stderr)
+            return 1
+        print(f"{args.name}: ready", flush=True)
+        container.spin()
+    return 0
+
+
+def world(args: argparse.Namespace) -> int:
+    """The toy world: steps the robots ``--steps`` times and prints what they published."""
+    with Container("toy_world", clock=ManualClock()) as ear, StepCoordinator(
+        args.robots, timeout_s=args.timeout, container=ear
+    ) as steps:
+        listener: Listener = ear.add(Listener, name="listener",
+                                     parameters={"robots": list(args.robots)})
+        steps.wait_ready(timeout_s=args.join_timeout)
+        print(f"world: {len(args.robots)} robots joined", flush=True)
+        for i in range(args.steps):
+            steps.advance(args.dt)
+            if args.progress and (i + 1) % args.progress == 0:
+                print(f"world: step {i + 1} at {steps.now_ns / 1e9:.3f} s", flush=True)
+        lines = sorted(
+            (from_msg(m.header.stamp), m.header.frame_id, int(m.point.x), int(m.point.y),
+             round(m.point.z * 1e9) if m.point.z >= 0 else -1)
+            for m in listener.heard
+        )
+        for t, name, tick, value, peer_ns in lines:
+            print(f"{t} {name} tick {tick} value {value} peer {peer_ns}")
+        print(f"done {steps.steps} steps to {steps.now_ns} ns", flush=True)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="lockstep", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="role", required=True)
+    r = sub.add_parser("robot", help="one robot (a lockstep participant)")
+    r.add_argument("--name", required=True)
+    r.add_argument("--peer", help="the robot whose values this one mixes in")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--period", type=float, default=0.01, help="timer period, simulated s")
+    r.add_argument("--timeout", type=float, default=30.0, help="s to wait for subscribers")
+    w = sub.add_parser("world", help="the toy world (the step coordinator)")
+    w.add_argument("--robots", nargs="+", required=True)
+    w.add_argument("--steps", type=int, default=100)
+    w.add_argument("--dt", type=float, default=0.01, help="simulated s per step")
+    w.add_argument("--timeout", type=float, default=10.0,
+                   help="s a robot may take to acknowledge a step")
+    w.add_argument("--join-timeout", type=float, default=60.0,
+                   help="s to wait for every robot to join")
+    w.add_argument("--progress", type=int, default=0, help="print every N steps (0: never)")
+    args = parser.parse_args(argv)
+    stop_on_sigterm()
+    try:
+        return robot(args) if args.role == "robot" else world(args)
+    except LockstepError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except EfficientCommError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 0
+
+
+if __name__ == "__main__":
+    with contextlib.suppress(KeyboardInterrupt):
+        sys.exit(main())
