@@ -47,8 +47,9 @@ def value_topic(robot: str) -> str:
 
 
 class Counter:
-    """Publishes (latched: reliable, as the barrier covers reliable topics) ``PointStamped`` every ``period_s``: ``x`` tick, ``y`` value, ``z`` the
-    stamp (s) of the peer value it used (-1 before any), ``header.frame_id`` the robot."""
+    """Publishes ``PointStamped`` every ``period_s``: ``x`` tick, ``y`` value, ``z`` the
+    stamp (s) of the peer value it used (-1 before any), ``header.frame_id`` the robot.
+    Latched: reliable (the barrier covers reliable topics), the last value for a late joiner."""
 
     def __init__(self, node: NodeHandle) -> None:
         self.robot = node.declare_parameter("robot", node.name, read_only=True)
@@ -62,7 +63,8 @@ class Counter:
         self._peer: PointStamped | None = None
         self.pub = node.create_publisher(PointStamped, value_topic(self.robot), qos=latched_qos())
         if peer:
-            node.create_subscription(PointStamped, value_topic(peer), self._on_peer, qos=latched_qos())
+            node.create_subscription(PointStamped, value_topic(peer), self._on_peer,
+                                     qos=latched_qos())
         node.create_timer(period, self._tick)
 
     def _on_peer(self, msg: PointStamped) -> None:
