@@ -62,11 +62,12 @@ def lockstep(n: int, steps: int) -> dict[str, float]:
                 start_new_session=True,
             )
             stack.callback(stop_process_group, proc)
+        # The coordinator first: it prepares the process's DDS for lockstep.
+        steps_ = stack.enter_context(StepCoordinator(names, domain_id=domain, timeout_s=30))
         ear = stack.enter_context(Container("world", clock=ManualClock(), domain_id=domain,
                                             stats_period_s=0))
         ear.add(Listener, name="listener", parameters={"robots": names})
-        steps_ = stack.enter_context(StepCoordinator(names, domain_id=domain, timeout_s=30,
-                                                     container=ear))
+        steps_.container = ear
         steps_.wait_ready(timeout_s=120)
         for _ in range(max(1, steps // 10)):  # warm-up
             steps_.advance(DT_S)

@@ -43,7 +43,7 @@ def container(argv: Sequence[str] | None = None) -> int:
     time.add_argument("--clock-offset", type=float, default=0.0, metavar="S",
                       help="run on the system clock shifted by S seconds (a computer of its own)")
     args = parser.parse_args(remove_ros_args(argv)[1:])
-    prepare_process()
+    prepare_process(prompt_acks=args.sim_time or args.lockstep is not None)
     stop_on_sigterm()
     # Ctrl-C or SIGTERM at any point (even while loading) unloads what was loaded.
     try:

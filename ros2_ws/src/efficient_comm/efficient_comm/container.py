@@ -131,7 +131,7 @@ class Container(Closing):
         self._node: Any = None
         logger: Logger = RecordingLogger(fully_qualified(self.name, self.namespace))
         if dds:
-            prepare_process()
+            prepare_process(prompt_acks=isinstance(clock, SimClock))  # see efficient_comm.dds
             self.context = Context()
             # Global --ros-args (e.g. __node:=, __ns:= from ros2 launch) apply to the
             # container's own node only; components get theirs from their entries.

@@ -78,6 +78,7 @@ from std_msgs.msg import Header
 
 from ._clock import SimClock, from_msg, to_msg
 from ._closing import Closing
+from ._qos import latched_qos
 from .dds import prepare_process
 from .errors import ConfigError, LockstepError
 
@@ -110,9 +111,7 @@ def ack_topic(participant: str) -> str:
 
 def _step_qos() -> QoSProfile:
     """/clock and intake in lockstep: reliable, and the latest one reaches a late joiner."""
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    return latched_qos()
 
 
 def _ack_qos() -> QoSProfile:
@@ -242,13 +241,16 @@ class StepCoordinator(Closing):
             raise ConfigError(f"timeout_s must be positive, got {timeout_s!r}")
         self.timeout_s = timeout_s
         self._now = start_ns
-        self._container = container
+        #: The world's container (see above); may be set after creating the coordinator,
+        #: which is best created first (it prepares the process's DDS: efficient_comm.dds).
+        self.container = container
         #: Per participant: the last (round, time) it acknowledged, None before any.
         self.acked: dict[str, tuple[str, int] | None] = dict.fromkeys(self.participants)
         self._alive: dict[str, int] = dict.fromkeys(self.participants, 0)
         self._gone: set[str] = set()
         self.steps = 0
-        prepare_process()  # the process may compose components too (see efficient_comm.dds)
+        # The process may compose components too; prompt acknowledgements: efficient_comm.dds.
+        prepare_process(prompt_acks=True)
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         try:
@@ -299,8 +301,8 @@ class StepCoordinator(Closing):
         dt_ns = round(dt_s * 1e9)
         if dt_ns <= 0:
             raise ValueError(f"a step must be positive, got {dt_s!r} s")
-        if self._container is not None:
-            late = self._container.flush_dds(timeout_s=self.timeout_s)
+        if self.container is not None:
+            late = self.container.flush_dds(timeout_s=self.timeout_s)
             if late:
                 raise LockstepError(f"lockstep: the world's readers of {', '.join(late)} did "
                                     f"not acknowledge within {self.timeout_s:g} s")
@@ -314,8 +316,8 @@ class StepCoordinator(Closing):
                    self.timeout_s)
         self._now = target
         self.steps += 1
-        if self._container is not None:
-            self._container.take_dds()
+        if self.container is not None:
+            self.container.take_dds()
         return target
 
     def _wait(self, done: Any, what: str, timeout_s: float) -> None:

@@ -4,7 +4,9 @@ tests/test_lockstep.py."""
 
 from __future__ import annotations
 
+import re
 import time
+from pathlib import Path
 
 import pytest
 
@@ -17,6 +19,7 @@ from efficient_comm import (
     Standalone,
     StepCoordinator,
 )
+from efficient_comm.dds import _with_ignore_local
 from efficient_comm.executor import ConsecutiveExecutor
 from efficient_comm.handle import NodeHandle
 from efficient_comm.stats import CallbackStats
@@ -113,3 +116,18 @@ def test_container_and_standalone_tell_components_sim_time() -> None:
         assert node.handle.clock.now_ns() == 0
     with Standalone(Ticker, name="ticker", domain_id=domain) as node:
         assert node.handle.clock_kind == "system"
+
+
+def test_lockstep_processes_acknowledge_heartbeats_at_once(tmp_path: Path) -> None:
+    """Each step waits for its messages' acknowledgements: Fast DDS's default 5 ms delay
+    before a reader answers a heartbeat was most of a step (efficient_comm.dds)."""
+    plain = _with_ignore_local(None)
+    prompt = _with_ignore_local(None, prompt_acks=True)
+    assert "heartbeatResponseDelay" not in plain
+    assert re.search(r"<heartbeatResponseDelay><sec>0</sec><nanosec>0</nanosec>", prompt)
+    own = tmp_path / "own.xml"  # a user's own default reader profile is left alone
+    own.write_text('<profiles><data_reader profile_name="mine" is_default_profile="true">'
+                   "<topic><historyQos><kind>KEEP_ALL</kind></historyQos></topic>"
+                   "</data_reader></profiles>")
+    kept = _with_ignore_local(own, prompt_acks=True)
+    assert "heartbeatResponseDelay" not in kept and "KEEP_ALL" in kept

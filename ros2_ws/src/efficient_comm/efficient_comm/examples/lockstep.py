@@ -115,9 +115,11 @@ def robot(args: argparse.Namespace) -> int:
 
 def world(args: argparse.Namespace) -> int:
     """The toy world: steps the robots ``--steps`` times and prints what they published."""
-    with Container("toy_world", clock=ManualClock()) as ear, StepCoordinator(
-        args.robots, timeout_s=args.timeout, container=ear
-    ) as steps:
+    # The coordinator first: it prepares the process's DDS for lockstep (efficient_comm.dds).
+    with StepCoordinator(args.robots, timeout_s=args.timeout) as steps, Container(
+        "toy_world", clock=ManualClock()
+    ) as ear:
+        steps.container = ear
         listener: Listener = ear.add(Listener, name="listener",
                                      parameters={"robots": list(args.robots)})
         steps.wait_ready(timeout_s=args.join_timeout)
