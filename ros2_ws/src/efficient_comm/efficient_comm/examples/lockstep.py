@@ -3,6 +3,8 @@
     python -m efficient_comm.examples.lockstep robot --name blue1 --peer red1 --seed 1 &
     python -m efficient_comm.examples.lockstep robot --name red1 --peer blue1 --seed 1 &
     python -m efficient_comm.examples.lockstep world --robots blue1 red1 --steps 100
+    # or the world starts them itself, each robot hearing the next in a ring:
+    python -m efficient_comm.examples.lockstep world --robots blue1 red1 --spawn --seed 1
 
 Each robot runs a :class:`Counter` in a container with ``lockstep=<name>``: every period its
 timer mixes its tick count, a seeded random number and the last value heard from its peer
@@ -20,8 +22,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import random
+import subprocess
 import sys
 from collections.abc import Sequence
+from contextlib import ExitStack
 
 from geometry_msgs.msg import PointStamped
 
@@ -37,6 +41,7 @@ from efficient_comm import (
     to_msg,
 )
 from efficient_comm.handle import NodeHandle
+from efficient_comm.testing import stop_process_group
 
 #: Values are reduced modulo this prime (exact in a float64's mantissa).
 MODULUS = 1_000_003
@@ -113,8 +118,27 @@ def robot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _spawn(stack: ExitStack, robots: Sequence[str], seed: int) -> None:
+    """Start each robot as a process of its own (its own session: stopped on exit)."""
+    for i, name in enumerate(robots):
+        peer = robots[(i + 1) % len(robots)] if len(robots) > 1 else ""
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "efficient_comm.examples.lockstep", "robot", "--name", name,
+             "--seed", str(seed), *(["--peer", peer] if peer else [])],
+            start_new_session=True,
+        )
+        stack.callback(stop_process_group, proc)
+
+
 def world(args: argparse.Namespace) -> int:
     """The toy world: steps the robots ``--steps`` times and prints what they published."""
+    with ExitStack() as stack:
+        if args.spawn:
+            _spawn(stack, args.robots, args.seed)
+        return _step_world(args)
+
+
+def _step_world(args: argparse.Namespace) -> int:
     # The coordinator first: it prepares the process's DDS for lockstep (efficient_comm.dds).
     with StepCoordinator(args.robots, timeout_s=args.timeout) as steps, Container(
         "toy_world", clock=ManualClock()
@@ -157,6 +181,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     w.add_argument("--join-timeout", type=float, default=60.0,
                    help="s to wait for every robot to join")
     w.add_argument("--progress", type=int, default=0, help="print every N steps (0: never)")
+    w.add_argument("--spawn", action="store_true",
+                   help="start the robots too (each hears the next, in a ring)")
+    w.add_argument("--seed", type=int, default=0, help="the spawned robots' seed")
     args = parser.parse_args(argv)
     stop_on_sigterm()
     try:
