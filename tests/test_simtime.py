@@ -1,21 +1,23 @@
-"""Simulated time from another process: ``/clock`` published by ``ros2 topic pub`` (as a
-simulator would) drives a container's timers and a standalone node's clock; a clock that
-goes back is not followed."""
+"""Time across processes: ``/clock`` published by ``ros2 topic pub`` (as a simulator would)
+drives a container's timers and a standalone node's clock, and a clock that goes back is not
+followed; container processes started with ``--clock-offset`` run skewed."""
 
 from __future__ import annotations
 
+import functools
 import shutil
 import subprocess
 import time
 from collections.abc import Callable
-from contextlib import AbstractContextManager
+from contextlib import AbstractContextManager, ExitStack
 from pathlib import Path
 
-from efficient_comm import Container, SimClock, Standalone
+from efficient_comm import STATS_TOPIC, Container, SimClock, Standalone, from_msg
 from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import isolated_domain_id
+from efficient_comm_interfaces.msg import ExecutorStats
 
-from ._ros import child
+from ._ros import child, executable, peer
 
 MS = 1_000_000
 
@@ -74,3 +76,29 @@ def test_standalone_follows_clock_of_another_process(tmp_path: Path) -> None:
             # rclpy's own clock went back...
             _spin_until(node, lambda: rclpy_clock.now().nanoseconds == 200 * MS)
         assert handle.clock.now_ns() == 350 * MS  # ...the handle's did not
+
+
+def _skew_of(seen: dict[str, int], ns: str, msg: ExecutorStats) -> None:
+    seen.setdefault(ns, from_msg(msg.stamp) - time.time_ns())
+
+
+def test_container_processes_run_on_their_own_skewed_clocks(tmp_path: Path) -> None:
+    """Two robot containers as separate computers: ``--clock-offset`` of +100 s and -50 s.
+    Their components' time (the stamp of the statistics they publish) is off by that much."""
+    domain = isolated_domain_id()
+    exe = executable("efficient_comm", "container")
+    offsets = {"/fast": 100.0, "/slow": -50.0}
+    seen: dict[str, int] = {}  # namespace -> stamp minus this process's clock at receipt
+    with peer(domain) as p, ExitStack() as stack:
+        for ns, offset in offsets.items():
+            p.node.create_subscription(ExecutorStats, f"{ns}/{STATS_TOPIC}",
+                                       functools.partial(_skew_of, seen, ns), 10)
+            stack.enter_context(child(
+                [exe, "--name", f"robot{ns.replace('/', '_')}", "--stats-namespace", ns,
+                 "--stats-period", "0.2", "--clock-offset", str(offset)],
+                domain_id=domain, log=tmp_path / f"{ns[1:]}.log",
+            ))
+        assert p.wait_for(lambda: len(seen) == len(offsets), timeout_s=60), seen
+    for ns, offset in offsets.items():
+        # A second of slack for delivery on a loaded machine, against offsets of 50 s+.
+        assert abs(seen[ns] - offset * 1e9) < 1e9, (ns, seen[ns])
