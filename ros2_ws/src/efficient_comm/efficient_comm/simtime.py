@@ -142,7 +142,7 @@ def follow_clock(node: Any, clock: SimClock, *, reliable: bool) -> Any:
     """Subscribe ``node`` (an rclpy node) to ``/clock``, feeding ``clock``.
 
     The callback only records the time: the executor advances to it between callbacks
-    (see :meth:`~efficient_comm.executor.ConsecutiveExecutor`), so timers fire in order.
+    (:class:`~efficient_comm.executor.ConsecutiveExecutor`), so timers fire in order.
     """
 
     def on_clock(msg: ClockMsg) -> None:
@@ -157,7 +157,8 @@ class LockstepParticipant:
     """The participant's end of the barrier, inside a container (see the module docstring).
 
     The container's executor calls :meth:`done_intake` and :meth:`done_step`; the
-    container calls :meth:`join` when it first spins.
+    container calls :meth:`join` when it first spins (``Container.spin``; a program with a
+    loop of its own, ``spin_for`` and printing, calls ``container.lockstep.join()``).
     """
 
     def __init__(self, container: Container, name: str, *, flush_timeout_s: float) -> None:
