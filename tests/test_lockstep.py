@@ -119,3 +119,23 @@ def test_a_participant_that_never_joins_is_named(tmp_path: Path) -> None:
     assert world.returncode == 1
     assert world.stderr.startswith("error: lockstep join: no acknowledgement from red9 within")
     assert "Traceback" not in world.stderr
+
+
+def test_robots_on_domains_of_their_own_step_together(tmp_path: Path) -> None:
+    """One coordinator per DDS domain, stepped as one barrier (advance_together)."""
+    domains = {"blue1": isolated_domain_id(), "red1": isolated_domain_id()}
+    steps = 20
+    with ExitStack() as stack:
+        for name, domain in domains.items():
+            stack.enter_context(_started(["robot", "--name", name, "--seed", "4"], domain,
+                                         tmp_path / f"{name}.log"))
+        world = subprocess.run(
+            [*EXAMPLE, "world", "--robots", *domains, "--steps", str(steps),
+             "--robot-domains", *map(str, domains.values()), "--timeout", "30"],
+            env=ros_env(isolated_domain_id()), capture_output=True, text=True, timeout=240,
+        )
+    assert world.returncode == 0, world.stderr
+    assert f"done {steps} steps to {steps * DT_NS} ns" in world.stdout
+    heard = [line.split()[:4] for line in world.stdout.splitlines() if " value " in line]
+    assert heard == [[str(t * DT_NS), name, "tick", str(t)]
+                     for t in range(1, steps + 1) for name in sorted(domains)]

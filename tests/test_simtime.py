@@ -13,11 +13,15 @@ from contextlib import AbstractContextManager, ExitStack
 from pathlib import Path
 
 from efficient_comm import STATS_TOPIC, Container, SimClock, Standalone, from_msg
+from efficient_comm.dds import prepare_process
 from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import isolated_domain_id
 from efficient_comm_interfaces.msg import ExecutorStats
 
 from ._ros import child, executable, peer
+
+# This process composes (a Container with DDS below): prepare its DDS before any participant.
+prepare_process()
 
 MS = 1_000_000
 

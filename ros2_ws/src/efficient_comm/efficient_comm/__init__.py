@@ -11,7 +11,8 @@ Where things live (read ARCHITECTURE.md for the why):
 * ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
 * ``simtime``    simulated time from another process (``/clock``) and the lockstep barrier
-                 (``StepCoordinator``, the world's end; ``Container(lockstep=...)``, a robot's);
+                 (``StepCoordinator``, the world's end, ``advance_together`` for robots on
+                 several domains; ``Container(lockstep=...)``, a robot's);
 * ``typenames`` type name <-> class (``pkg/msg/Name``), the one owner of that spelling;
 * ``plain``      messages as plain trees (``to_plain``), as ``ros2 topic echo`` shows them;
 * ``binding``    a parameter dataclass bound to the node's parameters (``bind_parameters``);
@@ -58,6 +59,7 @@ from .plain import element_type as element_type
 from .plain import is_message as is_message
 from .plain import to_plain as to_plain
 from .simtime import StepCoordinator as StepCoordinator
+from .simtime import advance_together as advance_together
 from .standalone import Standalone as Standalone
 from .standalone import run_standalone as run_standalone
 from .standalone import standalone_main as standalone_main

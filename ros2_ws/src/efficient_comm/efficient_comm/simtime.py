@@ -57,7 +57,7 @@ process died is noticed earlier through DDS liveliness on its acknowledgement to
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from functools import partial
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -92,6 +92,7 @@ __all__ = [
     "LockstepParticipant",
     "StepCoordinator",
     "ack_topic",
+    "advance_together",
     "follow_clock",
 ]
 
@@ -299,27 +300,33 @@ class StepCoordinator(Closing):
         Blocks until all acknowledged both rounds (slower than real time, never late);
         raises :class:`LockstepError` naming who did not within ``timeout_s``, or is gone.
         """
-        dt_ns = round(dt_s * 1e9)
-        if dt_ns <= 0:
-            raise ValueError(f"a step must be positive, got {dt_s!r} s")
+        return advance_together([self], dt_s)
+
+    def _flush_world(self) -> None:
         if self.container is not None:
             late = self.container.flush_dds(timeout_s=self.timeout_s)
             if late:
-                raise LockstepError(f"lockstep: the world's readers of {', '.join(late)} did "
+                raise LockstepError(f"lockstep: readers of the world's {', '.join(late)} did "
                                     f"not acknowledge within {self.timeout_s:g} s")
+
+    def _start_intake(self) -> None:
+        self._intake_pub.publish(Header(stamp=to_msg(self._now), frame_id="intake"))
+
+    def _wait_intake(self) -> None:
         now = self._now
-        self._intake_pub.publish(Header(stamp=to_msg(now), frame_id="intake"))
         self._wait(lambda ack: ack == ("intake", now), f"intake at {now / 1e9:.3f} s",
                    self.timeout_s)
-        target = now + dt_ns
+
+    def _start_step(self, target: int) -> None:
         self._clock_pub.publish(ClockMsg(clock=to_msg(target)))
+
+    def _wait_step(self, target: int) -> None:
         self._wait(lambda ack: ack == ("step", target), f"step to {target / 1e9:.3f} s",
                    self.timeout_s)
         self._now = target
         self.steps += 1
         if self.container is not None:
             self.container.take_dds()
-        return target
 
     def _wait(self, done: Any, what: str, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
@@ -357,3 +364,32 @@ class StepCoordinator(Closing):
         self._executor.shutdown()
         self._node.destroy_node()
         self.context.try_shutdown()
+
+
+def advance_together(coordinators: Sequence[StepCoordinator], dt_s: float) -> int:
+    """Step the participants of several coordinators as one barrier; returns the new time.
+
+    One coordinator has one DDS domain; robots that each have a domain of their own (as
+    separate computers on separate networks would) get one coordinator each, and this runs
+    every round on all of them before the next round, so the robots run each step side by
+    side instead of one domain after the other. All must stand at the same time.
+    """
+    dt_ns = round(dt_s * 1e9)
+    if dt_ns <= 0:
+        raise ValueError(f"a step must be positive, got {dt_s!r} s")
+    times = {c.now_ns for c in coordinators}
+    if len(times) != 1:
+        raise ConfigError(f"coordinators stepped together must stand at one time, not at "
+                          f"{sorted(times)} ns")
+    target = times.pop() + dt_ns
+    for c in coordinators:
+        c._flush_world()
+    for c in coordinators:
+        c._start_intake()
+    for c in coordinators:
+        c._wait_intake()
+    for c in coordinators:
+        c._start_step(target)
+    for c in coordinators:
+        c._wait_step(target)
+    return target

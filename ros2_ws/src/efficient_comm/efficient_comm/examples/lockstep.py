@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import random
 import subprocess
 import sys
@@ -30,11 +31,13 @@ from contextlib import ExitStack
 from geometry_msgs.msg import PointStamped
 
 from efficient_comm import (
+    ConfigError,
     Container,
     EfficientCommError,
     LockstepError,
     ManualClock,
     StepCoordinator,
+    advance_together,
     from_msg,
     latched_qos,
     stop_on_sigterm,
@@ -118,14 +121,19 @@ def robot(args: argparse.Namespace) -> int:
     return 0
 
 
-def _spawn(stack: ExitStack, robots: Sequence[str], seed: int) -> None:
-    """Start each robot as a process of its own (its own session: stopped on exit)."""
+def _spawn(stack: ExitStack, robots: Sequence[str], seed: int,
+           domains: Sequence[int] | None) -> None:
+    """Start each robot as a process of its own (its own session: stopped on exit); on
+    domains of their own (then they cannot hear each other: no peers), or in a ring."""
     for i, name in enumerate(robots):
-        peer = robots[(i + 1) % len(robots)] if len(robots) > 1 else ""
+        peer = robots[(i + 1) % len(robots)] if len(robots) > 1 and not domains else ""
+        env = dict(os.environ)
+        if domains:
+            env["ROS_DOMAIN_ID"] = str(domains[i])
         proc = subprocess.Popen(
             [sys.executable, "-m", "efficient_comm.examples.lockstep", "robot", "--name", name,
              "--seed", str(seed), *(["--peer", peer] if peer else [])],
-            start_new_session=True,
+            env=env, start_new_session=True,
         )
         stack.callback(stop_process_group, proc)
 
@@ -134,32 +142,48 @@ def world(args: argparse.Namespace) -> int:
     """The toy world: steps the robots ``--steps`` times and prints what they published."""
     with ExitStack() as stack:
         if args.spawn:
-            _spawn(stack, args.robots, args.seed)
+            _spawn(stack, args.robots, args.seed, args.robot_domains)
         return _step_world(args)
 
 
 def _step_world(args: argparse.Namespace) -> int:
-    # The coordinator first: it prepares the process's DDS for lockstep (efficient_comm.dds).
-    with StepCoordinator(args.robots, timeout_s=args.timeout) as steps, Container(
-        "toy_world", clock=ManualClock()
-    ) as ear:
-        steps.container = ear
-        listener: Listener = ear.add(Listener, name="listener",
-                                     parameters={"robots": list(args.robots)})
-        steps.wait_ready(timeout_s=args.join_timeout)
+    # Robots on domains of their own (--robot-domains) get a coordinator and an ear each.
+    domains: list[int | None] = list(args.robot_domains or [None] * len(args.robots))
+    if len(domains) != len(args.robots):
+        raise ConfigError(f"--robot-domains lists {len(domains)} domains for "
+                          f"{len(args.robots)} robots")
+    groups: dict[int | None, list[str]] = {}
+    for name, domain in zip(args.robots, domains, strict=True):
+        groups.setdefault(domain, []).append(name)
+    with ExitStack() as stack:
+        # Coordinators first: they prepare the process's DDS for lockstep (efficient_comm.dds).
+        coordinators = [
+            stack.enter_context(StepCoordinator(names, domain_id=domain, timeout_s=args.timeout))
+            for domain, names in groups.items()
+        ]
+        listeners: list[Listener] = []
+        for c, (domain, names) in zip(coordinators, groups.items(), strict=True):
+            c.container = stack.enter_context(
+                Container(f"toy_world_{domain or 0}", clock=ManualClock(), domain_id=domain)
+            )
+            listeners.append(c.container.add(Listener, name=f"listener_{domain or 0}",
+                                              parameters={"robots": names}))
+        for c in coordinators:
+            c.wait_ready(timeout_s=args.join_timeout)
         print(f"world: {len(args.robots)} robots joined", flush=True)
+        now = 0
         for i in range(args.steps):
-            steps.advance(args.dt)
+            now = advance_together(coordinators, args.dt)
             if args.progress and (i + 1) % args.progress == 0:
-                print(f"world: step {i + 1} at {steps.now_ns / 1e9:.3f} s", flush=True)
+                print(f"world: step {i + 1} at {now / 1e9:.3f} s", flush=True)
         lines = sorted(
             (from_msg(m.header.stamp), m.header.frame_id, int(m.point.x), int(m.point.y),
              round(m.point.z * 1e9) if m.point.z >= 0 else -1)
-            for m in listener.heard
+            for listener in listeners for m in listener.heard
         )
         for t, name, tick, value, peer_ns in lines:
             print(f"{t} {name} tick {tick} value {value} peer {peer_ns}")
-        print(f"done {steps.steps} steps to {steps.now_ns} ns", flush=True)
+        print(f"done {coordinators[0].steps} steps to {now} ns", flush=True)
     return 0
 
 
@@ -184,6 +208,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     w.add_argument("--spawn", action="store_true",
                    help="start the robots too (each hears the next, in a ring)")
     w.add_argument("--seed", type=int, default=0, help="the spawned robots' seed")
+    w.add_argument("--robot-domains", type=int, nargs="+", metavar="ID",
+                   help="each robot's DDS domain, in --robots order (default: this one's)")
     args = parser.parse_args(argv)
     stop_on_sigterm()
     try:
