@@ -8,7 +8,9 @@ rounds (intake and step, see efficient_comm.simtime). Baseline, measured in the 
 the same number of the same components in one container on a :class:`ManualClock`,
 advanced by the same step (``Container.advance``): what lockstep costs when nothing
 crosses a process boundary. Each figure is the median of ``--repeat`` runs (fresh
-processes and a fresh domain each run).
+processes and a fresh domain each run). One more row: one participant with Fast DDS's
+default 5 ms ``heartbeatResponseDelay`` in the world's readers (a child process given a
+profile of its own, which efficient_comm.dds keeps), i.e. without prompt acknowledgements.
 
 Run: ``source scripts/env.sh && python bench/lockstep_bench.py`` (``--quick``: smoke run).
 """
@@ -22,6 +24,7 @@ import platform
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from contextlib import ExitStack
 from pathlib import Path
@@ -31,6 +34,15 @@ from efficient_comm.examples.lockstep import Counter, Listener
 from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
 
 DT_S = 0.01
+#: A user's profile that keeps Fast DDS's default reader acknowledgement delay (5 ms).
+DEFAULT_ACKS_XML = """<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <data_reader profile_name="default_acks" is_default_profile="true">
+    <times><heartbeatResponseDelay><sec>0</sec><nanosec>5000000</nanosec>
+    </heartbeatResponseDelay></times>
+  </data_reader>
+</profiles>
+"""
 OUT = Path(__file__).resolve().parent / "out" / "lockstep_bench.json"
 
 
@@ -78,6 +90,19 @@ def lockstep(n: int, steps: int) -> dict[str, float]:
     return {"steps_per_s": steps / elapsed, "rtf": steps * DT_S / elapsed}
 
 
+def default_acks(steps: int, tmp: Path) -> dict[str, float]:
+    """:func:`lockstep` with one participant in a child whose readers wait 5 ms to ack."""
+    profile = tmp / "default_acks.xml"
+    profile.write_text(DEFAULT_ACKS_XML)
+    env = dict(os.environ, FASTRTPS_DEFAULT_PROFILES_FILE=str(profile))
+    out = subprocess.run([sys.executable, __file__, "--child-default-acks", str(steps)],
+                         env=env, capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        raise SystemExit(f"the default-acks run failed:\n{out.stderr[-2000:]}")
+    result: dict[str, float] = json.loads(out.stdout.strip().splitlines()[-1])
+    return result
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="a smoke run (seconds)")
@@ -85,16 +110,24 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--participants", type=int, nargs="+", default=[1, 2, 4])
     parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--child-default-acks", type=int, metavar="STEPS",
+                        help=argparse.SUPPRESS)  # the default-acks run's child
     args = parser.parse_args()
+    if args.child_default_acks:
+        print(json.dumps(lockstep(1, args.child_default_acks)))
+        return 0
     if args.quick:
         args.repeat, args.steps, args.participants = 1, 20, [1, 2]
     runs: dict[int, list[dict[str, float]]] = {n: [] for n in args.participants}
+    slow_acks: list[dict[str, float]] = []
     started = time.time()
-    for _ in range(args.repeat):  # interleaved, so load drifts hit every figure alike
-        for n in args.participants:
-            base = baseline(n, args.steps * 10)
-            measured = lockstep(n, args.steps)
-            runs[n].append({"baseline_steps_per_s": base, **measured})
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(args.repeat):  # interleaved, so load drifts hit every figure alike
+            for n in args.participants:
+                base = baseline(n, args.steps * 10)
+                measured = lockstep(n, args.steps)
+                runs[n].append({"baseline_steps_per_s": base, **measured})
+            slow_acks.append(default_acks(args.steps, Path(tmp)))
     results = []
     print(f"lockstep: steps of {DT_S * 1e3:g} ms simulated, {args.steps} timed steps, "
           f"median of {args.repeat}")
@@ -108,6 +141,11 @@ def main() -> int:
         print(f"| {n} | {med['steps_per_s']:,.0f} | {med['rtf']:.2f} | "
               f"{med['baseline_steps_per_s']:,.0f} | {ratio:.4f} | "
               f"{1e3 / med['steps_per_s']:.2f} ms |")
+    slow = statistics.median(r["steps_per_s"] for r in slow_acks)
+    print(f"| 1, Fast DDS's 5 ms ack delay | {slow:,.0f} | {slow * DT_S:.2f} | | | "
+          f"{1e3 / slow:.2f} ms |")
+    results.append({"participants": 1, "default_acks": True, "steps_per_s": slow,
+                    "runs": slow_acks})
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({
         "meta": {"started": started, "seconds": time.time() - started,
