@@ -21,10 +21,11 @@ contexts or other processes are unaffected.
 with simulated time) also makes the process's readers acknowledge a writer's heartbeat at
 once instead of after Fast DDS's default 5 ms ``heartbeatResponseDelay``: each lockstep
 step waits until its messages are acknowledged (:mod:`efficient_comm.simtime`), and that
-delay doubled a step (14.0 ms against 6.9 ms for one participant, bench/lockstep_bench.py). The price is
-an acknowledgement per heartbeat instead of one per batch. A default data-reader profile
-of the user's own is kept as it is. Like the property, it applies to participants created
-after the first call: create a lockstep process's coordinator or container first.
+delay doubled a step (14.0 ms against 6.9 ms for one participant, bench/lockstep_bench.py).
+The price is an acknowledgement per heartbeat instead of one per batch. A default
+data-reader profile of the user's own is kept as it is. Like the property, it applies to
+participants created after the first call: create a lockstep process's coordinator or
+container first.
 """
 
 from __future__ import annotations
