@@ -30,7 +30,6 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from ._clock import ManualClock, SimClock, SystemClock
@@ -159,9 +158,11 @@ class ConsecutiveExecutor:
         self._sim = self.clock if isinstance(self.clock, SimClock) else None
         self._lockstep: LockstepParticipant | None = None
         # Lockstep: messages from other processes, held from arrival until an intake round
-        # (_held), then delivered at the start of the next step (_inbox): (topic, subs, msg).
-        self._held: list[tuple[str, tuple[LocalSubscription, ...], Any]] = []
-        self._inbox: list[tuple[str, tuple[LocalSubscription, ...], Any]] = []
+        # (_held: per reader, bounded by its QoS depth as DDS's own history would be, with
+        # an arrival number), then delivered at the start of the next step (_inbox).
+        self._held: dict[int, tuple[tuple[LocalSubscription, ...], deque[tuple[int, Any]]]] = {}
+        self._arrivals = itertools.count()
+        self._inbox: list[tuple[tuple[LocalSubscription, ...], Any]] = []
         self._depth_first = strategy == "depth_first"
         self._guard: GuardMode = guard_mutation
         self._logger = logger
@@ -295,7 +296,13 @@ class ConsecutiveExecutor:
         whatever the load (see :mod:`efficient_comm.simtime`).
         """
         if self._lockstep is not None:
-            self._held.append((subs[0].topic.name, subs, msg))
+            entry = self._held.get(id(subs))
+            if entry is None:
+                entry = self._held[id(subs)] = (subs, deque(maxlen=subs[0].queue.maxlen))
+            held = entry[1]
+            if held.maxlen is not None and len(held) == held.maxlen:
+                subs[0].stats.dropped += 1  # KEEP_LAST: the oldest goes, as in DDS
+            held.append((next(self._arrivals), msg))
         else:
             self.dispatch(subs, msg, "dds")
 
@@ -569,16 +576,21 @@ class ConsecutiveExecutor:
         if lockstep.intake_due is not None:
             t, lockstep.intake_due = lockstep.intake_due, None
             self.take_dds()  # every step's message is in a DDS cache by now: take it
-            self._held.sort(key=itemgetter(0))  # stable: each topic keeps arrival order
-            self._inbox.extend(self._held)
+            # Topic by topic (by name), each topic's messages in arrival order.
+            batch = sorted(
+                (subs[0].topic.name, seq, subs, msg)
+                for subs, held in self._held.values() for seq, msg in held
+            )
             self._held.clear()
+            self._inbox.extend((subs, msg) for _, _, subs, msg in batch)
             lockstep.done_intake(t)
             did = True
         target = clock.target_ns
         if target > clock.now_ns():
             inbox, self._inbox = self._inbox, []
-            for _, subs, msg in inbox:
-                self.dispatch(subs, msg, "dds")
+            for subs, msg in inbox:
+                if subs[0].active:  # not unsubscribed meanwhile
+                    self.dispatch(subs, msg, "dds")
             # No DDS poll inside a step: what other participants send now is the next's.
             self._advance_to(clock, target, poll=False)
             lockstep.done_step(target)

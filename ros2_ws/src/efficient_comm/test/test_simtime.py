@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 
 import pytest
+from rclpy.qos import QoSProfile
+from std_msgs.msg import String
 
 from efficient_comm import (
     ConfigError,
@@ -19,6 +21,7 @@ from efficient_comm import (
     Standalone,
     StepCoordinator,
 )
+from efficient_comm.bus import Bus
 from efficient_comm.dds import _with_ignore_local
 from efficient_comm.executor import ConsecutiveExecutor
 from efficient_comm.handle import NodeHandle
@@ -131,3 +134,53 @@ def test_lockstep_processes_acknowledge_heartbeats_at_once(tmp_path: Path) -> No
                    "</data_reader></profiles>")
     kept = _with_ignore_local(own, prompt_acks=True)
     assert "heartbeatResponseDelay" not in kept and "KEEP_ALL" in kept
+
+
+class _Participant:
+    """The barrier's participant end as the executor sees it, without DDS."""
+
+    def __init__(self) -> None:
+        self.joined = True
+        self.intake_due: int | None = None
+        self.acks: list[tuple[str, int]] = []
+
+    def done_intake(self, t_ns: int) -> None:
+        self.acks.append(("intake", t_ns))
+
+    def done_step(self, t_ns: int) -> None:
+        self.acks.append(("step", t_ns))
+
+
+def test_lockstep_holds_remote_messages_until_an_intake_and_delivers_them_in_order() -> None:
+    clock = SimClock()
+    executor = ConsecutiveExecutor(clock=clock)
+    participant = _Participant()
+    executor.attach_lockstep(participant)  # type: ignore[arg-type]
+    bus = Bus(executor)
+    heard: list[str] = []
+    logger = TestHandle().logger
+    subs = {
+        name: (bus.add_subscription(
+            name, String, lambda m: heard.append(m.data), QoSProfile(depth=2),
+            stats=CallbackStats("n", "subscription", name), logger=logger,
+        ),)
+        for name in ("/b", "/a")
+    }
+    for topic, data in [("/b", "b1"), ("/a", "a1"), ("/b", "b2"), ("/b", "b3")]:
+        executor.receive_remote(subs[topic], String(data=data))  # what DDS readers call
+    executor.spin_once(0.0)
+    assert heard == [] and participant.acks == []  # held: no intake yet
+    participant.intake_due = 0
+    executor.spin_once(0.0)
+    assert heard == [] and participant.acks == [("intake", 0)]  # taken in, nothing runs
+    executor.receive_remote(subs["/a"], String(data="a2"))  # too late for this step
+    clock.receive(10 * MS)
+    executor.spin_once(0.0)
+    # By topic name, each in arrival order; /b kept its depth (2): b1 dropped and counted.
+    assert heard == ["a1", "b2", "b3"]
+    assert subs["/b"][0].stats.dropped == 1
+    assert participant.acks[-1] == ("step", 10 * MS)
+    participant.intake_due = 10 * MS
+    clock.receive(20 * MS)
+    executor.spin_once(0.0)
+    assert heard[3:] == ["a2"] and participant.acks[-1] == ("step", 20 * MS)
