@@ -33,7 +33,8 @@ on the load, and the run would not repeat. The step round's acknowledgement come
 every "step" acknowledgement, every message of that step is in its readers' DDS caches.
 The intake round then moves exactly those into each receiver's inbox; nobody runs (or
 publishes) during it, so nothing of the next step can slip in. Messages from other
-processes are held from arrival until an intake, never delivered mid-step, and an inbox is
+processes are held from arrival until an intake (as many as the reader's QoS depth keeps),
+never delivered mid-step, and an inbox is
 delivered topic by topic (sorted by name; each topic's messages in arrival order), so the
 order does not depend on which DDS reader the wait set happened to report first. A message
 thus crosses a process boundary in exactly one step, like a wire with a unit delay.
