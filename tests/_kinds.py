@@ -70,6 +70,7 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("tests/test_rf_bridge_team.py::test_team_link_over_lossy_limited_link*", "root"),
     ("tests/test_recorder_robustness.py::test_real_small_file_system*", "root"),
     ("tests/test_throttle_bench_smoke.py::*", "root"),
+    ("tests/test_lockstep_netns.py::*", "root"),
 )
 
 

@@ -10,6 +10,9 @@ Where things live (read ARCHITECTURE.md for the why):
 * ``config``     container files; ``dds`` keeping in-process and DDS delivery apart;
 * ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
+* ``simtime``    simulated time from another process (``/clock``) and the lockstep barrier
+                 (``StepCoordinator``, the world's end, ``advance_together`` for robots on
+                 several domains; ``Container(lockstep=...)``, a robot's);
 * ``typenames`` type name <-> class (``pkg/msg/Name``), the one owner of that spelling;
 * ``plain``      messages as plain trees (``to_plain``), as ``ros2 topic echo`` shows them;
 * ``binding``    a parameter dataclass bound to the node's parameters (``bind_parameters``);
@@ -21,6 +24,8 @@ Everything public is re-exported here once; modules starting with ``_`` are priv
 """
 
 from ._clock import ManualClock as ManualClock
+from ._clock import SimClock as SimClock
+from ._clock import SkewedClock as SkewedClock
 from ._clock import SystemClock as SystemClock
 from ._clock import from_msg as from_msg
 from ._clock import to_msg as to_msg
@@ -40,6 +45,7 @@ from .errors import ConfigError as ConfigError
 from .errors import DdsSetupError as DdsSetupError
 from .errors import EfficientCommError as EfficientCommError
 from .errors import ExecutorError as ExecutorError
+from .errors import LockstepError as LockstepError
 from .errors import MessageMutatedError as MessageMutatedError
 from .errors import NameResolutionError as NameResolutionError
 from .errors import ParameterError as ParameterError
@@ -52,6 +58,8 @@ from .plain import abbreviate_array as abbreviate_array
 from .plain import element_type as element_type
 from .plain import is_message as is_message
 from .plain import to_plain as to_plain
+from .simtime import StepCoordinator as StepCoordinator
+from .simtime import advance_together as advance_together
 from .standalone import Standalone as Standalone
 from .standalone import run_standalone as run_standalone
 from .standalone import standalone_main as standalone_main

@@ -18,7 +18,8 @@ from .standalone import cli as standalone
 
 def container(argv: Sequence[str] | None = None) -> int:
     """``container [--config FILE ...] [--name NAME] [--strategy S] [--no-dds]
-    [--stats-period S] [--stats-namespace NS]``."""
+    [--stats-period S] [--stats-namespace NS] [--sim-time | --lockstep NAME]
+    [--clock-offset S]``."""
     argv = list(sys.argv if argv is None else argv)
     parser = argparse.ArgumentParser(
         prog="container", description="Run components from container files in one process."
@@ -34,14 +35,22 @@ def container(argv: Sequence[str] | None = None) -> int:
                         "<stats namespace>/efficient_comm/stats (0: none; default 1)")
     parser.add_argument("--stats-namespace", default="/", metavar="NS",
                         help="namespace of the statistics topic, i.e. the robot (default /)")
+    time = parser.add_mutually_exclusive_group()
+    time.add_argument("--sim-time", action="store_true",
+                      help="follow /clock from another process (a simulator)")
+    time.add_argument("--lockstep", metavar="NAME",
+                      help="run in lockstep with the simulator as participant NAME")
+    time.add_argument("--clock-offset", type=float, default=0.0, metavar="S",
+                      help="run on the system clock shifted by S seconds (a computer of its own)")
     args = parser.parse_args(remove_ros_args(argv)[1:])
-    prepare_process()
+    prepare_process(prompt_acks=args.sim_time or args.lockstep is not None)
     stop_on_sigterm()
     # Ctrl-C or SIGTERM at any point (even while loading) unloads what was loaded.
     try:
         c = Container(
             args.name, namespace=args.namespace, dds=not args.no_dds, strategy=args.strategy,
             args=argv, stats_period_s=args.stats_period, stats_namespace=args.stats_namespace,
+            sim_time=args.sim_time, lockstep=args.lockstep, clock_offset_s=args.clock_offset,
         )
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -279,7 +279,7 @@ class ComposedHandle(ParameterMethods):
             # Only peers in other processes reach this reader (local endpoints are ignored).
             remote = (sub,)
             sub.dds = node.create_subscription(
-                msg_type, name, lambda msg: executor.dispatch(remote, msg, "dds"), profile,
+                msg_type, name, lambda msg: executor.receive_remote(remote, msg), profile,
                 event_callbacks=lost_events(on_lost),
             )
         self._subscriptions.append(sub)

@@ -11,6 +11,10 @@ full ROS 2 nodes that other processes see and reach.
         container.add(Camera, name="camera")
         container.add(Detector, name="detector", remappings={"image": "/camera/image"})
         container.spin()
+
+Time: the system clock by default, skewed (``clock_offset_s``, ``clock_drift_ppm``) to
+stand in for a computer of its own; ``/clock`` from another process with ``sim_time=True``;
+in lockstep with that process with ``lockstep="<participant>"`` (:mod:`efficient_comm.simtime`).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -26,8 +31,11 @@ from typing import Any
 
 import rclpy
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import ReliabilityPolicy
 
+from ._clock import SimClock, SkewedClock, SystemClock
 from ._closing import Closing
 from ._names import apply_node_remaps, check_node_name, fully_qualified, parse_remaps
 from ._signals import interrupt_calls, sigterm_calls
@@ -38,6 +46,7 @@ from .dds import local_endpoints_ignored, prepare_process
 from .errors import ComponentError, ConfigError, DdsSetupError, EfficientCommError
 from .executor import ConsecutiveExecutor, GuardMode, Strategy
 from .handle import Clock, ClockKind, Logger
+from .simtime import LockstepParticipant, follow_clock
 from .stats import StatsSnapshot
 from .stats_publisher import DEFAULT_STATS_PERIOD_S, StatsPublisher, check_stats_period
 
@@ -86,8 +95,22 @@ class Container(Closing):
         args: Sequence[str] | None = None,
         stats_period_s: float = DEFAULT_STATS_PERIOD_S,
         stats_namespace: str = "/",
+        sim_time: bool = False,
+        lockstep: str | None = None,
+        lockstep_flush_timeout_s: float = 5.0,
+        clock_offset_s: float = 0.0,
+        clock_drift_ppm: float = 0.0,
     ) -> None:
+        """``sim_time``: follow ``/clock`` from another process; ``lockstep``: run in
+        lockstep with it as the named participant (implies ``sim_time``); see
+        :mod:`efficient_comm.simtime`. ``clock_offset_s``, ``clock_drift_ppm``: run on the
+        system clock shifted and running fast by that much, as on a separate computer
+        (components' ``clock`` and timers; rclpy's own stamps, such as /rosout's, keep the
+        true clock). ``lockstep_flush_timeout_s`` bounds each step's wait for DDS readers.
+        """
         self.name, self.namespace = check_node_name(name, namespace)
+        clock = self._choose_clock(clock, dds=dds, sim_time=sim_time or lockstep is not None,
+                                   offset_s=clock_offset_s, drift_ppm=clock_drift_ppm)
         try:
             stats_period_s = check_stats_period(stats_period_s)
         except ValueError as exc:
@@ -108,7 +131,7 @@ class Container(Closing):
         self._node: Any = None
         logger: Logger = RecordingLogger(fully_qualified(self.name, self.namespace))
         if dds:
-            prepare_process()
+            prepare_process(prompt_acks=isinstance(clock, SimClock))  # see efficient_comm.dds
             self.context = Context()
             # Global --ros-args (e.g. __node:=, __ns:= from ros2 launch) apply to the
             # container's own node only; components get theirs from their entries.
@@ -146,8 +169,39 @@ class Container(Closing):
                 from ._services import serve_container
 
                 serve_container(self, self._node)
+        self.lockstep: LockstepParticipant | None = None
+        if isinstance(clock, SimClock) and self._node is not None:
+            follow_clock(self._node, clock, reliable=lockstep is not None)
+            if lockstep is not None:
+                self.lockstep = LockstepParticipant(
+                    self, lockstep, flush_timeout_s=lockstep_flush_timeout_s
+                )
+                self.executor.attach_lockstep(self.lockstep)
         if stats_period_s > 0:
             self._start_stats(stats_period_s, stats_namespace)
+
+    def _choose_clock(
+        self, clock: Clock | None, *, dds: bool, sim_time: bool, offset_s: float,
+        drift_ppm: float,
+    ) -> Clock | None:
+        what = f"container {self.name}"
+        skewed = bool(offset_s or drift_ppm)
+        if sim_time:
+            if not dds:
+                raise ConfigError(f"{what}: sim_time and lockstep need DDS (/clock comes from "
+                                  "another process)")
+            if clock is not None or skewed:
+                raise ConfigError(f"{what}: sim_time and lockstep run on /clock: no clock, "
+                                  "clock_offset_s or clock_drift_ppm with them")
+            return SimClock()
+        if skewed:
+            if clock is not None:
+                raise ConfigError(f"{what}: clock_offset_s and clock_drift_ppm skew the system "
+                                  "clock: not with a clock of your own")
+            base = SystemClock()
+            return SkewedClock(base, offset_ns=round(offset_s * 1e9), drift_ppm=drift_ppm,
+                               epoch_ns=base.now_ns())
+        return clock
 
     def _start_stats(self, period_s: float, namespace: str) -> None:
         """``<stats_namespace>/efficient_comm/stats`` from a handle of the container's own.
@@ -285,6 +339,8 @@ class Container(Closing):
         with sigterm_calls(self.shutdown), interrupt_calls(self.shutdown), contextlib.suppress(
             KeyboardInterrupt, ExternalShutdownException
         ):
+            if self.lockstep is not None:
+                self.lockstep.join()  # a lockstep participant is ready when it spins
             self.executor.spin()
 
     def spin_once(self, timeout_s: float | None = None) -> None:
@@ -301,6 +357,31 @@ class Container(Closing):
 
     def stats(self) -> list[StatsSnapshot]:
         return self.executor.stats()
+
+    def flush_dds(self, *, timeout_s: float) -> list[str]:
+        """Wait until every matched reliable DDS reader has acknowledged what the
+        components wrote; returns the topics whose readers did not within ``timeout_s``.
+
+        What a lockstep step does before acknowledging (:mod:`efficient_comm.simtime`):
+        afterwards every message is in its readers' DDS caches. Best-effort writers have
+        nothing to wait for.
+        """
+        late: list[str] = []
+        end = time.monotonic() + timeout_s
+        for name in sorted(self.bus.topics()):
+            for pub in self.bus.publishers(name):
+                writer = pub.dds
+                if writer is None or pub.qos.reliability != ReliabilityPolicy.RELIABLE:
+                    continue
+                left = max(0.0, end - time.monotonic())
+                if not writer.wait_for_all_acked(Duration(nanoseconds=round(left * 1e9))):
+                    late.append(name)
+        return late
+
+    def take_dds(self) -> int:
+        """Run every callback DDS has ready now, without waiting (a world taking what the
+        robots sent in a lockstep step); returns how many ran."""
+        return self.executor.take_dds()
 
     @property
     def clock_kind(self) -> ClockKind:

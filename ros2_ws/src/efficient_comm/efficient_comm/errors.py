@@ -12,6 +12,8 @@ Catch :class:`EfficientCommError` to handle anything this package raises::
     ├── ExecutorError            the executor was misused (spun from two threads, advance()
     │                            without a manual clock, a timer of an unloaded component)
     ├── DdsSetupError            the process cannot keep in-process and DDS delivery apart
+    ├── LockstepError            a lockstep participant did not join or acknowledge a step in
+    │                            time, or is gone (RuntimeError)
     ├── ServiceFailedError       an in-process service call failed (its callback raised)
     └── MessageMutatedError      a subscriber changed a message it received by reference
 """
@@ -62,6 +64,18 @@ class DdsSetupError(EfficientCommError, RuntimeError):
     :func:`efficient_comm.dds.prepare_process` could configure it (or under an RMW that
     cannot ignore local endpoints).
     """
+
+
+class LockstepError(EfficientCommError, RuntimeError):
+    """A lockstep participant never joined, did not acknowledge a step in time, or is gone.
+
+    Raised by :class:`~efficient_comm.simtime.StepCoordinator` instead of waiting forever;
+    :attr:`participants` names the culprits, the message says what each last acknowledged.
+    """
+
+    def __init__(self, message: str, *, participants: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.participants = participants
 
 
 class MessageMutatedError(EfficientCommError):

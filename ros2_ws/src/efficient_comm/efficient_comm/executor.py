@@ -13,11 +13,13 @@ executor does the same for ROS 2 in Python, with a selectable order:
   subscriber's queue: when it overflows, the oldest message is dropped (and counted), so
   a subscriber may then see a newer message before another subscriber sees an older one.
 
-Timers run on the executor's clock (real ROS time, or a :class:`ManualClock` advanced by
-:meth:`ConsecutiveExecutor.advance`). DDS entities (subscriptions from other processes,
-services, clients, graph events) are waited on through an rclpy executor inside, only when
-the container talks DDS; a guard condition in that wait set lets another thread's publish
-wake it at once. A callback that raises is logged and counted; the others go on.
+Timers run on the executor's clock (real ROS time, a :class:`ManualClock` advanced by
+:meth:`ConsecutiveExecutor.advance`, or a :class:`SimClock` that ``/clock`` from another
+process moves, stepped the same way: see :mod:`efficient_comm.simtime`, also for lockstep).
+DDS entities (subscriptions from other processes, services, clients, graph events) are
+waited on through an rclpy executor inside, only when the container talks DDS; a guard
+condition in that wait set lets another thread's publish wake it at once. A callback that
+raises is logged and counted; the others go on.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
-from ._clock import ManualClock, SystemClock
+from ._clock import ManualClock, SimClock, SystemClock
 from ._failures import report_failure
 from .errors import ExecutorError, MessageMutatedError
 from .guard import MutationReport, fingerprint
@@ -41,6 +43,7 @@ if TYPE_CHECKING:
 
     from .bus import LocalSubscription
     from .handle import Clock, ClockKind, Logger
+    from .simtime import LockstepParticipant
 
 Strategy = Literal["depth_first", "breadth_first"]
 #: False, True (log and record each mutation) or "raise" (also raise MessageMutatedError).
@@ -150,7 +153,16 @@ class ConsecutiveExecutor:
             raise ExecutorError(f"unknown strategy {strategy!r}")
         self.strategy: Strategy = strategy
         self.clock: Clock = clock or SystemClock()
-        self._manual = isinstance(self.clock, ManualClock)
+        # Manual and simulated time alike: no wall-time deadlines, stats stamped in clock time.
+        self._manual = isinstance(self.clock, ManualClock | SimClock)
+        self._sim = self.clock if isinstance(self.clock, SimClock) else None
+        self._lockstep: LockstepParticipant | None = None
+        # Lockstep: messages from other processes, held from arrival until an intake round
+        # (_held: per reader, bounded by its QoS depth as DDS's own history would be, with
+        # an arrival number), then delivered at the start of the next step (_inbox).
+        self._held: dict[int, tuple[tuple[LocalSubscription, ...], deque[tuple[int, Any]]]] = {}
+        self._arrivals = itertools.count()
+        self._inbox: list[tuple[tuple[LocalSubscription, ...], Any]] = []
         self._depth_first = strategy == "depth_first"
         self._guard: GuardMode = guard_mutation
         self._logger = logger
@@ -210,9 +222,18 @@ class ConsecutiveExecutor:
         timer.next_ns = due_ns
         heapq.heappush(self._timers, (due_ns, next(self._seq), timer._generation, timer))
 
+    def attach_lockstep(self, participant: LockstepParticipant) -> None:
+        """Run in lockstep (needs a :class:`SimClock`): see :mod:`efficient_comm.simtime`."""
+        if self._sim is None:
+            raise ExecutorError("lockstep needs an executor on a SimClock")
+        self._lockstep = participant
+
     @property
     def clock_kind(self) -> ClockKind:
-        """"manual" on a :class:`ManualClock` (time moves in :meth:`advance`), else "system"."""
+        """"manual" on a :class:`ManualClock` (time moves in :meth:`advance`), "sim" on a
+        :class:`SimClock` (time moves when /clock says), else "system"."""
+        if self._sim is not None:
+            return "sim"
         return "manual" if self._manual else "system"
 
     def next_timer_due_ns(self) -> int | None:
@@ -266,6 +287,24 @@ class ConsecutiveExecutor:
         return self.clock.now_ns() if self._manual else time.monotonic_ns()
 
     # -- delivery (the hot path) -----------------------------------------------------------
+
+    def receive_remote(self, subs: tuple[LocalSubscription, ...], msg: Any) -> None:
+        """A message from another process (a DDS reader's callback, executor thread).
+
+        Delivered now, except in lockstep: held until the next intake round, so that it
+        reaches the subscriber at the start of the step after the one it was sent in,
+        whatever the load (see :mod:`efficient_comm.simtime`).
+        """
+        if self._lockstep is not None:
+            entry = self._held.get(id(subs))
+            if entry is None:
+                entry = self._held[id(subs)] = (subs, deque(maxlen=subs[0].queue.maxlen))
+            held = entry[1]
+            if held.maxlen is not None and len(held) == held.maxlen:
+                subs[0].stats.dropped += 1  # KEEP_LAST: the oldest goes, as in DDS
+            held.append((next(self._arrivals), msg))
+        else:
+            self.dispatch(subs, msg, "dds")
 
     def dispatch(self, subs: tuple[LocalSubscription, ...], msg: Any, origin: str) -> None:
         """Hand ``msg`` to ``subs`` now (depth-first) or queue it (breadth-first)."""
@@ -448,7 +487,9 @@ class ConsecutiveExecutor:
 
     def _spin_once(self, timeout_s: float | None) -> None:
         did = self._run_ready()
-        if not self._manual:
+        if self._sim is not None:
+            did = self._sim_work(self._sim) or did
+        elif not self._manual:
             did = self._run_due_timers(self.clock.now_ns()) or did
         if did:
             self._poll_dds()
@@ -494,23 +535,92 @@ class ConsecutiveExecutor:
         """Move a manual clock forward, running every timer that falls due on the way."""
         clock = self.clock
         if not isinstance(clock, ManualClock):
-            raise ExecutorError("advance() needs an executor on a ManualClock")
-        target = clock.now_ns() + round(duration_s * 1e9)
+            raise ExecutorError(
+                "advance() needs an executor on a ManualClock"
+                + (" (a SimClock moves when /clock says)" if self._sim is not None else "")
+            )
         with self._owning():
-            self._drain()
-            while (deadline := self._next_deadline()) is not None and deadline <= target:
-                clock.set_ns(max(deadline, clock.now_ns()))
-                # The clock's time, not the deadline: after a jump (set_ns far ahead of a
-                # timer's deadline) missed periods are skipped, not run one by one.
-                self._run_due_timers(clock.now_ns())
-                self._drain()
-                # With DDS, lockstep is exact only among the container's own components:
-                # what remote peers send arrives whenever the wall clock brings it.
-                self._poll_dds()
-            clock.set_ns(target)
-            self._drain()
-            self._poll_dds()
+            # With DDS, this is exact only among the container's own components: what
+            # remote peers send arrives whenever the wall clock brings it (lockstep across
+            # processes is efficient_comm.simtime's).
+            self._advance_to(clock, clock.now_ns() + round(duration_s * 1e9), poll=True)
         self._raise_pending()
+
+    def _advance_to(self, clock: ManualClock | SimClock, target: int, *, poll: bool) -> None:
+        self._drain()
+        while (deadline := self._next_deadline()) is not None and deadline <= target:
+            clock.set_ns(max(deadline, clock.now_ns()))
+            # The clock's time, not the deadline: after a jump (set_ns far ahead of a
+            # timer's deadline) missed periods are skipped, not run one by one.
+            self._run_due_timers(clock.now_ns())
+            self._drain()
+            if poll:
+                self._poll_dds()
+        clock.set_ns(target)
+        self._drain()
+        if poll:
+            self._poll_dds()
+
+    def _sim_work(self, clock: SimClock) -> bool:
+        """Follow /clock: advance to the latest time received; in lockstep, also do the
+        barrier's rounds (intake, step) and acknowledge them. True if anything ran."""
+        lockstep = self._lockstep
+        if lockstep is None:
+            if clock.target_ns <= clock.now_ns():
+                return False
+            self._advance_to(clock, clock.target_ns, poll=True)
+            return True
+        if not lockstep.joined:
+            return False
+        did = False
+        if lockstep.intake_due is not None:
+            t, lockstep.intake_due = lockstep.intake_due, None
+            self.take_dds()  # every step's message is in a DDS cache by now: take it
+            # Topic by topic (by name), each topic's messages in arrival order.
+            batch = sorted(
+                (subs[0].topic.name, seq, subs, msg)
+                for subs, held in self._held.values() for seq, msg in held
+            )
+            self._held.clear()
+            self._inbox.extend((subs, msg) for _, _, subs, msg in batch)
+            lockstep.done_intake(t)
+            did = True
+        target = clock.target_ns
+        if target > clock.now_ns():
+            inbox, self._inbox = self._inbox, []
+            for subs, msg in inbox:
+                if subs[0].active:  # not unsubscribed meanwhile
+                    self.dispatch(subs, msg, "dds")
+            # No DDS poll inside a step: what other participants send now is the next's.
+            self._advance_to(clock, target, poll=False)
+            lockstep.done_step(target)
+            did = True
+        return did
+
+    def take_dds(self) -> int:
+        """Run every DDS callback that is ready now, without waiting; returns how many.
+
+        Unlike a poll (one callback per ready entity), this goes on until DDS has nothing
+        left: a reader with several samples is ready again after each take.
+        """
+        from rclpy.executors import ShutdownException, TimeoutException
+
+        dds = self._dds
+        if dds is None:
+            return 0
+        ran = 0
+        with self._owning():
+            while True:
+                try:
+                    handler, _, _ = dds.wait_for_ready_callbacks(0.0)
+                except (TimeoutException, ShutdownException):
+                    break
+                handler()
+                if (exc := handler.exception()) is not None:
+                    raise exc
+                ran += 1
+            self._drain()
+        return ran
 
     def shutdown(self) -> None:
         self._stop = True

@@ -151,9 +151,12 @@ class Clock(Protocol):
     def now_ns(self) -> int: ...
 
 
-#: How a node's time advances: by itself ("system": ROS time from the system clock) or
-#: only when the executor is advanced ("manual": tests and lockstep simulation).
-ClockKind: TypeAlias = Literal["system", "manual"]
+#: How a node's time advances: by itself ("system": ROS time from the system clock, maybe
+#: skewed as on a computer of its own), only when the executor is advanced in this process
+#: ("manual": tests and in-process lockstep simulation), or when another process says so
+#: ("sim": ``/clock`` from a simulator, as ``use_sim_time`` in ROS; in lockstep or not).
+#: Under "manual" and "sim" no wall-time deadline means anything to a component.
+ClockKind: TypeAlias = Literal["system", "manual", "sim"]
 
 
 class Graph(Protocol):

@@ -29,6 +29,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
 from ._closing import Closing
@@ -60,13 +61,21 @@ SIGNAL_CHECK_S = 0.1
 
 
 class _NodeClock:
-    __slots__ = ("_clock",)
+    """The rclpy node's clock; under ``use_sim_time`` it never reads a time earlier than
+    one it already read (rclpy's would follow a /clock that went back)."""
+
+    __slots__ = ("_clock", "_last")
 
     def __init__(self, node: Node) -> None:
         self._clock = node.get_clock()
+        self._last = 0
 
     def now_ns(self) -> int:
-        return int(self._clock.now().nanoseconds)
+        now = int(self._clock.now().nanoseconds)
+        if now < self._last and getattr(self._clock, "ros_time_is_active", False):
+            return self._last
+        self._last = now
+        return now
 
 
 class StandaloneHandle(ParameterMethods):
@@ -102,7 +111,9 @@ class StandaloneHandle(ParameterMethods):
 
     @property
     def clock_kind(self) -> ClockKind:
-        return "system"
+        """"sim" under ``use_sim_time`` (rclpy's own: ``-p use_sim_time:=true`` or
+        ``Standalone(sim_time=True)``; time stands at 0 until /clock), else "system"."""
+        return "sim" if self.rclpy_node.get_parameter("use_sim_time").value else "system"
 
     @property
     def graph(self) -> NodeGraph:
@@ -241,14 +252,18 @@ class Standalone(Closing):
         args: Sequence[str] | None = None,
         domain_id: int | None = None,
         stats_period_s: float = DEFAULT_STATS_PERIOD_S,
+        sim_time: bool = False,
     ) -> None:
+        """``sim_time``: follow /clock (rclpy's ``use_sim_time``; lockstep needs a container)."""
         check_stats_period(stats_period_s)
         self.stats_publisher: StatsPublisher | None = None
         self.context = Context()
         rclpy.init(args=list(args) if args is not None else None, context=self.context,
                    domain_id=domain_id)
         try:
-            self.node = Node(name, namespace=namespace, context=self.context)
+            overrides = [Parameter("use_sim_time", value=True)] if sim_time else []
+            self.node = Node(name, namespace=namespace, context=self.context,
+                             parameter_overrides=overrides)
             self.handle = StandaloneHandle(self.node)
             # Declared before the component exists, so its parameter callbacks never see it.
             period_s = self._stats_period(stats_period_s)

@@ -573,7 +573,7 @@ def _timer_pacer(node: NodeHandle, before_s: float, after_s: float
     round run meanwhile). Only for composed components on a real clock; None otherwise.
     """
     schedule = node.timer_schedule
-    if schedule is None or node.clock_kind == "manual":
+    if schedule is None or node.clock_kind != "system":  # manual or /clock: no wall deadlines
         return None
     if before_s <= 0 and after_s <= 0:
         return None

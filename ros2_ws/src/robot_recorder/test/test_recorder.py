@@ -17,7 +17,7 @@ from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import Empty, String
 
 from efficient_comm.handle import NodeHandle
-from efficient_comm.testing import TestHandle, test_container, unique_topic
+from efficient_comm.testing import TestHandle, isolated_domain_id, test_container, unique_topic
 from robot_recorder import (
     Recorder,
     RecorderConfigError,
@@ -324,6 +324,9 @@ def test_timer_pacer_holds_the_writer_back_around_deadlines() -> None:
         node = TestHandle("paced", container=real)
         assert _timer_pacer(node, 0.002, 0.001) is not None  # composed on a real clock
         assert _timer_pacer(node, 0.0, 0.0) is None  # turned off
+    with Container("sim", sim_time=True, domain_id=isolated_domain_id(), serve=False,
+                   stats_period_s=0) as sim:  # simulated time from /clock: no wall deadlines
+        assert _timer_pacer(TestHandle("sim_paced", container=sim), 0.002, 0.001) is None
 
 
 def test_switch_interval_is_shared_by_recorders_and_given_back(tmp_path: Path) -> None:

@@ -1,0 +1,141 @@
+"""Lockstep across processes, started as a user would: a toy world (a StepCoordinator) steps
+two robot containers (``python -m efficient_comm.examples.lockstep``), each mixing a seeded
+random stream with the value it heard from the other robot, over real DDS.
+
+What must hold: the same seed gives the same lines (simulated time, value) on every run; a
+value always used the peer's value of exactly one step before (a message crosses a process
+boundary in one step, whatever the load); a robot that dies or never comes is named.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+
+from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
+
+DT_NS = 10_000_000
+EXAMPLE = [sys.executable, "-m", "efficient_comm.examples.lockstep"]
+
+
+@contextmanager
+def _started(args: Sequence[str], domain: int, log: Path) -> Iterator[subprocess.Popen[bytes]]:
+    with open(log, "wb") as out:
+        proc = subprocess.Popen([*EXAMPLE, *args], env=ros_env(domain), stdout=out,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            yield proc
+        finally:
+            stop_process_group(proc)
+
+
+def _robots(
+    stack: ExitStack, domain: int, tmp: Path, seed: int
+) -> dict[str, subprocess.Popen[bytes]]:
+    return {
+        name: stack.enter_context(_started(
+            ["robot", "--name", name, "--peer", peer, "--seed", str(seed)], domain,
+            tmp / f"{name}.log",
+        ))
+        for name, peer in (("blue1", "red1"), ("red1", "blue1"))
+    }
+
+
+def _run(tmp: Path, seed: int, steps: int) -> list[str]:
+    """One whole run: two robots and the world; the world's value lines."""
+    domain = isolated_domain_id()
+    with ExitStack() as stack:
+        _robots(stack, domain, tmp, seed)
+        world = subprocess.run(
+            [*EXAMPLE, "world", "--robots", "blue1", "red1", "--steps", str(steps),
+             "--timeout", "30"],
+            env=ros_env(domain), capture_output=True, text=True, timeout=240,
+        )
+    assert world.returncode == 0, world.stderr
+    assert f"done {steps} steps to {steps * DT_NS} ns" in world.stdout
+    return [line for line in world.stdout.splitlines() if " value " in line]
+
+
+def test_seeded_runs_repeat_across_processes(tmp_path: Path) -> None:
+    steps = 60
+    first = _run(tmp_path, seed=7, steps=steps)
+    again = _run(tmp_path, seed=7, steps=steps)
+    other = _run(tmp_path, seed=8, steps=steps)
+    assert len(first) == 2 * steps  # every tick of both robots, heard by the world
+    assert first == again
+    assert first != other  # the seed matters (the test could not pass by accident)
+    pattern = re.compile(r"(\d+) (\w+) tick (\d+) value (\d+) peer (-?\d+)")
+    for line in first:
+        match = pattern.fullmatch(line)
+        assert match, line
+        t, tick, peer = int(match[1]), int(match[3]), int(match[5])
+        assert t == tick * DT_NS
+        # Delivered before the next step, and not earlier: always one step old.
+        assert peer == (t - DT_NS if tick > 1 else -1), line
+
+
+def _wait_for_line(log: Path, text: str, proc: subprocess.Popen[bytes], timeout_s: float) -> None:
+    end = time.monotonic() + timeout_s
+    while text not in log.read_text():
+        assert proc.poll() is None, log.read_text()
+        assert time.monotonic() < end, f"no {text!r} in {log.read_text()!r}"
+        time.sleep(0.05)
+
+
+def test_a_killed_participant_is_named(tmp_path: Path) -> None:
+    domain = isolated_domain_id()
+    log = tmp_path / "world.log"
+    with ExitStack() as stack:
+        robots = _robots(stack, domain, tmp_path, seed=1)
+        world = stack.enter_context(_started(
+            ["world", "--robots", "blue1", "red1", "--steps", "1000000", "--progress", "20",
+             "--timeout", "20"], domain, log,
+        ))
+        _wait_for_line(log, "world: step 20 ", world, timeout_s=120)
+        robots["red1"].send_signal(signal.SIGKILL)
+        # Liveliness names it within its lease (2 s); the hard bound is the step timeout.
+        assert world.wait(timeout=60) == 1
+    errors = [line for line in log.read_text().splitlines() if line.startswith("error:")]
+    assert len(errors) == 1, log.read_text()
+    assert "participant red1 is gone" in errors[0]
+    assert "blue1" not in errors[0].split("last acknowledged")[0]
+
+
+def test_a_participant_that_never_joins_is_named(tmp_path: Path) -> None:
+    domain = isolated_domain_id()
+    with ExitStack() as stack:
+        stack.enter_context(_started(["robot", "--name", "blue1"], domain,
+                                     tmp_path / "blue1.log"))
+        world = subprocess.run(
+            [*EXAMPLE, "world", "--robots", "blue1", "red9", "--join-timeout", "3"],
+            env=ros_env(domain), capture_output=True, text=True, timeout=60,
+        )
+    assert world.returncode == 1
+    assert world.stderr.startswith("error: lockstep join: no acknowledgement from red9 within")
+    assert "Traceback" not in world.stderr
+
+
+def test_robots_on_domains_of_their_own_step_together(tmp_path: Path) -> None:
+    """One coordinator per DDS domain, stepped as one barrier (advance_together)."""
+    domains = {"blue1": isolated_domain_id(), "red1": isolated_domain_id()}
+    steps = 20
+    with ExitStack() as stack:
+        for name, domain in domains.items():
+            stack.enter_context(_started(["robot", "--name", name, "--seed", "4"], domain,
+                                         tmp_path / f"{name}.log"))
+        world = subprocess.run(
+            [*EXAMPLE, "world", "--robots", *domains, "--steps", str(steps),
+             "--robot-domains", *map(str, domains.values()), "--timeout", "30"],
+            env=ros_env(isolated_domain_id()), capture_output=True, text=True, timeout=240,
+        )
+    assert world.returncode == 0, world.stderr
+    assert f"done {steps} steps to {steps * DT_NS} ns" in world.stdout
+    heard = [line.split()[:4] for line in world.stdout.splitlines() if " value " in line]
+    assert heard == [[str(t * DT_NS), name, "tick", str(t)]
+                     for t in range(1, steps + 1) for name in sorted(domains)]
