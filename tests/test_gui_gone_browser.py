@@ -21,9 +21,9 @@ def test_a_gone_robots_image_view_says_so_and_cannot_set(tmp_path: Path, browser
     with gui(tmp_path, domains=[domain], args=["--layout", str(layout)]) as server:
         with fake_robot(tmp_path, domain_id=domain, namespace="/gone") as proc:
             browser.get(server.url)
-            wait_for_text(browser, "live, ", alive=[proc, server])
+            wait_for_text(browser, "no camera;", alive=[proc, server])  # a robot, no camera
         wait_for_text(browser, "robot gone: its last frame", alive=[server], timeout_s=60)
-        assert "live, " not in by_testid(browser, f"image-status-{key}").text
+        assert "no camera" not in by_testid(browser, f"image-status-{key}").text
         button = by_testid(browser, f"image-quality-set-{key}")
         wait_for(lambda: not button.is_enabled() or "disabled" in (
             button.get_attribute("class") or ""), what="SET disabled", alive=[server])
