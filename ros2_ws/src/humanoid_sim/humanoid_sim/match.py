@@ -274,9 +274,10 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
         f"{s.get('physics_ms', 0.0):.2f} ms a step, render {s.get('render_ms', 0.0):.1f} ms a "
         f"frame); game state at the end {s.get('game_state', '-')}.", "",
         f"Goals: blue {score.get('blue', 0)}, red {score.get('red', 0)} ({goals}).", "",
-        "| robot | process | role (switches) | falls | walked m | team link sent / received "
-        "bytes | B/s sent (peak) | CPU % |",
-        "|---|---|---|---|---|---|---|---|",
+        "| robot | process | role (switches) | game state seen | camera frames / IMU "
+        "messages | falls | walked m | team link sent / received bytes | B/s sent (peak) | "
+        "CPU % |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name in robots:
         c = children[name]
@@ -285,7 +286,8 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
         walked = s.get("walked_m", {}).get(name, 0.0)
         lines.append(
             f"| {name} | {c.ended or 'ran to the end'} | {st.get('role', '-')} "
-            f"({st.get('role_switches', 0)}) | {st.get('falls', 0)} | {walked:.2f} | "
+            f"({st.get('role_switches', 0)}) | {st.get('game_state', '-')} | "
+            f"{st.get('frames', 0)} / {st.get('imus', 0)} | {st.get('falls', 0)} | {walked:.2f} | "
             f"{sent:.0f} / {received:.0f} | {rate:.0f} ({peak:.0f}) of {BUDGET_BYTES_PER_S} | "
             f"{cpus[name]:.0f} |")
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
@@ -376,7 +378,11 @@ def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
     """The live lines until the end; False if the world ended."""
     end = started + args.duration if args.duration else math.inf
     next_line = time.monotonic()
+    told = 0  # game state changes printed
     while (now := time.monotonic()) < end:
+        for state, sim_s in world.status.get("states", [])[told:]:
+            print(f"game state {state} at {sim_s:.1f} s simulated", flush=True)
+            told += 1
         for child in children.values():
             if child.ended is None and child.proc.poll() is not None:
                 child.ended = _ended(child)

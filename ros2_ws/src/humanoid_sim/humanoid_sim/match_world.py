@@ -19,9 +19,10 @@ joined the world's domain would see every other robot's topics. The links only p
 (the servo buses are ptys), so nothing flows back from a robot's domain into the world.
 
 Every ``status_period_s`` it prints one line ``status {json}`` on stdout: simulated time,
-real-time factor, game state, score, goals, the distance each robot walked (ground truth,
-its torso sampled every half second of simulated time: one gait cycle, so the sway from
-foot to foot does not count) and the world's physics and render times.
+real-time factor, game state and its changes so far, score, goals, the distance each robot
+walked (ground truth, its torso sampled every half second of simulated time: one gait
+cycle, so the sway from foot to foot does not count) and the world's physics and render
+times.
 """
 
 from __future__ import annotations
@@ -103,8 +104,12 @@ def main(argv: list[str] | None = None) -> int:
         walked = dict.fromkeys(robots, 0.0)
         last: dict[str, tuple[float, float]] = {}
         sampled_at = [-math.inf]
+        states: list[list[Any]] = []  # [game state, simulated s] at each change
 
         def sample() -> None:
+            name = STATE_NAMES.get(referee.state, str(referee.state))
+            if not states or states[-1][0] != name:
+                states.append([name, round(world.sim_time_s, 2)])
             if world.sim_time_s - sampled_at[0] < 0.5:
                 return
             sampled_at[0] = world.sim_time_s
@@ -124,6 +129,7 @@ def main(argv: list[str] | None = None) -> int:
                 "game_state": STATE_NAMES.get(referee.state, str(referee.state)),
                 "first_half": referee.first_half,
                 "score": referee.score,
+                "states": states,
                 "goals": [[round(t / 1e9, 1), team] for t, team in referee.goals],
                 "walked_m": {r: round(v, 3) for r, v in walked.items()},
                 "physics_ms": round(status["physics_ms_mean"], 3),
