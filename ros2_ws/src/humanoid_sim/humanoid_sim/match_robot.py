@@ -34,7 +34,7 @@ from typing import Any
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
-from rclpy._rclpy_pybind11 import RCLError
+from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import String
@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
         """
 
         def __init__(self, node: NodeHandle) -> None:
-            self.context = rclpy.Context()
+            self.context = Context()
             rclpy.init(context=self.context)  # ROS_DOMAIN_ID: this robot's domain
             self.rnode = rclpy.create_node(f"{name}_devices", namespace=ns,
                                            context=self.context)
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
             self.thread.start()
 
         def _spin(self) -> None:
-            with contextlib.suppress(ExternalShutdownException, RCLError):
+            with contextlib.suppress(ExternalShutdownException, RuntimeError):
                 while self.context.ok():
                     self.executor.spin_once(timeout_sec=0.1)
 

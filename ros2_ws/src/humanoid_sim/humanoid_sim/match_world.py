@@ -28,6 +28,7 @@ times.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
 import sys
@@ -35,6 +36,7 @@ from typing import Any
 
 import rclpy
 from geometry_msgs.msg import PoseStamped
+from rclpy.context import Context
 from sensor_msgs.msg import CameraInfo, Image, Imu
 
 from efficient_comm import Container, latched_qos, stop_on_sigterm
@@ -58,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         """One robot's sensors on its own domain (see the module docstring)."""
 
         def __init__(self, node: NodeHandle, *, robot: str, domain_id: int) -> None:
-            self.context = rclpy.Context()
+            self.context = Context()
             rclpy.init(context=self.context, domain_id=domain_id)
             self.rnode = rclpy.create_node(f"{robot}_sensors", namespace=f"/{robot}",
                                            context=self.context)
@@ -98,8 +100,8 @@ def main(argv: list[str] | None = None) -> int:
         referee: TeamReferee = container.add(TeamReferee, name="team_referee",
                                              parameters=plan["referee"])
         for robot in robots:
-            container.add(lambda n, r=robot: SensorLink(n, robot=r,
-                                                        domain_id=plan["domains"][r]),
+            container.add(functools.partial(SensorLink, robot=robot,
+                                            domain_id=plan["domains"][robot]),
                           name=f"{robot}_link")
         walked = dict.fromkeys(robots, 0.0)
         last: dict[str, tuple[float, float]] = {}
