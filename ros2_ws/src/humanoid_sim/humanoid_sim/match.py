@@ -280,7 +280,10 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name in robots:
-        c = children[name]
+        c = children.get(name)
+        if c is None:  # stopped before it started
+            lines.append(f"| {name} | not started |" + " - |" * 8)
+            continue
         st = c.status
         sent, received, rate, peak = _link_figures(st)
         walked = s.get("walked_m", {}).get(name, 0.0)
