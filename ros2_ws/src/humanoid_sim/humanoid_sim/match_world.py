@@ -106,7 +106,9 @@ def main(argv: list[str] | None = None) -> int:
         walked = dict.fromkeys(robots, 0.0)
         last: dict[str, tuple[float, float]] = {}
         sampled_at = [-math.inf]
-        states: list[list[Any]] = []  # [game state, simulated s] at each change
+        # [game state, simulated s] at each change, from the referee's first state on (the
+        # sampling timer may first run after a loaded start has passed it).
+        states: list[list[Any]] = [[STATE_NAMES.get(referee.state, str(referee.state)), 0.0]]
 
         def sample() -> None:
             name = STATE_NAMES.get(referee.state, str(referee.state))
