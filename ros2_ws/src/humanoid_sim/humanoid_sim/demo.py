@@ -297,7 +297,9 @@ def add_recorder(container: Container, namespace: str, bag_dir: Path) -> Recorde
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = DemoArguments(prog="soccer_demo", description=__doc__.split("\n\n")[0])
+    parser = DemoArguments(prog="soccer_demo", description=__doc__.split("\n\n")[0],
+                           epilog="A team match instead: scripts/demo.sh --robots 3 (or 2, "
+                           "AvB such as 3v3); python -m humanoid_sim.match --help.")
     parser.add_argument("--duration", type=_number(low=0, what="seconds >= 0"), default=30.0,
                         help="simulated seconds in lockstep, wall seconds otherwise; "
                         "0 = until Ctrl-C (default 30)")

@@ -13,8 +13,8 @@ from geometry_msgs.msg import PointStamped, Quaternion
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
 from std_msgs.msg import String
 
-from efficient_comm import ParameterError, to_msg
-from efficient_comm.testing import TestHandle
+from efficient_comm import Container, ManualClock, ParameterError, to_msg
+from efficient_comm.testing import TestHandle, isolated_domain_id
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.behaviour import SEARCH_PITCH_RAD, HeadBehaviour
 from humanoid_sim.soccer.fall import FallDetector
@@ -281,3 +281,17 @@ def test_detector_thresholds_outside_the_pixel_range_are_refused() -> None:
     assert (detector.min_saturation, detector.min_value) == (255, 255)
     with pytest.raises(ParameterError, match="torso_height"):
         BallModel(TestHandle("ball_model", parameters={"torso_height": 3.0}))
+
+
+def test_fall_detector_on_rclpys_logger_says_standing_again() -> None:
+    # rclpy's logger refuses one call site logging at two severities: the warning of the
+    # fall and the info of getting up must come from lines of their own, or getting up
+    # raises before `standing` is published (the team match's robots lay "fallen" forever).
+    with Container("fall_rclpy", dds=True, domain_id=isolated_domain_id(), clock=ManualClock(),
+                   serve=False) as container:
+        node = TestHandle("fall", container=container)
+        FallDetector(node)
+        t = _feed(node, 0.0, 0.5, tilt_deg=5.0)
+        t = _feed(node, t, 0.1, tilt_deg=85.0, rate=3.0)
+        t = _feed(node, t, 1.5, tilt_deg=5.0)
+        assert _states(node) == ["standing", "fallen", "standing"]

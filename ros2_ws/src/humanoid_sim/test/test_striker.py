@@ -8,7 +8,13 @@ import math
 import mujoco
 import numpy as np
 import pytest
-from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion, Twist
+from geometry_msgs.msg import (
+    PointStamped,
+    PoseStamped,
+    PoseWithCovarianceStamped,
+    Quaternion,
+    Twist,
+)
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, Imu
 from std_msgs.msg import String
@@ -18,6 +24,7 @@ from humanoid_sim.errors import SimConfigError
 from humanoid_sim.mujoco_plant import MujocoPlant
 from humanoid_sim.soccer.monitor import SoccerMonitor
 from humanoid_sim.soccer.referee import Referee
+from humanoid_sim.soccer.roles import Role
 from humanoid_sim.soccer.striker import (
     APPROACH,
     FALLEN,
@@ -27,8 +34,10 @@ from humanoid_sim.soccer.striker import (
     Pose,
     Striker,
     kick_pose,
+    role_pose,
 )
 from humanoid_sim.soccer.world_model import ground_position
+from soccer_field import KIDSIZE
 
 KICK_DISTANCE, FOOT_OFFSET = 0.16, 0.045
 
@@ -349,3 +358,58 @@ def test_the_monitor_does_not_score_frames_without_the_ball_in_the_image() -> No
     assert len(totals.tracking_error_deg) == 1
     assert totals.tracking_error_deg[0] == pytest.approx(
         math.degrees(math.atan2(math.hypot(0.1, 0.43), 2.0)), abs=0.01)
+
+
+def _role(node: TestHandle, role: str) -> None:
+    node.inject("role", String(data=role))
+
+
+def _team_ball(node: TestHandle, x: float, y: float) -> None:
+    ball = PoseWithCovarianceStamped()
+    ball.pose.pose.position.x, ball.pose.pose.position.y = x, y
+    node.inject("team_ball", ball)
+
+
+def test_only_the_striker_goes_for_the_ball_the_others_take_their_places() -> None:
+    # The robot at -2, 0 facing +x; the ball 1.5 m ahead. Supporter, defender, goalie each
+    # walk to their place (none towards the kick position) and wait there facing the ball.
+    own_goal = (-KIDSIZE.half_length, 0.0)
+    for role, state in (("supporter", "support"), ("defender", "defend"), ("goalie", "guard")):
+        node, striker = _striker(start_pose=[-2.0, 0.0, 0.0])
+        _role(node, role)
+        _ball(node, 1.5, 0.0)
+        node.advance(0.2)
+        assert striker.state == state, (role, _states(node))
+        place = role_pose(Role(role), (-0.5, 0.0), own_goal, support_distance=1.0,
+                          support_side=0.5, goalie_distance=0.5)
+        assert math.dist((place.x, place.y), own_goal) < math.dist((-0.5, 0.0), own_goal)
+        x, y = striker.pose.to_local(place.x, place.y)
+        vx, vy, _ = _last_cmd(node)
+        assert vx * x + vy * y > 0, (role, place, _last_cmd(node))  # towards its place
+    # The defender lies between the ball and its goal; the goalie in front of its goal.
+    defender = role_pose(Role.DEFENDER, (1.0, 1.0), own_goal, support_distance=1.0,
+                         support_side=0.5, goalie_distance=0.5)
+    assert own_goal[0] < defender.x < 1.0
+    goalie = role_pose(Role.GOALIE, (1.0, 1.0), own_goal, support_distance=1.0,
+                       support_side=0.5, goalie_distance=0.5)
+    assert math.isclose(goalie.x, own_goal[0] + 0.5) and abs(goalie.y) <= 0.6
+    # Made striker, it approaches the ball.
+    node, striker = _striker(start_pose=[-2.0, 0.0, 0.0])
+    _role(node, "defender")
+    _ball(node, 1.5, 0.0)
+    node.advance(0.2)
+    _role(node, "striker")
+    _ball(node, 1.5, 0.0)
+    node.advance(0.2)
+    assert striker.state == "approach", _states(node)
+
+
+def test_without_its_own_sighting_it_goes_for_the_teams_ball() -> None:
+    node, striker = _striker(start_pose=[0.0, 0.0, 0.0], ball_lost_s=1.0)
+    node.advance(0.2)
+    assert striker.state == "search"
+    _team_ball(node, 1.0, 0.5)
+    node.advance(0.2)
+    assert striker.state == "approach" and striker.ball == (1.0, 0.5), _states(node)
+    node.advance(1.5)  # the team's ball is old now too
+    assert striker.state == "search", _states(node)

@@ -123,9 +123,12 @@ class FallDetector:
             self.fell_at_ns.append(stamp_ns)
         self.state = state
         self._calm_since_ns = None
-        log = self.node.logger.info if state == STANDING else self.node.logger.warning
-        log(f"posture: {state} (tilt {math.degrees(self.tilt):.0f}°, "
-            f"{self.rate:.1f} rad/s)")
+        line = f"posture: {state} (tilt {math.degrees(self.tilt):.0f}°, {self.rate:.1f} rad/s)"
+        # One call site per severity: rclpy's logger raises when a site changes severity.
+        if state == STANDING:
+            self.node.logger.info(line)
+        else:
+            self.node.logger.warning(line)
         self.pub.publish(String(data=state))
         self._report()
 

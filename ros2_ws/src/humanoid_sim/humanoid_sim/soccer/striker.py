@@ -31,7 +31,17 @@ latched, on every change):
   ``blue1``): it walks to its kick-off spot in ``ready`` (and out of the centre circle
   during the other team's kick-off), and stands otherwise. In a team game it attacks the
   goal of its team in this half, and a robot the referee placed for the kick-off takes its
-  kick-off spot as its pose. Without a ``game_state`` it plays, as in the one-robot demo.
+  kick-off spot as its pose. Without a ``game_state`` it plays, as in the one-robot demo;
+* ``support``, ``defend``, ``guard``: the team layer's ``role`` (std_msgs/String, latched,
+  :class:`~.roles.Role` values) is not ``striker``: it walks to where its role stands and
+  waits there facing the ball (:func:`role_pose`): a supporter ``support_distance`` behind
+  the ball towards its own goal and to the side, a defender between the ball and its own
+  goal, a goalie in front of its goal. Without a ``role`` (a robot playing alone) it is the
+  striker.
+
+Where its own camera has not seen the ball for ``ball_lost_s`` it takes the team's fused
+ball (``team_ball``, geometry_msgs/PoseWithCovarianceStamped on the field, from
+:class:`~.team_comm.TeamComm`) while that arrived within ``ball_lost_s``.
 
 Every figure is a ROS parameter (see :data:`PARAMETERS`); ``rate_hz`` is the decision rate.
 """
@@ -41,7 +51,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from geometry_msgs.msg import PointStamped, Twist
+from geometry_msgs.msg import PointStamped, PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
@@ -52,10 +62,13 @@ from soccer_field import KIDSIZE
 from ..errors import SimConfigError
 from .fall import LATCHED, STANDING
 from .game_control import PLAY, POSITION, GameControl, Order
+from .roles import Role
 
 SEARCH, APPROACH, STOP, KICK, FALLEN = "search", "approach", "stop", "kick", "fallen"
 #: Standing by the referee's order (walking to the kick-off spot is ``position``).
 WAIT = "wait"
+#: What the behaviour does in each role but the striker's: walk to its place and wait there.
+ROLE_STATES = {Role.SUPPORTER: "support", Role.DEFENDER: "defend", Role.GOALIE: "guard"}
 #: ``motion/state`` values (the motion arbiter's) during which the striker keeps still.
 DOWN_MOTIONS = ("getup", "fallen")
 
@@ -80,6 +93,9 @@ PARAMETERS: dict[str, float | list[float]] = {
     "search_turn": 0.45,
     "kick_start_s": 1.0,  # a kick not begun by then was refused: line up again
     "kick_timeout_s": 6.0,
+    "support_distance": 1.0,  # a supporter behind the ball, towards its own goal ...
+    "support_side": 0.5,  # ... and this far to the side of that line
+    "goalie_distance": 0.5,  # a goalie this far in front of its goal line
 }
 
 
@@ -124,6 +140,33 @@ def kick_pose(ball: tuple[float, float], goal: tuple[float, float], *, foot: str
                 math.atan2(uy, ux))
 
 
+def role_pose(role: Role, ball: tuple[float, float], own_goal: tuple[float, float], *,
+              support_distance: float, support_side: float, goalie_distance: float) -> Pose:
+    """Where a player of ``role`` (not the striker) waits, facing the ball: a supporter
+    ``support_distance`` behind the ball towards ``own_goal`` and ``support_side`` to the
+    side nearer the field's middle; a defender half way from its goal to the ball (at
+    least a metre out); a goalie ``goalie_distance`` in front of its goal's centre, moved
+    towards the ball's side by a quarter of the ball's offset."""
+    gx, gy = own_goal
+    inward = -1.0 if gx > 0 else 1.0  # from the own goal into the field
+    if role == Role.GOALIE:
+        x, y = gx + inward * goalie_distance, max(-0.6, min(0.6, 0.25 * ball[1]))
+    else:
+        dx, dy = gx - ball[0], gy - ball[1]
+        norm = math.hypot(dx, dy) or 1.0
+        ux, uy = dx / norm, dy / norm  # from the ball towards the own goal
+        if role == Role.DEFENDER:
+            along = max(min(1.0, norm), 0.5 * norm)
+            x, y = gx - along * ux, gy - along * uy
+        else:
+            side = -1.0 if ball[1] > 0 else 1.0
+            x = ball[0] + support_distance * ux - side * support_side * uy
+            y = ball[1] + support_distance * uy + side * support_side * ux
+    half_l, half_w = KIDSIZE.half_length - 0.2, KIDSIZE.half_width - 0.2
+    x, y = max(-half_l, min(half_l, x)), max(-half_w, min(half_w, y))
+    return Pose(x, y, math.atan2(ball[1] - y, ball[0] - x))
+
+
 class Striker:
     """The striker component (see the module's docstring for topics and parameters)."""
 
@@ -153,6 +196,11 @@ class Striker:
         self.motion = "stand"
         self.foot = "left"
         self.kicks = 0
+        #: The team layer's role for this robot (None or undefined: it plays striker).
+        self.role: Role | None = None
+        #: The team's fused ball on the field and when it arrived (this robot's clock, ns).
+        self.team_ball: tuple[float, float] | None = None
+        self._team_ball_ns: int | None = None
         self._since_ns = self._start_ns = node.clock.now_ns()
         self._imu_yaw0: float | None = None
         self._imu_heading: float | None = None
@@ -168,6 +216,9 @@ class Striker:
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
         node.create_subscription(String, "fall/state", self._on_posture, qos=LATCHED)
         node.create_subscription(String, "motion/state", self._on_motion, qos=LATCHED)
+        node.create_subscription(String, "role", self._on_role, qos=LATCHED)
+        node.create_subscription(PoseWithCovarianceStamped, "team_ball", self._on_team_ball,
+                                 qos=10)
         self.game = GameControl(node, on_change=self.decide)
         self.state_pub.publish(String(data=self.state))
         node.create_timer(1.0 / self.p["rate_hz"], self.decide)
@@ -211,6 +262,18 @@ class Striker:
         self.ball = seen
         self.ball_seen_ns = self.node.clock.now_ns()
 
+    def _on_role(self, role: String) -> None:
+        try:
+            self.role = Role(role.data)
+        except ValueError:
+            self.node.logger.warning(f"role {role.data!r} is not a role; kept {self.role}")
+
+    def _on_team_ball(self, msg: PoseWithCovarianceStamped) -> None:
+        p = msg.pose.pose.position
+        if math.isfinite(p.x) and math.isfinite(p.y):
+            self.team_ball = (p.x, p.y)
+            self._team_ball_ns = self.node.clock.now_ns()
+
     def _on_posture(self, posture: String) -> None:
         self.posture = posture.data
         self.decide()
@@ -241,9 +304,19 @@ class Striker:
         twist.linear.x, twist.linear.y, twist.angular.z = vx, vy, wz
         self.cmd_pub.publish(twist)
 
+    def _fresh(self, seen_ns: int | None) -> bool:
+        return seen_ns is not None and (
+            self.node.clock.now_ns() - seen_ns) / 1e9 < self.p["ball_lost_s"]
+
     def ball_known(self) -> bool:
-        return self.ball_seen_ns is not None and (
-            self.node.clock.now_ns() - self.ball_seen_ns) / 1e9 < self.p["ball_lost_s"]
+        """Whether it knows where the ball is: seen itself lately, or else told by the
+        team lately (then ``ball`` is the team's)."""
+        if self._fresh(self.ball_seen_ns):
+            return True
+        if self.team_ball is not None and self._fresh(self._team_ball_ns):
+            self.ball = self.team_ball
+            return True
+        return False
 
     def target(self) -> Pose:
         """The kick position for the ball as now known, choosing the foot on its side."""
@@ -281,6 +354,9 @@ class Striker:
         if not self.ball_known():
             self._search()
             return
+        if self.role in ROLE_STATES:
+            self._take_place(self.role)
+            return
         goal = self.target()
         x, y = self.pose.to_local(goal.x, goal.y)
         turn = _wrap(goal.heading - self.pose.heading)
@@ -310,6 +386,25 @@ class Striker:
                 return
         self._walk(0.0, 0.0, 0.0)
         self._set_state(WAIT)
+
+    def _take_place(self, role: Role) -> None:
+        """Not the striker: walk to the role's place (:func:`role_pose`) and wait there."""
+        assert self.ball is not None
+        attacked = self.game.goal() or self.goal
+        place = role_pose(role, self.ball, (-attacked[0], -attacked[1]),
+                          support_distance=self.p["support_distance"],
+                          support_side=self.p["support_side"],
+                          goalie_distance=self.p["goalie_distance"])
+        state = ROLE_STATES[role]
+        x, y = self.pose.to_local(place.x, place.y)
+        turn = _wrap(place.heading - self.pose.heading)
+        slack = 4.0 if self.state == state and not self._moving else 2.0
+        if (math.hypot(x, y) > slack * self.p["position_tolerance"]
+                or abs(turn) > slack * self.p["heading_tolerance"]):
+            self._walk_to(place.x, place.y, place.heading)
+        else:
+            self._walk(0.0, 0.0, 0.0)
+        self._set_state(state)
 
     def _search(self) -> None:
         if self.state != SEARCH:

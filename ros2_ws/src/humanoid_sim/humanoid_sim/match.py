@@ -1,0 +1,412 @@
+"""The team match: robots in one world, each robot's software in a process of its own.
+
+    python -m humanoid_sim.match --robots 3v3 --duration 60 --seed 4
+
+``--robots``: ``1`` is the one-robot demo (:mod:`.demo`, every other argument goes to it);
+``2`` or ``3`` is one team of that many (blue) against nobody; ``AvB`` is A blue against
+B red (``1v1`` .. ``3v3``). A match starts:
+
+* one world process (:mod:`.match_world`): the world with every robot's servo bus, the
+  team referee, and each robot's camera, IMU, ``game_state`` and ground truth delivered on
+  that robot's own DDS domain;
+* one process per robot (:mod:`.match_robot`): driver, perception, behaviour, motion, team
+  layer, its rf_bridge team link (Zenoh on localhost: each robot listens on a free port
+  and connects to its teammates'; one key space per team and match) and its recorder.
+
+Domains: the world's and each robot's are reserved for the match's life through
+``efficient_comm.testing.isolated_domain_id`` (domain_coordinator's port per id, what the
+tests use), so two matches, or a match and a test, never share a domain.
+
+Every ``--stats-period`` seconds it prints a line for the game (wall and simulated time,
+the world's real-time factor, game state, score) and one per robot (role, the behaviour's
+state, game state as the robot got it, falls, the distance to the ball it believes in, the
+team link's bytes a second). A robot whose process ends is reported by name and the match
+goes on (its body stands where it is); the world ending ends the match. At the end (after
+``--duration`` wall seconds, or Ctrl-C/SIGTERM) every process is stopped (each is the
+leader of its own process group, which is stopped whole; a child also dies with this
+process) and a report is printed and written (``--report``): goals per team, and per robot
+falls, distance walked (ground truth), role switches, team-link bytes and CPU.
+
+A bad argument is refused with one line and exit status 2. Exit status 0: every process
+ran to the end; 1: one ended early (named in the report).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import ctypes
+import json
+import math
+import os
+import random
+import re
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import yaml
+
+from efficient_comm import stop_on_sigterm
+from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
+from soccer_field import KIDSIZE
+
+from .demo import EXIT_OK, DemoArguments, _number
+from .world import DEFAULT_START
+
+EXIT_ENDED = 1
+#: The team link's budget per robot (bytes a second, and the burst), as in the team docs.
+BUDGET_BYTES_PER_S = 2048
+TEAM_NUMBERS = {"blue": 1, "red": 2}
+_ROBOTS = re.compile(r"^(?:(?P<one>[1-3])|(?P<blue>[1-3])v(?P<red>[1-3]))$")
+
+
+def robot_names(text: str) -> list[str]:
+    """``--robots``: ``2``, ``3`` (one blue team) or ``AvB``; ``1`` is the demo's."""
+    m = _ROBOTS.match(text.strip())
+    if m is None:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: need 1, 2, 3 (one team) or AvB with A, B in 1..3 (e.g. 3v3)")
+    blue, red = (int(m["one"]), 0) if m["one"] else (int(m["blue"]), int(m["red"]))
+    return [f"blue{i}" for i in range(1, blue + 1)] + [f"red{i}" for i in range(1, red + 1)]
+
+
+def start_poses(robots: Sequence[str], seed: int
+                ) -> tuple[dict[str, tuple[float, float, float]], tuple[float, float]]:
+    """Each robot's start (x, y, heading) and the ball's (x, y) for ``seed``.
+
+    Seed 0: every robot at its :data:`~.world.DEFAULT_START`, the ball on the centre mark.
+    Others draw a start the rules allow before ``ready``: each robot in its own half (blue
+    x < 0, red x > 0), 0.5 m inside the lines and off the halfway line, facing anywhere, at
+    least 0.6 m from every other; the ball within 1.5 m of the centre mark in x and y.
+    """
+    if seed == 0:
+        return ({r: (DEFAULT_START[r].x, DEFAULT_START[r].y, DEFAULT_START[r].heading)
+                 for r in robots}, (0.0, 0.0))
+    rng = random.Random(f"soccer match start {seed}")
+    half_l, half_w = KIDSIZE.half_length, KIDSIZE.half_width
+    poses: dict[str, tuple[float, float, float]] = {}
+    for robot in robots:
+        side = -1.0 if robot.startswith("blue") else 1.0
+        while True:
+            pose = (side * rng.uniform(0.5, half_l - 0.5), rng.uniform(-half_w + 0.5,
+                                                                      half_w - 0.5),
+                    rng.uniform(-math.pi, math.pi))
+            if all(math.dist(pose[:2], p[:2]) >= 0.6 for p in poses.values()):
+                poses[robot] = pose
+                break
+    return poses, (rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5))
+
+
+def free_port() -> int:
+    """A TCP port on localhost the OS says is free now (for a robot's Zenoh listener)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _die_with_parent() -> None:
+    """In the child before exec: its own process group, and SIGTERM when we die."""
+    os.setsid()
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+
+
+@dataclass
+class Child:
+    """A process of the match: its latest status line, and how it ended."""
+
+    name: str
+    proc: subprocess.Popen[str]
+    log: Path
+    status: dict[str, Any] = field(default_factory=dict)
+    ready: threading.Event = field(default_factory=threading.Event)
+    ended: str | None = None  # how it ended, once noticed
+    cpu_s: float = 0.0
+    started: float = field(default_factory=time.monotonic)
+
+    def read(self) -> None:
+        """The child's stdout: ``ready`` and ``status {json}`` lines (a thread)."""
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            if line.startswith("status "):
+                with contextlib.suppress(ValueError):
+                    self.status = json.loads(line[7:])
+            elif line.strip() == "ready":
+                self.ready.set()
+
+    def sample_cpu(self) -> None:
+        """User + system CPU seconds so far (/proc/<pid>/stat, all threads)."""
+        with contextlib.suppress(OSError, IndexError, ValueError):
+            fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+            self.cpu_s = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _start(name: str, module: str, plan: dict[str, Any], *, domain: int, log_dir: Path
+           ) -> Child:
+    log = log_dir / f"{name}.log"
+    err: IO[str] = log.open("w")
+    proc = subprocess.Popen([sys.executable, "-m", module, json.dumps(plan)],
+                            stdout=subprocess.PIPE, stderr=err, text=True,
+                            env=ros_env(domain), preexec_fn=_die_with_parent)
+    err.close()
+    child = Child(name, proc, log)
+    threading.Thread(target=child.read, daemon=True, name=f"{name} stdout").start()
+    return child
+
+
+def _ended(child: Child) -> str:
+    code = child.proc.returncode
+    how = f"killed by signal {-code}" if code < 0 else f"exit status {code}"
+    return f"{how} after {time.monotonic() - child.started:.1f} s"
+
+
+def bridge_config(robot: str, *, prefix: str, port: int, teammates: Sequence[int]
+                  ) -> dict[str, Any]:
+    """The robot's rf_bridge file: the team link on localhost, within the budget."""
+    return {
+        "team": {"robot_id": robot, "prefix": prefix,
+                 "listen": [f"tcp/127.0.0.1:{port}"],
+                 "connect": [f"tcp/127.0.0.1:{p}" for p in teammates],
+                 "budget_bytes_per_s": BUDGET_BYTES_PER_S,
+                 "budget_burst_bytes": BUDGET_BYTES_PER_S},
+        "topics": [{"ros2": "team/messages", "type": "soccer_interfaces/msg/TeamMessage",
+                    "peer": "team", "direction": "both"}],
+    }
+
+
+def _parser() -> DemoArguments:
+    parser = DemoArguments(prog="soccer_match", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robots", type=robot_names, default=robot_names("3"),
+                        help="2 or 3: one team; AvB: A blue against B red, e.g. 3v3 "
+                        "(default 3; 1 is the one-robot demo)")
+    parser.add_argument("--duration", type=_number(low=0, what="seconds >= 0"),
+                        default=60.0, help="wall seconds; 0 = until Ctrl-C (default 60)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="start poses and ball (0: the default starts, ball on the "
+                        "centre mark); printed in the report")
+    parser.add_argument("--stats-period", type=_number(low=0.5, what="seconds >= 0.5"),
+                        default=2.0, help="seconds between live lines (default 2)")
+    parser.add_argument("--camera-hz", type=_number(low=0, high=60, what="0 to 60 Hz"),
+                        default=30.0, help="each robot's camera rate (default 30)")
+    parser.add_argument("--ready-s", type=_number(low=1, what="seconds >= 1"), default=45.0,
+                        help="the referee's longest ready (default 45, the GameController's)")
+    parser.add_argument("--report", type=Path, default=Path("match_report.md"))
+    parser.add_argument("--out-dir", type=Path, default=Path("match"),
+                        help="each process's log and each robot's bags go here "
+                        "(default ./match)")
+    return parser
+
+
+def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict[str, int],
+               port_dir: Path, status_period_s: float) -> dict[str, Any]:
+    poses, ball = start_poses(robots, args.seed)
+    world: dict[str, Any] = {"robots": list(robots), "ball_position": list(ball),
+                             "port_dir": str(port_dir), "camera_hz": args.camera_hz,
+                             "seed": args.seed}
+    world.update({f"{r}.pose": list(p) for r, p in poses.items()})
+    return {"robots": list(robots), "domains": domains, "world": world, "step_hz": 100.0,
+            "referee": {"robots": list(robots), "ready_s": args.ready_s},
+            "status_period_s": status_period_s}
+
+
+def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
+               bridge_file: Path, bag_dir: Path, status_period_s: float, players: int
+               ) -> dict[str, Any]:
+    team, number = robot.rstrip("123"), int(robot[-1])
+    return {
+        "robot": robot, "port": port, "bridge_file": str(bridge_file),
+        "bag_dir": str(bag_dir), "status_period_s": status_period_s,
+        "striker": {"robot": robot, "start_pose": list(start)},
+        # A team of three keeps player 3 in goal (its kick-off spot is there); smaller
+        # teams play without a goalie.
+        "team": {"team_number": TEAM_NUMBERS[team], "player_number": number,
+                 "goalie_number": 3 if players == 3 else 0},
+    }
+
+
+def _link_figures(status: dict[str, Any]) -> tuple[float, float, float, float]:
+    link = status.get("link") or {}
+    return (link.get("sent_bytes", 0.0), link.get("received_bytes", 0.0),
+            link.get("sent_bytes_per_s", 0.0), link.get("peak_bytes_per_s", 0.0))
+
+
+def game_line(world: Child, wall_s: float) -> str:
+    s = world.status
+    score = s.get("score", {})
+    return (f"{wall_s:6.1f} s wall, {s.get('sim_time_s', 0.0):6.1f} s simulated, RTF "
+            f"{s.get('real_time_factor', 0.0):4.2f}, {s.get('game_state', '-'):<8} "
+            f"blue {score.get('blue', 0)} : {score.get('red', 0)} red")
+
+
+def robot_line(child: Child) -> str:
+    if child.ended:
+        return f"  {child.name:<6} ENDED ({child.ended})"
+    s = child.status
+    if not s:
+        return f"  {child.name:<6} starting"
+    ball = "-" if s.get("ball_m") is None else f"{s['ball_m']:.2f} m"
+    return (f"  {child.name:<6} {s.get('role', '-'):<9} {s.get('behaviour', '-'):<8} "
+            f"game {s.get('game_state', '-'):<8} falls {s.get('falls', 0)} ball {ball:<7} "
+            f"link {_link_figures(s)[2]:5.0f} B/s")
+
+
+def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
+           children: dict[str, Child], wall_s: float) -> str:
+    s = world.status
+    score = s.get("score", {})
+    goals = ", ".join(f"{team} at {t:.1f} s" for t, team in s.get("goals", [])) or "none"
+    cpus = {c.name: c.cpu_s / wall_s * 100 if wall_s else 0.0
+            for c in (world, *children.values())}
+    lines = [
+        "# Team match report", "",
+        f"Robots {', '.join(robots)}; seed {args.seed}; real time; "
+        f"{wall_s:.1f} s wall, {s.get('sim_time_s', 0.0):.1f} s simulated, real-time factor "
+        f"{s.get('real_time_factor', 0.0):.2f} (world physics "
+        f"{s.get('physics_ms', 0.0):.2f} ms a step, render {s.get('render_ms', 0.0):.1f} ms a "
+        f"frame); game state at the end {s.get('game_state', '-')}.", "",
+        f"Goals: blue {score.get('blue', 0)}, red {score.get('red', 0)} ({goals}).", "",
+        "| robot | process | role (switches) | game state seen | camera frames / IMU "
+        "messages | falls | walked m | team link sent / received bytes | B/s sent (peak) | "
+        "CPU % |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name in robots:
+        c = children.get(name)
+        if c is None:  # stopped before it started
+            lines.append(f"| {name} | not started |" + " - |" * 8)
+            continue
+        st = c.status
+        sent, received, rate, peak = _link_figures(st)
+        walked = s.get("walked_m", {}).get(name, 0.0)
+        lines.append(
+            f"| {name} | {c.ended or 'ran to the end'} | {st.get('role', '-')} "
+            f"({st.get('role_switches', 0)}) | {st.get('game_state', '-')} | "
+            f"{st.get('frames', 0)} / {st.get('imus', 0)} | {st.get('falls', 0)} | {walked:.2f} | "
+            f"{sent:.0f} / {received:.0f} | {rate:.0f} ({peak:.0f}) of {BUDGET_BYTES_PER_S} | "
+            f"{cpus[name]:.0f} |")
+    lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
+              f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.", ""]
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    given = list(sys.argv[1:] if argv is None else argv)
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--robots")
+    known, rest = pre.parse_known_args(given)
+    if known.robots is not None and known.robots.strip() == "1":
+        from .demo import main as demo_main
+        return demo_main(rest)
+    parser = _parser()
+    args = parser.parse_args(given)
+    robots: list[str] = args.robots
+    stop_on_sigterm()
+    args.out_dir.mkdir(parents=True, exist_ok=True)
+    period = min(args.stats_period, 1.0)
+    token = os.urandom(4).hex()
+    with tempfile.TemporaryDirectory(prefix="soccer_match_") as tmp:
+        port_dir = Path(tmp, "ports")
+        domains = {r: isolated_domain_id() for r in ["world", *robots]}
+        world = _start("world", "humanoid_sim.match_world",
+                       world_plan(robots, args, domains=domains, port_dir=port_dir,
+                                  status_period_s=period),
+                       domain=domains["world"], log_dir=args.out_dir)
+        children: dict[str, Child] = {}
+        started = time.monotonic()
+        ok = True
+        try:
+            if not _wait_ready(world, 120):
+                print(f"soccer_match: the world did not start ({world.log}):\n"
+                      + world.log.read_text()[-2000:], file=sys.stderr)
+                return EXIT_ENDED
+            ports = {r: free_port() for r in robots}
+            poses, _ = start_poses(robots, args.seed)
+            for robot in robots:
+                team = robot.rstrip("123")
+                mates = [ports[m] for m in robots if m.startswith(team) and m < robot]
+                bridge_file = Path(tmp, f"{robot}_bridge.yaml")
+                bridge_file.write_text(yaml.safe_dump(bridge_config(
+                    robot, prefix=f"match_{token}_{team}", port=ports[robot], teammates=mates)))
+                players = sum(1 for m in robots if m.startswith(team))
+                children[robot] = _start(robot, "humanoid_sim.match_robot", robot_plan(
+                    robot, start=poses[robot], port=str(port_dir / robot), bridge_file=bridge_file,
+                    bag_dir=args.out_dir / "bags" / robot, status_period_s=period,
+                    players=players), domain=domains[robot], log_dir=args.out_dir)
+            print(f"soccer match: {', '.join(robots)}, seed {args.seed}, domains "
+                  + ", ".join(f"{k} {v}" for k, v in domains.items())
+                  + f"; {'until Ctrl-C' if not args.duration else f'{args.duration:g} s'}; "
+                  f"logs in {args.out_dir}", flush=True)
+            ok = _run(world, children, args, started)
+        except KeyboardInterrupt:
+            print("interrupted", flush=True)
+        finally:
+            for child in (*children.values(), world):
+                child.sample_cpu()
+            wall_s = time.monotonic() - started
+            for child in (*children.values(), world):  # robots first: the world serves them
+                with contextlib.suppress(ProcessLookupError):
+                    stop_process_group(child.proc, timeout_s=10)
+            for child in (world, *children.values()):
+                if child.proc.stdout is not None:
+                    child.proc.stdout.close()
+    text = report(robots, args, world, children, wall_s)
+    args.report.parent.mkdir(parents=True, exist_ok=True)
+    args.report.write_text(text)
+    print(f"\n{text}\nreport written to {args.report.resolve()}", flush=True)
+    ok = ok and not any(c.ended for c in children.values()) and not world.ended
+    return EXIT_OK if ok else EXIT_ENDED
+
+
+def _wait_ready(child: Child, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if child.ready.wait(0.2):
+            return True
+        if child.proc.poll() is not None:
+            return False
+    return False
+
+
+def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
+         started: float) -> bool:
+    """The live lines until the end; False if the world ended."""
+    end = started + args.duration if args.duration else math.inf
+    next_line = time.monotonic()
+    told = 0  # game state changes printed
+    while (now := time.monotonic()) < end:
+        for state, sim_s in world.status.get("states", [])[told:]:
+            print(f"game state {state} at {sim_s:.1f} s simulated", flush=True)
+            told += 1
+        for child in children.values():
+            if child.ended is None and child.proc.poll() is not None:
+                child.ended = _ended(child)
+                print(f"{child.name}: its process ended ({child.ended}); the match goes on "
+                      f"(log {child.log})", flush=True)
+            if child.ended is None:
+                child.sample_cpu()
+        world.sample_cpu()
+        if world.proc.poll() is not None:
+            world.ended = _ended(world)
+            print(f"world: its process ended ({world.ended}); the match is over "
+                  f"(log {world.log})", flush=True)
+            return False
+        if now >= next_line:
+            next_line += args.stats_period
+            print(game_line(world, now - started), flush=True)
+            for child in children.values():
+                print(robot_line(child), flush=True)
+        time.sleep(min(0.2, max(0.0, end - now)))
+    return True
+
+
+if __name__ == "__main__":
+    sys.exit(main())
