@@ -116,6 +116,9 @@ def build_model(robots: Mapping[str, Pose2D]) -> mujoco.MjModel:
     spec.visual.quality.numslices = RENDER_QUALITY[0]
     spec.visual.quality.numstacks = RENDER_QUALITY[1]
     spec.visual.quality.numquads = RENDER_QUALITY[2]
+    # No multisampling (MuJoCo renders offscreen with 4 samples): it doubled a software-
+    # rendered frame and the ball detector finds the ball without it.
+    spec.visual.quality.offsamples = 0
     for name, pose in robots.items():
         robot = mujoco.MjSpec.from_file(str(ROBOT_MODEL))
         robot.option.integrator = spec.option.integrator  # nothing left to disagree on

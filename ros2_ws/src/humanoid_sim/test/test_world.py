@@ -264,3 +264,28 @@ def test_cameras_share_one_context_and_render_only_when_asked(container: Contain
         assert (info.width, info.height) == (64, 48)
     finally:
         sim.close()
+
+
+def test_a_robot_camera_without_multisampling_finds_the_ball_straight_ahead() -> None:
+    """The team's world renders without multisampling (a software-rendered frame cost twice
+    as much with MuJoCo's 4 samples): the ball detector still finds the ball ahead of
+    blue1, where it is with the samples, to the pixel."""
+    from humanoid_sim.render import OffscreenRenderer
+    from humanoid_sim.soccer.vision import BallDetector
+
+    world = World({"blue1": Pose2D(-1.5, 0.0, 0.0)}, ball=(0.0, 0.0))
+    assert world.model.vis.quality.offsamples == 0
+    mujoco.mj_forward(world.model, world.data)
+    found = []
+    for samples in (0, 4):
+        world.model.vis.quality.offsamples = samples
+        renderer = OffscreenRenderer(world.model, width=320, height=240)
+        image = np.zeros((240, 320, 3), dtype=np.uint8)
+        renderer.render(world.data, image, camera="blue1/head_camera")
+        renderer.close()
+        found.append(BallDetector(TestHandle("detector")).find(image))
+    plain, sampled = found
+    assert plain is not None and sampled is not None
+    u, v, r = plain
+    assert abs(u - 160) < 2 and v > 120 and r > 3  # straight ahead, on the ground
+    assert plain == pytest.approx(sampled, abs=1.0)
