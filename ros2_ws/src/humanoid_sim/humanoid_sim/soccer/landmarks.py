@@ -54,12 +54,11 @@ from ..errors import SimConfigError
 from .vision import FALLBACK_FOVY_DEG
 from .world_model import (
     CAMERA_FROM_PITCH,
-    MAX_EXTRAPOLATION_S,
     MIN_DEPRESSION_RAD,
-    NECK,
     NECK_PITCH_ABOVE_YAW,
     NECK_YAW_ABOVE_TORSO,
     TORSO_HEIGHT_M,
+    NeckAngles,
 )
 
 Array = npt.NDArray[np.float64]
@@ -267,26 +266,6 @@ def find_landmarks(mask: npt.NDArray[np.bool_], camera: CameraPose, *,
                      line_pixels=line_pixels)
 
 
-class _Neck:
-    """The neck's angles as the servos last reported them, moved on to an image's stamp."""
-
-    def __init__(self) -> None:
-        self.reported: dict[str, tuple[int, float, float]] = {n: (0, 0.0, 0.0) for n in NECK}
-
-    def update(self, state: JointState) -> None:
-        stamp = from_msg(state.header.stamp)
-        velocities = list(state.velocity) or [0.0] * len(state.name)
-        for name, position, velocity in zip(state.name, state.position, velocities,
-                                            strict=False):
-            if name in self.reported:
-                self.reported[name] = (stamp, position, velocity)
-
-    def at(self, name: str, stamp_ns: int) -> float:
-        reported, position, velocity = self.reported[name]
-        dt = max(-MAX_EXTRAPOLATION_S, min(MAX_EXTRAPOLATION_S, (stamp_ns - reported) / 1e9))
-        return position + velocity * dt
-
-
 #: The fields of a landmark message's points: x, y, z as float32, 12 bytes a point.
 POINT_FIELDS = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1)
                 for i, name in enumerate("xyz")]
@@ -333,7 +312,7 @@ class LandmarkDetector:
                                                    range=(0.1, 2.0))
         self.k: tuple[float, float, float, float] | None = None
         self.orientation: Quaternion | None = None
-        self.neck = _Neck()
+        self.neck = NeckAngles()
         self.frames = self.rejected = self.posts_seen = 0
         #: What the last image showed (for inspection and tests).
         self.last: Landmarks | None = None

@@ -104,6 +104,36 @@ def ground_position(yaw: float, pitch: float, *, neck_yaw: float, neck_pitch: fl
     return camera[0] + t * ray[0], camera[1] + t * ray[1]
 
 
+class NeckAngles:
+    """The neck's angles when an image was taken: what the servos last reported
+    (``joint_states``: stamp, position, velocity), moved on by the velocity to the image's
+    stamp, at most :data:`MAX_EXTRAPOLATION_S` (the driver reads the servos after the
+    camera in the same cycle, so a report is a few milliseconds off the image).
+
+    The one owner of the camera's neck at image time: the ball model and the landmark
+    detector each keep one, fed by their ``joint_states`` subscription.
+    """
+
+    def __init__(self) -> None:
+        #: Per neck joint: stamp (ns), position (rad), velocity (rad/s) as last reported.
+        self.reported: dict[str, tuple[int, float, float]] = {n: (0, 0.0, 0.0) for n in NECK}
+
+    def update(self, state: JointState) -> None:
+        """Take the neck joints of a ``joint_states`` message (others are ignored)."""
+        stamp = from_msg(state.header.stamp)
+        velocities = list(state.velocity) or [0.0] * len(state.name)
+        for name, position, velocity in zip(state.name, state.position, velocities,
+                                            strict=False):
+            if name in self.reported:
+                self.reported[name] = (stamp, position, velocity)
+
+    def at(self, name: str, stamp_ns: int) -> float:
+        """Joint ``name``'s angle (rad) at ``stamp_ns``."""
+        reported, position, velocity = self.reported[name]
+        dt = max(-MAX_EXTRAPOLATION_S, min(MAX_EXTRAPOLATION_S, (stamp_ns - reported) / 1e9))
+        return position + velocity * dt
+
+
 class _AlphaBeta:
     def __init__(self, alpha: float, beta: float) -> None:
         self.alpha, self.beta = alpha, beta
@@ -132,41 +162,25 @@ class BallModel:
         self.torso_height = node.declare_parameter("torso_height", TORSO_HEIGHT_M,
                                                    range=(0.1, 2.0))
         self.orientation: Quaternion | None = None
-        #: Neck joints as last reported: stamp (ns), position (rad), velocity (rad/s).
-        self.neck: dict[str, tuple[int, float, float]] = {name: (0, 0.0, 0.0) for name in NECK}
+        self.neck = NeckAngles()
         self._last_ns: int | None = None
         # Throttled, so a viewer's rate (the debug GUI's world view) reaches it.
         self.pub = ThrottledPublisher(node, PointStamped, "ball/estimate", qos=10)
         self.position_pub = node.create_publisher(PointStamped, "ball/position", qos=10)
-        node.create_subscription(JointState, "joint_states", self._on_joints, qos=10)
+        node.create_subscription(JointState, "joint_states", self.neck.update, qos=10)
         node.create_subscription(Imu, "imu/data", self._on_imu, qos=10)
         node.create_subscription(PointStamped, "ball/detection", self._on_detection, qos=10)
 
-    def _on_joints(self, state: JointState) -> None:
-        stamp = from_msg(state.header.stamp)
-        velocities = list(state.velocity) or [0.0] * len(state.name)
-        for name, position, velocity in zip(state.name, state.position, velocities,
-                                            strict=False):
-            if name in self.neck:
-                self.neck[name] = (stamp, position, velocity)
-
     def _on_imu(self, imu: Imu) -> None:
         self.orientation = imu.orientation  # shared, only read
-
-    def neck_at(self, name: str, stamp_ns: int) -> float:
-        """The joint's angle when the image was taken: the servo's last report, moved on
-        by its velocity (the driver reads the servos after the camera in the same cycle)."""
-        reported, position, velocity = self.neck[name]
-        dt = max(-MAX_EXTRAPOLATION_S, min(MAX_EXTRAPOLATION_S, (stamp_ns - reported) / 1e9))
-        return position + velocity * dt
 
     def _on_detection(self, detection: PointStamped) -> None:
         stamp = from_msg(detection.header.stamp)
         dt = (stamp - self._last_ns) / 1e9 if self._last_ns is not None else 0.0
         self._last_ns = stamp
         yaw, pitch = torso_bearing(detection.point.x, detection.point.y,
-                                   neck_yaw=self.neck_at("neck_yaw", stamp),
-                                   neck_pitch=self.neck_at("neck_pitch", stamp))
+                                   neck_yaw=self.neck.at("neck_yaw", stamp),
+                                   neck_pitch=self.neck.at("neck_pitch", stamp))
         self.yaw.update(yaw, dt)
         self.pitch.update(pitch, dt)
         if detection.point.z > 0:
@@ -180,8 +194,8 @@ class BallModel:
         estimate.point.z = self.distance_m
         self.pub.publish(estimate)
         on_ground = ground_position(estimate.point.x, estimate.point.y,
-                                    neck_yaw=self.neck_at("neck_yaw", stamp),
-                                    neck_pitch=self.neck_at("neck_pitch", stamp),
+                                    neck_yaw=self.neck.at("neck_yaw", stamp),
+                                    neck_pitch=self.neck.at("neck_pitch", stamp),
                                     orientation=self.orientation,
                                     torso_height=self.torso_height)
         if on_ground is not None:
