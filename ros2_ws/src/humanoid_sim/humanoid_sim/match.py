@@ -25,7 +25,8 @@ goes on (its body stands where it is); the world ending ends the match. At the e
 ``--duration`` wall seconds, or Ctrl-C/SIGTERM) every process is stopped (each is the
 leader of its own process group, which is stopped whole; a child also dies with this
 process) and a report is printed and written (``--report``): goals per team, and per robot
-falls, distance walked (ground truth), role switches, team-link bytes and CPU.
+falls, distance walked (ground truth), role switches, team-link bytes and CPU, and which
+localization ran (``--localization``) with its error against ground truth.
 
 A bad argument is refused with one line and exit status 2. Exit status 0: every process
 ran to the end; 1: one ended early (named in the report).
@@ -60,6 +61,7 @@ from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_gro
 from soccer_field import KIDSIZE
 
 from .demo import EXIT_OK, DemoArguments, _number
+from .soccer.localization import GROUND_TRUTH, NOISY_GROUND_TRUTH, PARTICLE_FILTER, SOURCES
 from .world import DEFAULT_START
 
 EXIT_ENDED = 1
@@ -67,6 +69,12 @@ EXIT_ENDED = 1
 BUDGET_BYTES_PER_S = 2048
 TEAM_NUMBERS = {"blue": 1, "red": 2}
 _ROBOTS = re.compile(r"^(?:(?P<one>[1-3])|(?P<blue>[1-3])v(?P<red>[1-3]))$")
+#: ``--localization``'s short names for the sources of ``localization/pose``.
+LOCALIZATION_NAMES = {"pf": PARTICLE_FILTER, "noisy": NOISY_GROUND_TRUTH,
+                      "truth": GROUND_TRUTH} | {s: s for s in SOURCES}
+#: Every robot's source unless ``--localization`` says otherwise (docs/HUMANOID_SIM.md,
+#: "Localization in the match", has the figures it was chosen by).
+DEFAULT_LOCALIZATION = NOISY_GROUND_TRUTH
 
 
 def robot_names(text: str) -> list[str]:
@@ -77,6 +85,46 @@ def robot_names(text: str) -> list[str]:
             f"{text!r}: need 1, 2, 3 (one team) or AvB with A, B in 1..3 (e.g. 3v3)")
     blue, red = (int(m["one"]), 0) if m["one"] else (int(m["blue"]), int(m["red"]))
     return [f"blue{i}" for i in range(1, blue + 1)] + [f"red{i}" for i in range(1, red + 1)]
+
+
+def localization_choice(text: str) -> tuple[str | None, dict[str, str]]:
+    """``--localization``: a source for every robot (``pf``, ``noisy``, ``truth``), robots'
+    own (``blue1=pf,red1=noisy``), or both (``noisy,blue1=pf``): (the default or None, the
+    robots' own). Whether the robots exist is checked against ``--robots`` later."""
+    default: str | None = None
+    own: dict[str, str] = {}
+    names = ", ".join(LOCALIZATION_NAMES)
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        robot, _, name = item.rpartition("=")
+        source = LOCALIZATION_NAMES.get(name.strip())
+        if source is None:
+            raise argparse.ArgumentTypeError(f"{name.strip()!r} is not a localization: "
+                                             f"one of {names}")
+        if not robot:
+            default = source
+        elif not re.fullmatch(r"(blue|red)[1-3]", robot.strip()):
+            raise argparse.ArgumentTypeError(f"{robot.strip()!r} is not a robot (blue1 .. red3)")
+        else:
+            own[robot.strip()] = source
+    if default is None and not own:
+        raise argparse.ArgumentTypeError(f"need a localization ({names}) or ROBOT=NAME pairs")
+    return default, own
+
+
+def localization_plan(robot: str, source: str, *, start: tuple[float, float, float],
+                      seed: int) -> dict[str, Any]:
+    """The robot's localization: its source and that component's parameters (the
+    particle filter starts where the robot was placed, knows its own half and its name, so
+    it follows the referee's placements; the truth-based ones read the world's truth)."""
+    if source == PARTICLE_FILTER:
+        parameters: dict[str, Any] = {
+            "initial_pose": list(start), "robot": robot, "seed": seed,
+            "own_half": "-x" if robot.startswith("blue") else "+x"}
+    else:
+        parameters = {"truth_topic": "ground_truth/pose"}
+        if source == NOISY_GROUND_TRUTH:
+            parameters["seed"] = seed
+    return {"source": source, "parameters": parameters}
 
 
 def start_poses(robots: Sequence[str], seed: int
@@ -199,6 +247,11 @@ def _parser() -> DemoArguments:
                         default=30.0, help="each robot's camera rate (default 30)")
     parser.add_argument("--ready-s", type=_number(low=1, what="seconds >= 1"), default=45.0,
                         help="the referee's longest ready (default 45, the GameController's)")
+    parser.add_argument("--localization", type=localization_choice,
+                        default=(DEFAULT_LOCALIZATION, {}),
+                        help="each robot's localization/pose: pf (the particle filter), "
+                        "noisy (noisy ground truth) or truth; for all robots, per robot "
+                        "(blue1=pf,red1=noisy) or both (noisy,blue1=pf) (default noisy)")
     parser.add_argument("--report", type=Path, default=Path("match_report.md"))
     parser.add_argument("--out-dir", type=Path, default=Path("match"),
                         help="each process's log and each robot's bags go here "
@@ -219,11 +272,12 @@ def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict
 
 
 def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
-               bridge_file: Path, bag_dir: Path, status_period_s: float, players: int
-               ) -> dict[str, Any]:
+               bridge_file: Path, bag_dir: Path, status_period_s: float, players: int,
+               localization: str = DEFAULT_LOCALIZATION, seed: int = 0) -> dict[str, Any]:
     team, number = robot.rstrip("123"), int(robot[-1])
     return {
         "robot": robot, "port": port, "bridge_file": str(bridge_file),
+        "localization": localization_plan(robot, localization, start=start, seed=seed),
         "bag_dir": str(bag_dir), "status_period_s": status_period_s,
         "striker": {"robot": robot, "start_pose": list(start)},
         # A team of three keeps player 3 in goal (its kick-off spot is there); smaller
@@ -257,6 +311,11 @@ def robot_line(child: Child) -> str:
     return (f"  {child.name:<6} {s.get('role', '-'):<9} {s.get('behaviour', '-'):<8} "
             f"game {s.get('game_state', '-'):<8} falls {s.get('falls', 0)} ball {ball:<7} "
             f"link {_link_figures(s)[2]:5.0f} B/s")
+
+
+def _figure(figures: dict[str, Any], key: str, spec: str) -> str:
+    value = figures.get(key)
+    return "-" if value is None or not math.isfinite(value) else format(value, spec)
 
 
 def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
@@ -293,6 +352,19 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             f"{st.get('frames', 0)} / {st.get('imus', 0)} | {st.get('falls', 0)} | {walked:.2f} | "
             f"{sent:.0f} / {received:.0f} | {rate:.0f} ({peak:.0f}) of {BUDGET_BYTES_PER_S} | "
             f"{cpus[name]:.0f} |")
+    lines += ["", "| robot | localization | estimates | position error mean / p95 / max m | "
+              "heading error mean / p95 ° |", "|---|---|---|---|---|"]
+    for name in robots:
+        c = children.get(name)
+        loc = (c.status.get("localization") if c is not None else None) or {}
+        e = loc.get("errors") or {}
+        lines.append(
+            f"| {name} | {loc.get('source', '-')} | {e.get('estimates', 0):.0f} | "
+            f"{_figure(e, 'position_error_mean_m', '.3f')} / "
+            f"{_figure(e, 'position_error_p95_m', '.3f')} / "
+            f"{_figure(e, 'position_error_max_m', '.3f')} | "
+            f"{_figure(e, 'heading_error_mean_deg', '.1f')} / "
+            f"{_figure(e, 'heading_error_p95_deg', '.1f')} |")
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
               f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.", ""]
     return "\n".join(lines)
@@ -309,6 +381,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(given)
     robots: list[str] = args.robots
+    default_source, own_sources = args.localization
+    if unknown := sorted(set(own_sources) - set(robots)):
+        parser.error(f"--localization names {', '.join(unknown)}, not in this match "
+                     f"({', '.join(robots)})")
+    sources = {r: own_sources.get(r, default_source or DEFAULT_LOCALIZATION) for r in robots}
     stop_on_sigterm()
     args.out_dir.mkdir(parents=True, exist_ok=True)
     period = min(args.stats_period, 1.0)
@@ -340,7 +417,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 children[robot] = _start(robot, "humanoid_sim.match_robot", robot_plan(
                     robot, start=poses[robot], port=str(port_dir / robot), bridge_file=bridge_file,
                     bag_dir=args.out_dir / "bags" / robot, status_period_s=period,
-                    players=players), domain=domains[robot], log_dir=args.out_dir)
+                    players=players, localization=sources[robot], seed=args.seed),
+                    domain=domains[robot], log_dir=args.out_dir)
+            print("localization: " + ", ".join(f"{r} {s}" for r, s in sources.items()),
+                  flush=True)
             print(f"soccer match: {', '.join(robots)}, seed {args.seed}, domains "
                   + ", ".join(f"{k} {v}" for k, v in domains.items())
                   + f"; {'until Ctrl-C' if not args.duration else f'{args.duration:g} s'}; "

@@ -11,9 +11,10 @@ key space, a byte budget), the JPEG compressor and the recorder (idle until its 
 service is called, as in the one-robot demo).
 
 The camera, the IMU, ``game_state`` and ground truth arrive on this robot's domain from the
-world process (:mod:`.match_world`). ``localization/pose`` comes from
-:class:`TruthPose`, a stand-in: ground truth with the sigma it claims, until a localization
-takes its place behind the same topic.
+world process (:mod:`.match_world`). ``localization/pose`` comes from the source the plan
+names (:func:`.soccer.localization.add_localization`: the particle filter, noisy ground
+truth or ground truth), and a :class:`~.soccer.pose_error.PoseErrorMonitor` measures it
+against ground truth for the status line and the report.
 
 Every ``status_period_s`` it prints ``status {json}`` on stdout: role, role switches, the
 striker's state, game state, falls, the distance to the ball it believes in, camera frames
@@ -33,7 +34,7 @@ from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PointStamped, PoseStamped
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from sensor_msgs.msg import CameraInfo, Image, Imu
@@ -53,6 +54,8 @@ from .soccer.behaviour import HeadBehaviour
 from .soccer.fall import LATCHED, FallDetector
 from .soccer.getup import GetUp
 from .soccer.kick import Kick
+from .soccer.localization import add_localization
+from .soccer.pose_error import PoseErrorMonitor
 from .soccer.striker import Striker
 from .soccer.team_comm import TeamComm
 from .soccer.team_referee import STATE_NAMES
@@ -111,27 +114,6 @@ def main(argv: list[str] | None = None) -> int:
             self.executor.shutdown()
             self.rnode.destroy_node()
 
-    class TruthPose:
-        """The stand-in localization: ground truth as ``localization/pose`` with the sigma
-        ``pose_sigma_m`` it claims (no noise added)."""
-
-        def __init__(self, node: NodeHandle) -> None:
-            sigma = node.declare_parameter("pose_sigma_m", 0.1)
-            self.variance = sigma * sigma
-            self.pub = node.create_publisher(PoseWithCovarianceStamped, "localization/pose",
-                                             qos=10)
-            node.create_subscription(PoseStamped, "ground_truth/pose", self._on_truth, qos=10)
-
-        def _on_truth(self, truth: PoseStamped) -> None:
-            msg = PoseWithCovarianceStamped()
-            msg.header.stamp, msg.header.frame_id = truth.header.stamp, "field"
-            msg.pose.pose = truth.pose
-            msg.pose.pose.position.z = 0.0
-            cov = [0.0] * 36
-            cov[0] = cov[7] = self.variance
-            msg.pose.covariance = cov
-            self.pub.publish(msg)
-
     class Status:
         """What the match prints about this robot (see the module docstring)."""
 
@@ -184,6 +166,8 @@ def main(argv: list[str] | None = None) -> int:
                 "frames": self.frames, "imus": self.imus,
                 "joint_states": len(driver.present),
                 "link": self.link,
+                "localization": {"source": pose_error.errors.source,
+                                 "errors": pose_error.errors.summary()},
             }), flush=True)
 
     stop_on_sigterm()
@@ -205,7 +189,11 @@ def main(argv: list[str] | None = None) -> int:
         striker: Striker = container.add(Striker, name="striker", namespace=ns,
                                          parameters=plan["striker"])
         container.add(JpegCompressor, name="jpeg_compressor", namespace=ns)
-        container.add(TruthPose, name="localization", namespace=ns)
+        add_localization(container, namespace=ns, source=plan["localization"]["source"],
+                         parameters=plan["localization"]["parameters"])
+        pose_error: PoseErrorMonitor = container.add(
+            PoseErrorMonitor, name="pose_error", namespace=ns,
+            parameters={"truth_topic": "ground_truth/pose"})
         container.add(TeamComm, name="team_comm", namespace=ns, parameters=plan["team"])
         container.load(ComponentSpec(class_path="BridgeNode", name="rf_bridge", namespace=ns,
                                      parameters={"config": plan["bridge_file"]},

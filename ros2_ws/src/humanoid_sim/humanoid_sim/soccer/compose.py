@@ -26,7 +26,13 @@ from .behaviour import HeadBehaviour
 from .fall import FallDetector
 from .getup import GetUp
 from .kick import Kick
-from .localization import PARTICLE_FILTER, Localization, NoisyTruthPose, add_localization
+from .localization import (
+    PARTICLE_FILTER,
+    Localization,
+    NoisyTruthPose,
+    TruthPose,
+    add_localization,
+)
 from .monitor import SoccerMonitor
 from .pose_error import PoseErrorMonitor
 from .referee import Referee
@@ -64,7 +70,7 @@ class SoccerRobot:
     compressor: JpegCompressor
     #: ``localization/pose`` from the particle filter or noisy ground truth (None: neither
     #: runs), and its error against ground truth.
-    localization: Localization | NoisyTruthPose | None = None
+    localization: Localization | NoisyTruthPose | TruthPose | None = None
     pose_error: PoseErrorMonitor | None = None
 
 

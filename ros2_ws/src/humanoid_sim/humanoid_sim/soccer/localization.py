@@ -1,7 +1,7 @@
 """Where the robot is on the field: a particle filter, or noisy ground truth standing in.
 
-Two sources publish the same topics, and each robot runs one of them
-(:func:`add_localization`, ``compose(localization=...)``):
+Three sources publish the same topics, and each robot runs one of them
+(:func:`add_localization`, ``compose(localization=...)``, the match's ``--localization``):
 
 * ``particle_filter`` (:class:`Localization`): odometry moves the particles (the walk
   engine's ``odom`` for the steps, the IMU's yaw for the turns, each with noise in
@@ -14,13 +14,22 @@ Two sources publish the same topics, and each robot runs one of them
   (``initial_pose``), which removes the mirror image.
 * ``noisy_ground_truth`` (:class:`NoisyTruthPose`): the simulator's ground truth with
   seeded Gaussian noise and a delay, the dissertation's substitution of a component by the
-  simulation, for when the filter is not good enough for what is tested.
+  simulation, for when the filter is not good enough for what is tested;
+* ``ground_truth`` (:class:`TruthPose`): the simulator's ground truth as it is, claiming
+  the sigma ``pose_sigma_m``: for what must not depend on localization at all.
+
+A robot that knows its name (the ``robot`` parameter, e.g. ``red2``) also follows the
+referee: the filter takes the kick-off spot as its pose when the referee placed it there
+(:meth:`.game_control.GameControl.placed`, as the striker does). Neither the filter nor the
+landmarks assume a side: the field model is the whole field in the one field frame both
+teams share, and a red robot (starting at x > 0) gives ``own_half`` ``+x`` or its
+``initial_pose``.
 
 Published (relative to the robot's namespace): ``localization/pose``
 (geometry_msgs/PoseWithCovarianceStamped, frame ``field``: x, y, heading as a yaw
 quaternion; covariance in ROS's 6x6 order, x, y, yaw filled) at ``rate_hz``, and
 ``localization/source`` (std_msgs/String, transient local): which of the two ran, for
-reports and logs. :mod:`.pose_error` measures either against ground truth.
+reports and logs. :mod:`.pose_error` measures any of them against ground truth.
 """
 
 from __future__ import annotations
@@ -46,12 +55,16 @@ from soccer_field import KIDSIZE, FieldDimensions
 
 from ..errors import SimConfigError
 from .fall import STANDING
+from .game_control import GameControl
 from .landmarks import LandmarkDetector, read_points
 
 Array = npt.NDArray[np.float64]
 PARTICLE_FILTER = "particle_filter"
 NOISY_GROUND_TRUTH = "noisy_ground_truth"
-SOURCES = (PARTICLE_FILTER, NOISY_GROUND_TRUTH)
+GROUND_TRUTH = "ground_truth"
+SOURCES = (PARTICLE_FILTER, NOISY_GROUND_TRUTH, GROUND_TRUTH)
+#: How sure the filter is of a kick-off spot the referee placed the robot on (m, rad).
+PLACED_SIGMA = (0.1, 0.1)
 LATCHED = latched_qos()
 #: Motions during which the camera is not where the landmarks assume.
 NOT_UPRIGHT_MOTIONS = ("kick", "getup")
@@ -318,7 +331,8 @@ class Localization:
     ([x, y, heading] where the robot was placed; empty: unknown), ``initial_sigma``
     ([m, rad] around it), ``own_half`` (``-x`` or ``+x``: where the particles start when
     the pose is unknown), ``seed``, ``rate_hz``, ``heading_from_imu`` (turns from the IMU's
-    yaw rather than the commanded steps').
+    yaw rather than the commanded steps'), ``robot`` (its name: placements by the referee
+    move the particles, see the module's docstring; empty: no referee).
     """
 
     def __init__(self, node: NodeHandle) -> None:
@@ -349,6 +363,10 @@ class Localization:
         self._odom: tuple[float, float, float] | None = None
         self._imu_yaw: float | None = None
         self._imu_turn = 0.0
+        #: Kick-off spots the referee placed the robot on, taken as the pose.
+        self.placements = 0
+        self._placed: tuple[float, float, float] | None = None
+        self.game = GameControl(node)
         self.pub = node.create_publisher(PoseWithCovarianceStamped, "localization/pose", qos=10)
         node.create_publisher(String, "localization/source", qos=LATCHED).publish(
             String(data=PARTICLE_FILTER))
@@ -427,7 +445,14 @@ class Localization:
             self.filter.update_posts(points)
 
     def publish(self) -> None:
-        self.pub.publish(_pose_message(self.filter.estimate(), self.node.clock.now_ns()))
+        estimate = self.filter.estimate()
+        placed = self.game.placed(estimate.x, estimate.y)
+        if placed is not None and placed != self._placed:
+            self.filter.reset_around(*placed, sigma_m=PLACED_SIGMA[0], sigma_rad=PLACED_SIGMA[1])
+            self.placements += 1
+            estimate = self.filter.estimate()
+        self._placed = placed
+        self.pub.publish(_pose_message(estimate, self.node.clock.now_ns()))
 
 
 class NoisyTruthPose:
@@ -478,10 +503,34 @@ class NoisyTruthPose:
         self.pub.publish(_pose_message(estimate, stamp))
 
 
+class TruthPose:
+    """Ground truth as it is, on the filter's topics, claiming the sigma ``pose_sigma_m``
+    (default 0.1 m) in its covariance; published as each truth sample (``truth_topic``)
+    arrives, with its stamp."""
+
+    def __init__(self, node: NodeHandle) -> None:
+        topic = node.declare_parameter("truth_topic", "ground_truth/robot")
+        sigma = node.declare_parameter("pose_sigma_m", 0.1, range=(0.0, 10.0))
+        self.variance = sigma * sigma
+        self.pub = node.create_publisher(PoseWithCovarianceStamped, "localization/pose", qos=10)
+        node.create_publisher(String, "localization/source", qos=LATCHED).publish(
+            String(data=GROUND_TRUTH))
+        node.create_subscription(PoseStamped, topic, self._on_truth, qos=10)
+
+    def _on_truth(self, truth: PoseStamped) -> None:
+        p = truth.pose
+        estimate = Estimate(x=p.position.x, y=p.position.y, heading=yaw_of(p.orientation),
+                            covariance=(self.variance, 0.0, self.variance, 0.0))
+        if all(map(math.isfinite, (estimate.x, estimate.y, estimate.heading))):
+            self.pub.publish(_pose_message(estimate, from_msg(truth.header.stamp)))
+
+
 def add_localization(container: Container, *, namespace: str, source: str,
-                     parameters: Mapping[str, Any] | None = None) -> Localization | NoisyTruthPose:
+                     parameters: Mapping[str, Any] | None = None
+                     ) -> Localization | NoisyTruthPose | TruthPose:
     """Add one robot's localization: ``particle_filter`` (with the landmark detector it
-    needs) or ``noisy_ground_truth``; ``parameters`` go to the localization component."""
+    needs), ``noisy_ground_truth`` or ``ground_truth``; ``parameters`` go to the
+    localization component."""
     if source == PARTICLE_FILTER:
         container.add(LandmarkDetector, name="landmarks", namespace=namespace)
         filter_: Localization = container.add(Localization, name="localization",
@@ -493,4 +542,8 @@ def add_localization(container: Container, *, namespace: str, source: str,
                                               namespace=namespace,
                                               parameters=dict(parameters or {}))
         return truth
+    if source == GROUND_TRUTH:
+        exact: TruthPose = container.add(TruthPose, name="localization", namespace=namespace,
+                                         parameters=dict(parameters or {}))
+        return exact
     raise SimConfigError(f"localization source {source!r} is not one of {', '.join(SOURCES)}")

@@ -1,0 +1,118 @@
+"""Localization in the team match: ``--localization`` per robot, each robot's plan (a red
+robot's filter starts in its own half, +x), the filter following the referee's placement,
+and the ground-truth source saying what it is. The match itself runs in
+tests/test_match_localization_sil.py."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
+
+from efficient_comm import to_msg
+from efficient_comm.testing import TestHandle
+from humanoid_sim.match import localization_choice, robot_plan
+from humanoid_sim.soccer.laws import kickoff_pose, parse_robot
+from humanoid_sim.soccer.localization import (
+    GROUND_TRUTH,
+    NOISY_GROUND_TRUTH,
+    PARTICLE_FILTER,
+    Localization,
+    TruthPose,
+    wrap,
+    yaw_of,
+)
+from soccer_interfaces.msg import GameState, PlayerInfo, TeamInfo
+
+
+def test_the_localization_is_chosen_for_every_robot_or_per_robot() -> None:
+    assert localization_choice("pf") == (PARTICLE_FILTER, {})
+    assert localization_choice("blue1=pf,red1=noisy") == (
+        None, {"blue1": PARTICLE_FILTER, "red1": NOISY_GROUND_TRUTH})
+    assert localization_choice("truth, blue2=particle_filter") == (
+        GROUND_TRUTH, {"blue2": PARTICLE_FILTER})
+    for bad, says in (("gps", "'gps' is not a localization"), ("blue4=pf", "not a robot"),
+                      ("", "need a localization")):
+        with pytest.raises(argparse.ArgumentTypeError, match=says):
+            localization_choice(bad)
+
+
+def _plan(robot: str, source: str, start: tuple[float, float, float]) -> dict[str, object]:
+    plan = robot_plan(robot, start=start, port="/dev/null", bridge_file=Path("b.yaml"),
+                      bag_dir=Path("bags"), status_period_s=1.0, players=1,
+                      localization=source, seed=7)
+    localization = plan["localization"]
+    assert isinstance(localization, dict)
+    return localization
+
+
+def test_each_robots_plan_names_its_source_and_a_red_filter_starts_in_the_plus_x_half(
+        ) -> None:
+    red = _plan("red1", PARTICLE_FILTER, (2.0, 1.0, math.pi))
+    assert red == {"source": PARTICLE_FILTER, "parameters": {
+        "initial_pose": [2.0, 1.0, math.pi], "own_half": "+x", "robot": "red1", "seed": 7}}
+    blue = _plan("blue2", PARTICLE_FILTER, (-2.0, 1.0, 0.0))
+    assert blue["parameters"] == {"initial_pose": [-2.0, 1.0, 0.0], "own_half": "-x",
+                                  "robot": "blue2", "seed": 7}
+    # The truth-based sources read the world's truth as the robot's domain carries it.
+    assert _plan("red1", NOISY_GROUND_TRUTH, (2.0, 1.0, 0.0))["parameters"] == {
+        "truth_topic": "ground_truth/pose", "seed": 7}
+    assert _plan("red1", GROUND_TRUTH, (2.0, 1.0, 0.0))["parameters"] == {
+        "truth_topic": "ground_truth/pose"}
+
+
+def _game_state(state: int, *, kicking: int) -> GameState:
+    msg = GameState(game_state=state, kicking_team=kicking, first_half=True, players_per_team=1)
+    msg.teams = [TeamInfo(team_number=number, team_colour=colour, players=[PlayerInfo()])
+                 for number, colour in ((1, TeamInfo.COLOUR_BLUE), (2, TeamInfo.COLOUR_RED))]
+    return msg
+
+
+def _pose(node: TestHandle) -> tuple[float, float, float]:
+    last = node.published("localization/pose")[-1]
+    assert isinstance(last, PoseWithCovarianceStamped)
+    p = last.pose.pose
+    return p.position.x, p.position.y, yaw_of(p.orientation)
+
+
+def test_a_red_robots_filter_takes_the_kickoff_spot_the_referee_placed_it_on() -> None:
+    # red1 believes it is in blue's half when set begins (illegal for red at a kick-off),
+    # so the referee placed it on its spot in the +x half, facing -x: the filter follows.
+    node = TestHandle("localization", parameters={
+        "robot": "red1", "own_half": "+x", "initial_pose": [-0.8, 1.0, 0.0],
+        "initial_sigma": [0.05, 0.05], "seed": 3})
+    localization = Localization(node)
+    node.inject("game_state", _game_state(GameState.STATE_READY, kicking=1))
+    node.advance(0.2)
+    assert math.dist(_pose(node)[:2], (-0.8, 1.0)) < 0.1  # not placed yet
+    node.inject("game_state", _game_state(GameState.STATE_SET, kicking=1))
+    node.advance(0.2)
+    spot = kickoff_pose(parse_robot("red1"), first_half=True, kicking=False)
+    assert spot[0] > 0  # red defends +x in the first half
+    x, y, heading = _pose(node)
+    assert math.dist((x, y), spot[:2]) < 0.1, (x, y, spot)
+    assert abs(wrap(heading - spot[2])) < 0.2
+    node.advance(1.0)  # once per placement, not at every estimate
+    assert localization.placements == 1
+
+
+def test_the_ground_truth_source_passes_the_truth_on_and_says_what_it_is() -> None:
+    node = TestHandle("localization", parameters={"truth_topic": "ground_truth/pose",
+                                                  "pose_sigma_m": 0.2})
+    TruthPose(node)
+    assert [m.data for m in node.published("localization/source")] == [GROUND_TRUTH]
+    truth = PoseStamped()
+    truth.header.stamp = to_msg(123_000_000)
+    truth.pose.position.x, truth.pose.position.y = 1.5, -0.5
+    truth.pose.position.z = 0.36
+    truth.pose.orientation = Quaternion(w=math.cos(1.0), z=math.sin(1.0))
+    node.inject("ground_truth/pose", truth)
+    out = node.published("localization/pose")[-1]
+    assert isinstance(out, PoseWithCovarianceStamped)
+    assert out.header.stamp == truth.header.stamp and out.header.frame_id == "field"
+    assert _pose(node) == pytest.approx((1.5, -0.5, 2.0))
+    assert out.pose.pose.position.z == 0.0
+    assert out.pose.covariance[0] == pytest.approx(0.04)
