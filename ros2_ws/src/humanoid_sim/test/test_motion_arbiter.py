@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
@@ -161,6 +163,33 @@ def test_kick_swings_the_kicking_foot_only() -> None:
         KickParameters(reach=1.0).check()
     with pytest.raises(SimConfigError, match="side"):
         KickMotion("middle")
+
+
+def test_the_joint_swing_winds_the_leg_up_then_flexes_the_hip_and_extends_the_knee_at_once(
+        ) -> None:
+    p = KickParameters()
+    assert p.swing == "joint"
+    motion = KickMotion("left", p)
+    start, end = motion.swing
+    wound, swung = motion.goals(start), motion.goals(end)
+    assert (wound["l_hip_pitch"], wound["l_knee"], wound["l_ankle_pitch"]) == pytest.approx(
+        (p.windup_hip_pitch, p.windup_knee, p.windup_ankle_pitch))
+    assert (swung["l_hip_pitch"], swung["l_knee"], swung["l_ankle_pitch"]) == pytest.approx(
+        (p.swing_hip_pitch, p.swing_knee, p.swing_ankle_pitch))
+    # Half way through the swing both joints are on their way: their speeds add at the foot.
+    half = motion.goals((start + end) / 2)
+    assert p.swing_hip_pitch < half["l_hip_pitch"] < p.windup_hip_pitch - 0.5
+    assert p.swing_knee < half["l_knee"] < p.windup_knee - 0.5
+    # The support leg does what it does in the spline kick; start and end are the stance.
+    spline = KickMotion("left", replace(p, swing="spline"))
+    for t in (start, (start + end) / 2, end):
+        assert motion.goals(t)["r_knee"] == spline.goals(t)["r_knee"]
+    assert motion.goals(0.0) == pytest.approx(STANCE)
+    assert motion.goals(motion.duration) == pytest.approx(STANCE)
+    with pytest.raises(SimConfigError, match="swing"):
+        replace(p, swing="sideways").check()
+    with pytest.raises(SimConfigError, match="windup_knee"):
+        replace(p, windup_knee=3.0).check()  # beyond the knee's range
 
 
 def test_kick_parameters_out_of_range_or_reach_are_refused() -> None:

@@ -163,7 +163,7 @@ def kick_trial(container: Container, robot: KickingRobot, side: str, *,
 
 
 def plant_kick_trial(side: str, *, ball: tuple[float, float] | None = None,
-                     parameters: Mapping[str, float] | None = None, settle_s: float = 1.0,
+                     parameters: Mapping[str, Any] | None = None, settle_s: float = 1.0,
                      seconds: float = 12.0, until_m: float | None = None,
                      shove: tuple[float, tuple[float, float, float]] | None = None
                      ) -> KickResult:
