@@ -44,9 +44,9 @@ def test_each_robot_runs_the_localization_chosen_for_it_and_the_report_measures_
         done.stdout[-3000:])
     text = report.read_text()
     rows = {m["robot"]: m for m in re.finditer(
-        r"^\| (?P<robot>blue[12]) \| (?P<source>\w+) \| (?P<estimates>\d+) \| "
-        r"(?P<mean>[\d.]+) / (?P<p95>[\d.]+) / (?P<max>[\d.]+) \| "
-        r"(?P<heading>[\d.]+) / [\d.]+ \|$", text, re.MULTILINE)}
+        r"^- (?P<robot>blue[12]): (?P<source>\w+), (?P<estimates>\d+) estimates; "
+        r"position error mean (?P<mean>[\d.]+) m, p95 [\d.]+ m, max [\d.]+ m; "
+        r"heading error mean (?P<heading>[\d.]+)°, p95 [\d.]+°$", text, re.MULTILINE)}
     assert set(rows) == {"blue1", "blue2"}, text
     # Each source said which it was on localization/source, and its estimates were
     # compared with the world's ground truth (each robot ran for tens of seconds).

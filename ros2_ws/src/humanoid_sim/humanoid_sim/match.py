@@ -352,19 +352,18 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             f"{st.get('frames', 0)} / {st.get('imus', 0)} | {st.get('falls', 0)} | {walked:.2f} | "
             f"{sent:.0f} / {received:.0f} | {rate:.0f} ({peak:.0f}) of {BUDGET_BYTES_PER_S} | "
             f"{cpus[name]:.0f} |")
-    lines += ["", "| robot | localization | estimates | position error mean / p95 / max m | "
-              "heading error mean / p95 ° |", "|---|---|---|---|---|"]
+    lines += ["", "Localization, each robot's estimates against ground truth:", ""]
     for name in robots:
         c = children.get(name)
         loc = (c.status.get("localization") if c is not None else None) or {}
         e = loc.get("errors") or {}
         lines.append(
-            f"| {name} | {loc.get('source', '-')} | {e.get('estimates', 0):.0f} | "
-            f"{_figure(e, 'position_error_mean_m', '.3f')} / "
-            f"{_figure(e, 'position_error_p95_m', '.3f')} / "
-            f"{_figure(e, 'position_error_max_m', '.3f')} | "
-            f"{_figure(e, 'heading_error_mean_deg', '.1f')} / "
-            f"{_figure(e, 'heading_error_p95_deg', '.1f')} |")
+            f"- {name}: {loc.get('source', '-')}, {e.get('estimates', 0):.0f} estimates; "
+            f"position error mean {_figure(e, 'position_error_mean_m', '.3f')} m, p95 "
+            f"{_figure(e, 'position_error_p95_m', '.3f')} m, max "
+            f"{_figure(e, 'position_error_max_m', '.3f')} m; heading error mean "
+            f"{_figure(e, 'heading_error_mean_deg', '.1f')}°, p95 "
+            f"{_figure(e, 'heading_error_p95_deg', '.1f')}°")
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
               f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.", ""]
     return "\n".join(lines)

@@ -310,6 +310,26 @@ def test_the_error_monitor_compares_each_estimate_with_the_truth_at_its_stamp() 
     assert monitor.errors.summary()["estimates"] == 1
 
 
+def test_an_estimate_newer_than_the_truth_waits_for_it_and_is_scored_between_samples(
+        ) -> None:
+    # As in the team match: the robot's estimate of a moment arrives before the world's
+    # truth of it, whose samples (10 Hz of a world slower than real time) lie 0.2 s apart.
+    node = TestHandle("pose_error")
+    monitor = PoseErrorMonitor(node)
+    node.inject("ground_truth/robot", _truth(0.0, 0.0, 0.0, 0), _truth(0.2, 0.0, 0.2, 200_000_000))
+    estimate = PoseWithCovarianceStamped()
+    estimate.header.stamp = to_msg(300_000_000)  # the truth then: (0.3, 0), heading 0.3
+    estimate.pose.pose.position.x, estimate.pose.pose.position.y = 0.3, 0.4
+    estimate.pose.pose.orientation = _yaw_quaternion(0.2)
+    node.inject("localization/pose", estimate)
+    assert monitor.errors.summary()["estimates"] == 0  # its truth is still on the way
+    node.inject("ground_truth/robot", _truth(0.4, 0.0, 0.4, 400_000_000))
+    summary = monitor.errors.summary()
+    assert summary["estimates"] == 1
+    assert summary["position_error_mean_m"] == pytest.approx(0.4)
+    assert summary["heading_error_mean_deg"] == pytest.approx(math.degrees(0.1))
+
+
 @pytest.mark.parametrize(("neck_yaw", "neck_pitch", "roll", "pitch", "yaw"), [
     (0.0, 0.45, 0.0, 0.0, 0.0), (0.6, 0.9, 0.05, 0.08, 1.0), (-0.8, 0.3, -0.04, 0.12, -2.5)])
 def test_the_camera_pose_from_the_neck_and_imu_matches_the_robots_kinematics(

@@ -14,7 +14,7 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
 
 from efficient_comm import to_msg
 from efficient_comm.testing import TestHandle
-from humanoid_sim.match import localization_choice, robot_plan
+from humanoid_sim.match import Child, localization_choice, report, robot_plan
 from humanoid_sim.soccer.laws import kickoff_pose, parse_robot
 from humanoid_sim.soccer.localization import (
     GROUND_TRUTH,
@@ -116,3 +116,23 @@ def test_the_ground_truth_source_passes_the_truth_on_and_says_what_it_is() -> No
     assert _pose(node) == pytest.approx((1.5, -0.5, 2.0))
     assert out.pose.pose.position.z == 0.0
     assert out.pose.covariance[0] == pytest.approx(0.04)
+
+
+def test_the_report_gives_each_robots_source_and_errors() -> None:
+    def child(name: str, status: dict[str, object]) -> Child:
+        return Child(name, proc=None, log=Path(f"{name}.log"), status=status)  # type: ignore[arg-type]
+
+    figures = {"estimates": 12, "position_error_mean_m": 0.5, "position_error_p95_m": 0.7,
+               "position_error_max_m": 0.9, "heading_error_mean_deg": 3.0,
+               "heading_error_p95_deg": 5.0}
+    robots = {"blue1": child("blue1", {"localization": {"source": PARTICLE_FILTER,
+                                                        "errors": figures}}),
+              "red1": child("red1", {"localization": {"source": NOISY_GROUND_TRUTH,
+                                                      "errors": {"estimates": 0,
+                                                                 "position_error_mean_m":
+                                                                 math.nan}}})}
+    text = report(["blue1", "red1"], argparse.Namespace(seed=0, out_dir=Path("out")),
+                  child("world", {}), robots, 10.0)
+    assert ("- blue1: particle_filter, 12 estimates; position error mean 0.500 m, p95 "
+            "0.700 m, max 0.900 m; heading error mean 3.0°, p95 5.0°") in text
+    assert "- red1: noisy_ground_truth, 0 estimates; position error mean - m" in text
