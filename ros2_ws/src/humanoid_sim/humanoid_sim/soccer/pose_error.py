@@ -32,7 +32,7 @@ from .localization import wrap, yaw_of
 #: Truth further from an estimate's stamp than this is not compared with it ...
 MAX_TRUTH_AGE_NS = 50_000_000
 #: ... unless truth samples either side of the stamp, at most this far apart, give it.
-MAX_TRUTH_GAP_NS = 500_000_000
+MAX_TRUTH_GAP_NS = 1_000_000_000
 
 
 def _percentile(values: list[float], q: float) -> float:
