@@ -21,20 +21,23 @@ true offset and drift, for checking what the offline tools find).
 
 from __future__ import annotations
 
+import json
 import random
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from efficient_comm import Container
 from efficient_comm.handle import Clock
 from robot_recorder import Recorder
-from team_clock import MergeReport, TeamClockError
+from team_clock import MergeReport, SkewedClock, TeamClockError
 
 from .match_log import WORLD, merge_match
 
-__all__ = ["ROBOT_TOPICS", "ClockServers", "ClockSkew", "ClockSyncThread", "RecordingPaths",
+__all__ = ["CLOCK_TRUTH", "ROBOT_TOPICS", "ClockServers", "ClockSkew", "ClockSyncThread",
+           "RecordingPaths",
            "add_robot_recording", "clock_skews", "merge_recordings", "recording_paths",
            "recording_report", "world_topics"]
 
@@ -49,6 +52,10 @@ ROBOT_TOPICS = [
     "game_state", "ground_truth/pose", "ground_truth/ball",
     "joint_states max_rate_hz=10", "imu/data max_rate_hz=20",
 ]
+#: Beside a robot's bag: its clock's true offset, drift and epoch (for tests, never the fit).
+CLOCK_TRUTH = "clock_truth.json"
+#: Where a robot's own estimates are recorded from (relative: under its namespace).
+LOCAL_OFFSET_TOPIC = "team_clock/offset"
 #: How often a robot's ClockSync exchanges with the world (s).
 SYNC_PERIOD_S = 0.5
 
@@ -108,13 +115,29 @@ def add_robot_recording(container: Container, namespace: str, *, robot: str,
                         bag_dir: Path) -> tuple[Recorder, ClockSyncThread]:
     """The robot's clock sync against the world (:class:`ClockSyncThread`, on the
     container's clock) and its recorder, recording at once; close the thread at the end."""
-    sync = ClockSyncThread(robot=robot, reference=WORLD, namespace=namespace,
-                           clock=container.executor.clock)
+    from team_clock.sync import OFFSET_QOS
+    from team_clock_interfaces.msg import ClockOffset
+
+    # The estimates reach the recorder in-process, under the robot's namespace: from DDS
+    # they waited in the container's executor, and the recorder got 5 of 70 (team_clock
+    # reads estimates from any ``<namespace>/team_clock/offset``).
+    estimates = container.add(lambda node: node, name="clock_estimates", namespace=namespace)
+    local = estimates.create_publisher(ClockOffset, LOCAL_OFFSET_TOPIC, qos=OFFSET_QOS)
+    clock = container.executor.clock
+    if isinstance(clock, SkewedClock):  # the truth, for tests of the alignment
+        bag_dir.mkdir(parents=True, exist_ok=True)
+        (bag_dir / CLOCK_TRUTH).write_text(json.dumps({
+            "offset_ns": clock.offset_ns, "drift_ppm": clock.drift_ppm,
+            "epoch_ns": clock.epoch_ns,
+            "doc": "local = world + offset_ns + drift_ppm*1e-6*(world - epoch_ns)"}) + "\n")
+    sync = ClockSyncThread(robot=robot, reference=WORLD, namespace=namespace, clock=clock,
+                           on_estimate=local.publish)
     try:
         recorder: Recorder = container.add(
             Recorder, name="recorder", namespace=namespace,
             parameters={"topics": ROBOT_TOPICS, "output_dir": str(bag_dir),
-                        "autostart": True, "clock_robot": robot})
+                        "autostart": True, "clock_robot": robot,
+                        "clock_topic": LOCAL_OFFSET_TOPIC})
     except BaseException:
         sync.close()
         raise
@@ -133,8 +156,12 @@ class ClockSyncThread:
     """
 
     def __init__(self, *, robot: str, reference: str, namespace: str, clock: Clock,
-                 domain_id: int | None = None) -> None:
-        from team_clock.sync import ClockSync  # the component; team_clock's root omits it
+                 domain_id: int | None = None,
+                 on_estimate: Callable[[Any], None] | None = None) -> None:
+        """``on_estimate`` gets each of this robot's estimates (a ``ClockOffset``), in
+        this thread."""
+        from team_clock.sync import OFFSET_QOS, OFFSET_TOPIC, ClockSync
+        from team_clock_interfaces.msg import ClockOffset
 
         self._container = Container(f"{namespace.strip('/') or 'root'}_clock", dds=True,
                                     domain_id=domain_id, serve=False, stats_period_s=0,
@@ -144,6 +171,13 @@ class ClockSyncThread:
                 ClockSync, name="clock_sync", namespace=namespace,
                 parameters={"robot": robot, "reference": reference,
                             "period_s": SYNC_PERIOD_S})
+            if on_estimate is not None:
+                forward = on_estimate
+                tap = self._container.add(lambda node: node, name="clock_tap",
+                                          namespace=namespace)
+                tap.create_subscription(
+                    ClockOffset, OFFSET_TOPIC,
+                    lambda msg: forward(msg) if msg.robot == robot else None, qos=OFFSET_QOS)
         except BaseException:
             self._container.close()
             raise
