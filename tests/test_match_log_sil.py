@@ -66,11 +66,11 @@ def test_the_merged_log_holds_every_robots_topics_within_1_ms_of_ground_truth(
         raise AssertionError(f"no {pattern!r} in:\n" + "".join(lines[-60:]))
 
     try:
-        # Both robots play (they received the referee's game); then five more live lines
-        # of the game, so that each robot's clock sync has a few exchanges in its bag.
+        # Both robots play (they received the referee's game); then 15 more live lines of
+        # the game, so that each robot's clock sync has exchanges in its bag.
         for robot in ROBOTS:
             until(rf"^  {robot} +\w+ +\w+ +game playing", 150)
-        for _ in range(5):
+        for _ in range(15):
             until(r"^ *[\d.]+ s wall, +[\d.]+ s simulated", 20)
         proc.send_signal(signal.SIGINT)
         rest, _ = proc.communicate(timeout=120)

@@ -230,6 +230,8 @@ def plan_recording(world: dict[str, Any], robots: Sequence[str], args: argparse.
              "fps": args.video_fps, "width": 480, "height": 270,
              "clock_offset_s": skews["camera"].offset_s,
              "clock_drift_ppm": skews["camera"].drift_ppm}
+    if getattr(args, "lockstep", False):  # everyone on the world's /clock: nothing to skew
+        skews.update({r: ClockSkew(0.0, 0.0) for r in robots})
     world["recording"] = {
         "bag_dir": str(paths.bag_dir("world")), "video": video if args.video_fps else None,
         "clocks": {r: {"offset_s": skews[r].offset_s, "drift_ppm": skews[r].drift_ppm}

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import random
+import sys
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -56,6 +57,8 @@ ROBOT_TOPICS = [
 CLOCK_TRUTH = "clock_truth.json"
 #: Where a robot's own estimates are recorded from (relative: under its namespace).
 LOCAL_OFFSET_TOPIC = "team_clock/offset"
+#: The GIL's switch interval in a process with a clock sync (s; see ClockSyncThread).
+SWITCH_INTERVAL_S = 0.0005
 #: How often a robot's ClockSync exchanges with the world (s).
 SYNC_PERIOD_S = 0.5
 
@@ -162,6 +165,12 @@ class ClockSyncThread:
         this thread."""
         from team_clock.sync import OFFSET_QOS, OFFSET_TOPIC, ClockSync
         from team_clock_interfaces.msg import ClockOffset
+
+        # A thread waiting for the GIL waits up to the switch interval (5 ms by default)
+        # while the process's main thread computes, and an exchange's timestamps carry
+        # that wait, more on one way than the other: the match's offsets were biased by 2
+        # to 5 ms under load. Process-wide, so the world's and every robot's alike.
+        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
 
         self._container = Container(f"{namespace.strip('/') or 'root'}_clock", dds=True,
                                     domain_id=domain_id, serve=False, stats_period_s=0,
