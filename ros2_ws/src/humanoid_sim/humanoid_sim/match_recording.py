@@ -60,7 +60,7 @@ LOCAL_OFFSET_TOPIC = "team_clock/offset"
 #: The GIL's switch interval in a process with a clock sync (s; see ClockSyncThread).
 SWITCH_INTERVAL_S = 0.0005
 #: How often a robot's ClockSync exchanges with the world (s).
-SYNC_PERIOD_S = 0.5
+SYNC_PERIOD_S = 0.25
 
 
 def world_topics(robots: Sequence[str]) -> list[str]:
