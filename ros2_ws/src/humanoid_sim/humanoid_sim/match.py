@@ -26,7 +26,11 @@ goes on (its body stands where it is); the world ending ends the match. At the e
 leader of its own process group, which is stopped whole; a child also dies with this
 process) and a report is printed and written (``--report``): goals per team, and per robot
 falls, distance walked (ground truth), role switches, team-link bytes and CPU, and which
-localization ran (``--localization``) with its error against ground truth.
+localization ran (``--localization``) with its error against ground truth. What is
+recorded (:mod:`.match_recording`): each robot runs on a clock of its own, off the world's
+by a seeded offset and drift that its ``ClockSync`` measures; the robots' bags and the
+world's are merged into one log in the world's time, and the external video is filmed on a
+camera clock of its own.
 
 A bad argument is refused with one line and exit status 2. Exit status 0: every process
 ran to the end; 1: one ended early (named in the report).
@@ -61,6 +65,14 @@ from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_gro
 from soccer_field import KIDSIZE
 
 from .demo import EXIT_OK, DemoArguments, _number
+from .match_recording import (
+    ClockSkew,
+    RecordingPaths,
+    clock_skews,
+    merge_recordings,
+    recording_paths,
+    recording_report,
+)
 from .soccer.localization import GROUND_TRUTH, NOISY_GROUND_TRUTH, PARTICLE_FILTER, SOURCES
 from .world import DEFAULT_START
 
@@ -254,9 +266,30 @@ def _parser() -> DemoArguments:
                         "(blue1=pf,red1=noisy) or both (noisy,blue1=pf) (default noisy)")
     parser.add_argument("--report", type=Path, default=Path("match_report.md"))
     parser.add_argument("--out-dir", type=Path, default=Path("match"),
-                        help="each process's log and each robot's bags go here "
-                        "(default ./match)")
+                        help="each process's log, the bags, the merged log and the video go "
+                        "here (default ./match)")
+    parser.add_argument("--video-fps", type=_number(low=0, high=30, what="0 to 30 fps"),
+                        default=5.0, help="the external video's frame rate, 0 for none "
+                        "(default 5)")
     return parser
+
+
+def plan_recording(world: dict[str, Any], robots: Sequence[str], args: argparse.Namespace,
+                   paths: RecordingPaths) -> dict[str, ClockSkew]:
+    """The world's ``recording`` (its bag, the video on the camera's clock, and every
+    robot's clock, which :func:`main` hands to each robot's plan); the clocks drawn."""
+    skews = clock_skews(robots, args.seed)
+    video = {"video_path": str(paths.video), "truth_path": str(paths.video_truth),
+             "fps": args.video_fps, "width": 480, "height": 270,
+             "clock_offset_s": skews["camera"].offset_s,
+             "clock_drift_ppm": skews["camera"].drift_ppm}
+    if getattr(args, "lockstep", False):  # everyone on the world's /clock: nothing to skew
+        skews.update({r: ClockSkew(0.0, 0.0) for r in robots})
+    world["recording"] = {
+        "bag_dir": str(paths.bag_dir("world")), "video": video if args.video_fps else None,
+        "clocks": {r: {"offset_s": skews[r].offset_s, "drift_ppm": skews[r].drift_ppm}
+                   for r in robots}}
+    return skews
 
 
 def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict[str, int],
@@ -389,12 +422,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.out_dir.mkdir(parents=True, exist_ok=True)
     period = min(args.stats_period, 1.0)
     token = os.urandom(4).hex()
+    paths = recording_paths(args.out_dir, time.strftime("%Y%m%d_%H%M%S", time.gmtime()))
     with tempfile.TemporaryDirectory(prefix="soccer_match_") as tmp:
         port_dir = Path(tmp, "ports")
         domains = {r: isolated_domain_id() for r in ["world", *robots]}
-        world = _start("world", "humanoid_sim.match_world",
-                       world_plan(robots, args, domains=domains, port_dir=port_dir,
-                                  status_period_s=period),
+        plan = world_plan(robots, args, domains=domains, port_dir=port_dir,
+                          status_period_s=period)
+        skews = plan_recording(plan, robots, args, paths)
+        clocks = plan["recording"]["clocks"]
+        world = _start("world", "humanoid_sim.match_world", plan,
                        domain=domains["world"], log_dir=args.out_dir)
         children: dict[str, Child] = {}
         started = time.monotonic()
@@ -413,11 +449,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 bridge_file.write_text(yaml.safe_dump(bridge_config(
                     robot, prefix=f"match_{token}_{team}", port=ports[robot], teammates=mates)))
                 players = sum(1 for m in robots if m.startswith(team))
-                children[robot] = _start(robot, "humanoid_sim.match_robot", robot_plan(
+                plan = robot_plan(
                     robot, start=poses[robot], port=str(port_dir / robot), bridge_file=bridge_file,
-                    bag_dir=args.out_dir / "bags" / robot, status_period_s=period,
-                    players=players, localization=sources[robot], seed=args.seed),
-                    domain=domains[robot], log_dir=args.out_dir)
+                    bag_dir=paths.bag_dir(robot), status_period_s=period,
+                    players=players, localization=sources[robot], seed=args.seed)
+                plan["clock"] = clocks[robot]
+                children[robot] = _start(robot, "humanoid_sim.match_robot", plan,
+                                         domain=domains[robot], log_dir=args.out_dir)
             print("localization: " + ", ".join(f"{r} {s}" for r, s in sources.items()),
                   flush=True)
             print(f"soccer match: {', '.join(robots)}, seed {args.seed}, domains "
@@ -437,7 +475,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             for child in (world, *children.values()):
                 if child.proc.stdout is not None:
                     child.proc.stdout.close()
-    text = report(robots, args, world, children, wall_s)
+    _, merge_line = merge_recordings(paths, robots)
+    text = report(robots, args, world, children, wall_s) + recording_report(
+        paths, skews, merge_line, video=bool(args.video_fps))
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(text)
     print(f"\n{text}\nreport written to {args.report.resolve()}", flush=True)

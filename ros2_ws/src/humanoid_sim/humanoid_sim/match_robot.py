@@ -7,8 +7,10 @@ detection and model, fall detector, head behaviour, walk, kick, get-up, motion a
 striker (``robot`` parameter: it obeys ``game_state`` and plays its ``role``), the team
 layer (:class:`~.soccer.team_comm.TeamComm`) and its link, rf_bridge's ``BridgeNode``
 (loaded by its component name, with the plan's bridge file: Zenoh on localhost, the team's
-key space, a byte budget), the JPEG compressor and the recorder (idle until its ``~/start``
-service is called, as in the one-robot demo).
+key space, a byte budget), the JPEG compressor, team_clock's ``ClockSync`` against the
+world and the recorder, recording from the start (:mod:`.match_recording`). The container
+runs on this robot's own clock, off the world's by the plan's ``clock`` (``offset_s``,
+``drift_ppm``), as a separate computer's would be.
 
 The camera, the IMU, ``game_state`` and ground truth arrive on this robot's domain from the
 world process (:mod:`.match_world`). ``localization/pose`` comes from the source the plan
@@ -45,8 +47,8 @@ from efficient_comm import ComponentSpec, Container, latched_qos, stop_on_sigter
 from efficient_comm.handle import NodeHandle
 from soccer_interfaces.msg import GameState
 
-from .demo import add_recorder
 from .driver import ServoDriver
+from .match_recording import add_robot_recording
 from .match_world import DEVICE
 from .mujoco_plant import JOINTS
 from .soccer.arbiter import MotionArbiter
@@ -171,8 +173,10 @@ def main(argv: list[str] | None = None) -> int:
             }), flush=True)
 
     stop_on_sigterm()
-    with Container(f"{name}_robot", namespace=ns, dds=True, serve=False,
-                   stats_namespace=ns) as container:
+    clock = plan.get("clock", {})  # this computer's clock, off the world's (match_recording)
+    with Container(f"{name}_robot", namespace=ns, dds=True, serve=False, stats_namespace=ns,
+                   clock_offset_s=clock.get("offset_s", 0.0),
+                   clock_drift_ppm=clock.get("drift_ppm", 0.0)) as container:
         container.add(DeviceInput, name="devices", namespace=ns)
         driver: ServoDriver = container.add(
             ServoDriver, name="servo_driver", namespace=ns,
@@ -198,11 +202,13 @@ def main(argv: list[str] | None = None) -> int:
         container.load(ComponentSpec(class_path="BridgeNode", name="rf_bridge", namespace=ns,
                                      parameters={"config": plan["bridge_file"]},
                                      source=f"the match's plan for {name}"))
-        add_recorder(container, ns, Path(plan["bag_dir"]))
+        _, clock_sync = add_robot_recording(container, ns, robot=name,
+                                            bag_dir=Path(plan["bag_dir"]))
         container.add(Status, name="match_status", namespace=ns)
         print("ready", flush=True)
         with contextlib.suppress(KeyboardInterrupt):
             container.spin()
+        clock_sync.close()
     return 0
 
 

@@ -28,7 +28,6 @@ and a world of several robots can use it alike.
 
 from __future__ import annotations
 
-import importlib
 import json
 import math
 import os
@@ -51,8 +50,8 @@ from efficient_comm.handle import NodeHandle
 from soccer_field import KIDSIZE, FieldDimensions
 from team_clock import SkewedClock
 
-from .errors import RenderError, SimConfigError, VideoError
-from .render import gl_backend
+from .errors import SimConfigError, VideoError
+from .render import OffscreenRenderer
 
 __all__ = ["SIDECAR_FORMAT", "Calibration", "MatchCamera", "MatchVideo", "OverheadView",
            "VideoSidecar", "read_sidecar", "sidecar_path"]
@@ -176,64 +175,27 @@ def read_sidecar(video: str | os.PathLike[str]) -> tuple[VideoSidecar, Calibrati
 
 
 class _OverheadRenderer:
-    """An offscreen GL context and scene drawing a free camera (shadows, reflections off:
-    they cost ~10x the frame time in a software rasteriser and show nothing a viewer of
-    the match needs)."""
+    """The overhead view on an :class:`~.render.OffscreenRenderer` of its own (a context
+    with the video's multisampling; the robots' cameras keep theirs), and the
+    calibration of that view."""
 
     def __init__(self, model: mujoco.MjModel, view: OverheadView, width: int,
                  height: int, *, samples: int) -> None:
-        if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
-            raise RenderError(
-                f"a {width}x{height} match video exceeds the model's offscreen buffer "
-                f"{model.vis.global_.offwidth}x{model.vis.global_.offheight} "
-                "(<visual><global offwidth offheight>)")
-        backend = gl_backend()
-        os.environ.setdefault("PYOPENGL_PLATFORM", backend)
-        try:
-            gl: Any = importlib.import_module(f"mujoco.{backend}").GLContext(width, height)
-        except Exception as exc:
-            raise RenderError(f"cannot create a {backend} OpenGL context: {exc}") from exc
-        # The context takes its multisampling from the model when it is made: this one's
-        # own, the model's restored at once (the robots' cameras keep theirs).
-        model_samples = model.vis.quality.offsamples
-        try:
-            gl.make_current()
-            model.vis.quality.offsamples = samples
-            self._context: mujoco.MjrContext | None = mujoco.MjrContext(
-                model, mujoco.mjtFontScale.mjFONTSCALE_100)
-            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
-        except Exception as exc:
-            gl.free()
-            raise RenderError(f"cannot set up {backend} rendering: {exc}") from exc
-        finally:
-            model.vis.quality.offsamples = model_samples
-        self._gl = gl
-        self._model = model
-        self._scene = mujoco.MjvScene(model, maxgeom=4000)
-        self._option = mujoco.MjvOption()
+        self._renderer = OffscreenRenderer(model, width=width, height=height,
+                                           samples=samples, maxgeom=4000)
         self._camera = view.camera()
-        self._rect = mujoco.MjrRect(0, 0, width, height)
-        self._flipped = np.empty((height, width, 3), dtype=np.uint8)
 
     def render(self, data: mujoco.MjData, out: npt.NDArray[np.uint8]) -> None:
-        if self._context is None:
-            raise RenderError("the match video's camera is closed")
-        self._gl.make_current()
-        mujoco.mjv_updateScene(self._model, data, self._option, None, self._camera,
-                               mujoco.mjtCatBit.mjCAT_ALL, self._scene)
-        self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-        self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
-        mujoco.mjr_render(self._rect, self._scene, self._context)
-        mujoco.mjr_readPixels(self._flipped, None, self._rect, self._context)
-        np.copyto(out, self._flipped[::-1])  # OpenGL's rows run bottom-up
+        self._renderer.render(data, out, camera=self._camera)
 
     def calibration(self) -> Calibration:
         """The pinhole model of the last rendered scene's camera (the view never moves)."""
         # The scene holds a stereo pair (eyes half the model's ipd apart): their average
         # is the camera a monoscopic frame is drawn from.
-        gl_cam = mujoco.mjv_averageCamera(self._scene.camera[0], self._scene.camera[1])
+        scene = self._renderer.scene
+        gl_cam = mujoco.mjv_averageCamera(scene.camera[0], scene.camera[1])
         near, top = float(gl_cam.frustum_near), float(gl_cam.frustum_top)
-        height, width = self._flipped.shape[:2]
+        width, height = self._renderer.width, self._renderer.height
         f = (height / 2) * near / top
         return Calibration(width=width, height=height, fx=f, fy=f, cx=width / 2,
                            cy=height / 2, position=_vec(gl_cam.pos),
@@ -241,11 +203,7 @@ class _OverheadRenderer:
 
     def close(self) -> None:
         """Free the GL context; a second call does nothing (a double free would crash)."""
-        if self._context is None:
-            return
-        context, self._context = self._context, None
-        context.free()
-        self._gl.free()
+        self._renderer.close()
 
 
 def _vec(v: Sequence[float]) -> tuple[float, float, float]:

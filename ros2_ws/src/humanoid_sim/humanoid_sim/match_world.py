@@ -18,6 +18,10 @@ that has them. A bridge process per robot would copy every image twice more; a r
 joined the world's domain would see every other robot's topics. The links only publish
 (the servo buses are ptys), so nothing flows back from a robot's domain into the world.
 
+With the plan's ``recording`` (:func:`add_world_recording`) it also records the ground truth
+and the referee on the world's clock, answers every robot's ``ClockSync`` on the robot's
+domain as the team's reference clock, and films the external video.
+
 Every ``status_period_s`` it prints one line ``status {json}`` on stdout: simulated time,
 real-time factor, game state and its changes so far, score, goals, the distance each robot
 walked (ground truth, its torso sampled every half second of simulated time: one gait
@@ -41,8 +45,11 @@ from sensor_msgs.msg import CameraInfo, Image, Imu
 
 from efficient_comm import Container, latched_qos, stop_on_sigterm
 from efficient_comm.handle import NodeHandle
+from robot_recorder import Recorder
 from soccer_interfaces.msg import GameState
 
+from .match_recording import ClockServers, world_topics
+from .match_video import MatchCamera
 from .soccer.team_referee import STATE_NAMES, TeamReferee
 from .world_simulator import WorldSimulator
 
@@ -141,6 +148,7 @@ def main(argv: list[str] | None = None) -> int:
                 "frames": status["frames"],
             }), flush=True)
 
+        clocks = add_world_recording(container, world, plan)
         tools = container.add(lambda n: n, name="match_status")
         tools.create_timer(0.1, sample)
         tools.create_timer(plan["status_period_s"], report)
@@ -148,7 +156,29 @@ def main(argv: list[str] | None = None) -> int:
         with contextlib.suppress(KeyboardInterrupt):
             container.spin()
         report()
+        if clocks is not None:
+            clocks.close()
     return 0
+
+
+def add_world_recording(container: Container, world: WorldSimulator, plan: dict[str, Any]
+                        ) -> ClockServers | None:
+    """The plan's ``recording`` (:mod:`.match_recording`), if it has one: the world's
+    clock answering on every robot's domain, its recorder of ground truth and referee, and
+    the external video. Returns the clock servers, to be closed at the end."""
+    recording = plan.get("recording")
+    if not recording:
+        return None
+    container.add(Recorder, name="recorder", namespace="/world", parameters={
+        "topics": world_topics(plan["robots"]), "output_dir": recording["bag_dir"],
+        "autostart": True})
+    video = recording.get("video")
+    if video:
+        container.add(functools.partial(MatchCamera, model=world.model, data=world.data,
+                                        lock=world.lock),
+                      name="match_camera", namespace="/world", parameters=video)
+    return ClockServers({r: plan["domains"][r] for r in plan["robots"]},
+                        clock=container.executor.clock)
 
 
 if __name__ == "__main__":

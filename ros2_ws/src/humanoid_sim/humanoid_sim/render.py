@@ -62,9 +62,15 @@ class OffscreenRenderer:
     while the cameras differ only in the view. Shadows and reflections are off: they cost
     ~10x the frame time in a software rasteriser and do not matter to colour-based ball
     detection.
+
+    ``samples`` sets the context's multisampling (antialiasing) for this renderer only (the
+    model's own setting is restored at once): the match video asks for its own, while
+    the robots' cameras keep the model's. ``maxgeom`` bounds the scene (a whole field of
+    robots seen from above needs more than one robot's camera).
     """
 
-    def __init__(self, model: mujoco.MjModel, *, width: int, height: int) -> None:
+    def __init__(self, model: mujoco.MjModel, *, width: int, height: int,
+                 samples: int | None = None, maxgeom: int = 2000) -> None:
         if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
             raise RenderError(
                 f"{width}x{height} exceeds the model's offscreen buffer "
@@ -77,19 +83,25 @@ class OffscreenRenderer:
             gl: Any = importlib.import_module(f"mujoco.{backend}").GLContext(width, height)
         except Exception as exc:
             raise RenderError(f"cannot create a {backend} OpenGL context: {exc}") from exc
+        # The context takes its multisampling from the model when it is made.
+        model_samples = model.vis.quality.offsamples
         try:
             gl.make_current()
+            if samples is not None:
+                model.vis.quality.offsamples = samples
             context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
             mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
         except Exception as exc:
             gl.free()
             raise RenderError(f"cannot set up {backend} rendering: {exc}") from exc
+        finally:
+            model.vis.quality.offsamples = model_samples
         self._gl: Any = gl
         self._context: mujoco.MjrContext | None = context
         self.backend = backend
         self.width, self.height = width, height
         self._model = model
-        self._scene = mujoco.MjvScene(model, maxgeom=2000)
+        self._scene = mujoco.MjvScene(model, maxgeom=maxgeom)
         self._option = mujoco.MjvOption()
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
@@ -108,20 +120,30 @@ class OffscreenRenderer:
                 raise RenderError(f"no camera {camera!r} in the model") from None
         return self._ids[camera]
 
-    def render(self, data: mujoco.MjData, out: npt.NDArray[np.uint8], *, camera: str) -> None:
-        """Draw ``camera``'s view of ``data`` into ``out`` (height x width x 3, uint8)."""
+    @property
+    def scene(self) -> mujoco.MjvScene:
+        """The last rendered scene (its GL cameras give a free camera's calibration)."""
+        return self._scene
+
+    def render(self, data: mujoco.MjData, out: npt.NDArray[np.uint8], *,
+               camera: str | mujoco.MjvCamera) -> None:
+        """Draw ``camera``'s view of ``data`` into ``out`` (height x width x 3, uint8):
+        a camera of the model by name, or a free ``MjvCamera`` (a view from anywhere)."""
         if self._context is None:
             raise RenderError("the renderer is closed")
-        self._camera.fixedcamid = self.camera_id(camera)
+        if isinstance(camera, str):
+            self._camera.fixedcamid = self.camera_id(camera)
+        view = self._camera if isinstance(camera, str) else camera
         self._gl.make_current()
-        mujoco.mjv_updateScene(self._model, data, self._option, None, self._camera,
+        mujoco.mjv_updateScene(self._model, data, self._option, None, view,
                                mujoco.mjtCatBit.mjCAT_ALL, self._scene)
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
         self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
         mujoco.mjr_render(self._rect, self._scene, self._context)
         mujoco.mjr_readPixels(self._flipped, None, self._rect, self._context)
         np.copyto(out, self._flipped[::-1])  # OpenGL's rows run bottom-up
-        self.frames[camera] = self.frames.get(camera, 0) + 1
+        if isinstance(camera, str):
+            self.frames[camera] = self.frames.get(camera, 0) + 1
 
     def close(self) -> None:
         """Free the GL context; a second call does nothing (a double free would crash)."""

@@ -49,3 +49,33 @@ def test_both_backends_render_the_same_scene(backend: str) -> None:
 
 def test_without_a_choice_egl_is_probed_first() -> None:
     assert _render_with(None)[0] == "egl" == gl_backend()
+
+
+def test_one_renderer_draws_a_free_camera_with_its_own_multisampling() -> None:
+    """The match video's view: a free camera over the field on the shared renderer, with
+    multisampling of its own, the model's setting left as it was for the robots' cameras."""
+    import mujoco
+    import numpy as np
+
+    from humanoid_sim.mujoco_plant import MujocoPlant
+    from humanoid_sim.render import OffscreenRenderer
+
+    plant = MujocoPlant()
+    mujoco.mj_forward(plant.model, plant.data)
+    before = plant.model.vis.quality.offsamples
+    renderer = OffscreenRenderer(plant.model, width=160, height=90, samples=2, maxgeom=4000)
+    try:
+        assert plant.model.vis.quality.offsamples == before
+        free = mujoco.MjvCamera()
+        free.type = mujoco.mjtCamera.mjCAMERA_FREE
+        free.distance, free.elevation, free.azimuth = 9.0, -65.0, 90.0
+        head = np.zeros((90, 160, 3), dtype=np.uint8)
+        renderer.render(plant.data, head, camera="head_camera")
+        image = np.zeros_like(head)
+        renderer.render(plant.data, image, camera=free)
+    finally:
+        renderer.close()
+    assert image.mean() > 10 and not np.array_equal(image, head)
+    assert renderer.frames == {"head_camera": 1}  # a free view is nobody's camera frame
+    camera = renderer.scene.camera[0]
+    assert camera.forward[2] < -0.5  # looking down on the field
