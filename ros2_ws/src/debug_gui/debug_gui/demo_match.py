@@ -76,11 +76,16 @@ class MatchProcess:
         threading.Thread(target=wait, daemon=True, name="match end").start()
 
     def stop(self) -> int:
-        """Stop the match as Ctrl-C does and wait for its report; its exit status."""
+        """Stop the match as Ctrl-C does and wait for its report; its exit status.
+
+        A match that has not named its domains yet is still starting (importing, before
+        it handles Ctrl-C): SIGTERM ends it quietly then, where Ctrl-C would print a
+        traceback."""
         self._stopping = True
         if self.proc.poll() is None:
+            how = signal.SIGINT if self.domains is not None else signal.SIGTERM
             with contextlib.suppress(ProcessLookupError):
-                os.killpg(self.proc.pid, signal.SIGINT)
+                os.killpg(self.proc.pid, how)
             try:
                 self.proc.wait(timeout=STOP_TIMEOUT_S)
             except subprocess.TimeoutExpired:

@@ -12,8 +12,8 @@ shares as it fused it; ground truth is drawn hollow and grey (pose) or black-rin
 the GUI's own fusion of the robots' balls is a dark star. Above the field, the referee's
 game state and score, as the robots received them.
 
-The drawing is sent to the browser only when it changed: a robot standing still, a match
-in ``initial``, cost the browser nothing between changes.
+The drawing reaches the browser only when it changed (NiceGUI sends a changed property
+only): robots standing still, a match in ``initial``, cost the browser nothing.
 """
 
 from __future__ import annotations
@@ -174,13 +174,9 @@ def build(ctx: ViewContext) -> None:
         if not model.active:
             return
         states = model.states()
-        # Assigning the same text again would still send it: only changes go out.
-        for element, content in ((drawing, world_svg(states, model.team_ball(states))),
-                                 (caption, legend(states))):
-            if element.content != content:
-                element.content = content
-        text = game_text(model.game())
-        if game.text != text:
-            game.text = text
+        # NiceGUI sends a property to the browser only when its value changed.
+        drawing.content = world_svg(states, model.team_ball(states))
+        caption.content = legend(states)
+        game.text = game_text(model.game())
 
     ctx.follow(model, ui.timer(POLL_S, refresh, active=False))
