@@ -211,6 +211,11 @@ def yaw_of(q: Any) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
+def pose_2d(pose: Any) -> Pose2D:
+    """A geometry_msgs Pose on the field's plane."""
+    return Pose2D(pose.position.x, pose.position.y, yaw_of(pose.orientation))
+
+
 def compose(base: Pose2D, local: Pose2D) -> Pose2D:
     """``local`` (a pose in ``base``'s frame) in the frame ``base`` is given in."""
     c, s = math.cos(base.yaw), math.sin(base.yaw)
@@ -362,19 +367,18 @@ class WorldModel:
         raise KeyError(robot)
 
     def on_odom(self, robot: RobotId, msg: Any) -> None:
-        p = msg.pose.pose
         with self._lock:
             r = self._get(robot)
             r.heard(msg.header.stamp)
-            r.odom = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
+            r.odom = pose_2d(msg.pose.pose)
             r.anchor_if_possible()
 
     def on_localization(self, robot: RobotId, msg: Any) -> None:
-        p = msg.pose.pose
+        pose = pose_2d(msg.pose.pose)
         with self._lock:
             r = self._get(robot)
             r.heard(msg.header.stamp)
-            r.localized = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
+            r.localized = pose
 
     def on_team_ball(self, robot: RobotId, msg: Any) -> None:
         p = msg.pose.pose.position
@@ -394,8 +398,7 @@ class WorldModel:
     # move the robot's "now" (see the module docstring).
 
     def on_true_robot(self, robot: RobotId, msg: Any) -> None:
-        p = msg.pose
-        pose = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
+        pose = pose_2d(msg.pose)
         with self._lock:
             r = self._get(robot)
             r.true_pose = pose
