@@ -9,7 +9,9 @@ the same page and the same match, so both see the same load. Per window: the ren
 main-thread busy share and CPU share (Chrome DevTools Protocol ``Performance.getMetrics``
 ``TaskDuration`` and ``ThreadTime``, as bench/gui_page_bench.py measures the landing page).
 Printed per window and as medians, with the ratio shown / collapsed: what the world view
-adds to the components tables a match's page shows anyway.
+adds to the components tables a match's page shows anyway. The window is tall enough
+(``--height``) that the tables are in sight either way: rows out of sight are not drawn,
+so in a short window collapsing the world view brings rows into sight and costs more.
 
 Run: ``source scripts/env.sh && python bench/gui_match_bench.py --robots 2v1 --windows 6``
 """
@@ -45,6 +47,8 @@ def main() -> int:
     ap.add_argument("--robots", default="2v1", help="the match's robots (default 2v1)")
     ap.add_argument("--windows", type=int, default=6, help="measurement windows (even)")
     ap.add_argument("--seconds", type=float, default=12.0, help="seconds per window")
+    ap.add_argument("--height", type=int, default=2600, help="the browser window's height "
+                    "(px; the width is 1600)")
     args = ap.parse_args()
     figures: dict[str, list[tuple[float, float]]] = {"shown": [], "collapsed": []}
     with tempfile.TemporaryDirectory(prefix="gui_match_bench_") as tmp:
@@ -57,7 +61,7 @@ def main() -> int:
                            timeout_s=120, what="the URL", alive=[demo]).group(1)
             browser = new_browser()
             try:
-                browser.set_window_size(1600, 1000)
+                browser.set_window_size(1600, args.height)
                 browser.get(url)
                 wait_for(lambda: "playing" in text_of(browser, "world-game-team"),
                          timeout_s=300, what="the game playing", alive=[demo])
