@@ -12,7 +12,7 @@ from std_msgs.msg import String
 
 from debug_gui import RobotId
 from debug_gui.models.world import STALE_S, TEAM_COLOURS, WorldModel
-from debug_gui.ui.world import ball_opacity
+from debug_gui.ui.world import ball_opacity, game_text, world_svg
 from soccer_interfaces.msg import GameState, TeamInfo
 
 
@@ -130,3 +130,21 @@ def test_the_game_is_the_newest_broadcast_any_robot_passed_on() -> None:
     assert game is not None and game.state == "ready" and game.score == {"blue": 1, "red": 0}
     assert game.kicking == "red"
     assert game.text() == "ready, 1st half, blue 1 : 0 red, kick-off red, 600 s left"
+
+
+def test_the_drawing_names_each_robot_with_its_role_team_and_team_ball() -> None:
+    blue1, red1 = RobotId(7, "/blue1"), RobotId(8, "/red1")
+    model = WorldModel(None, [blue1, red1], clock=lambda: 0.0)  # type: ignore[arg-type]
+    for robot, x in ((blue1, -1.0), (red1, 1.0)):
+        model.on_localization(robot, _pose(PoseWithCovarianceStamped, 5.0, x, 0.0))
+    model.on_role(blue1, String(data="goalie"))
+    model.on_team_ball(blue1, _pose(PoseWithCovarianceStamped, 5.0, 0.5, 0.5))
+    states = model.states()
+    svg = world_svg(states, model.team_ball(states))
+    assert 'data-testid="world-robot-7:/blue1"' in svg and 'data-role="goalie"' in svg
+    assert 'data-team="blue"' in svg and 'data-team="red"' in svg
+    assert ">blue1 goalie</text>" in svg and ">red1</text>" in svg
+    assert 'data-testid="world-team-ball-7:/blue1"' in svg
+    assert 'data-testid="world-team-ball"' not in svg  # the robots share one: no GUI fusion
+    model.on_game_state(red1, _game(9.0, GameState.STATE_PLAYING, 0, 2, packet=3))
+    assert game_text(model.game()) == "game: playing, 1st half, blue 0 : 2 red, 600 s left"
