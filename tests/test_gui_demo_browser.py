@@ -1,4 +1,5 @@
-"""The README's main command: three simulated robots and the GUI, seen in a browser."""
+"""The demo of robots that each play alone (`--solo`, the README's main command before the
+team match): three simulated robots and the GUI, seen in a browser."""
 
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ def test_demo_serves_three_robots_in_two_domains_and_stops_them_all(
     d1, d2 = isolated_domain_id(), isolated_domain_id()
     log = tmp_path / "demo.log"
     # Relative, as a user types it: the demo runs in tmp_path (the log's folder).
-    cmd = [sys.executable, "-m", "debug_gui.demo", "--robots", "3", "--port", "0",
+    cmd = [sys.executable, "-m", "debug_gui.demo", "--solo", "--robots", "3", "--port", "0",
            "--domains", f"{d1},{d2}", "--log-dir", str(tmp_path / "robots"),
            "--record-dir", "rec"]
     with started(cmd, env=ros_env(d1), log=log) as proc:
@@ -85,7 +86,7 @@ def test_the_demos_recordings_outlive_it_where_it_says(tmp_path: Path) -> None:
     answers, which the recorder view shows) and is still there after the demo stopped."""
     d1, d2 = isolated_domain_id(), isolated_domain_id()
     log = tmp_path / "demo.log"
-    cmd = [sys.executable, "-m", "debug_gui.demo", "--robots", "1", "--port", "0",
+    cmd = [sys.executable, "-m", "debug_gui.demo", "--solo", "--robots", "1", "--port", "0",
            "--domains", f"{d1},{d2}", "--lockstep", "--record-dir", "rec"]
     with started(cmd, env=ros_env(d1), log=log) as proc:
         demo = Process(proc=proc, log=log)

@@ -126,10 +126,15 @@ def test_beyond_loopback_pages_need_the_token(tmp_path: Path, browser) -> None:
 
 
 @pytest.mark.parametrize(("args", "error"), [
-    (["--robots", "9"], "--robots is 1..6, not 9"),
-    (["--domains", "3"], "--domains is two different domain ids A,B"),
-    (["--domains", "4,4"], "--domains is two different domain ids A,B"),
-    (["--duration", "-1", "--port", "0"], "--duration is >= 0"),
+    (["--solo", "--robots", "9"], "--robots is 1..6, not 9"),
+    (["--solo", "--domains", "3"], "--domains is two different domain ids A,B"),
+    (["--solo", "--domains", "4,4"], "--domains is two different domain ids A,B"),
+    (["--solo", "--duration", "-1", "--port", "0"], "--duration is >= 0"),
+    (["--solo", "--seed", "3"], "unrecognized arguments with --solo: --seed 3"),
+    # The match (the demo without --solo): the demo's refusals, and the match's own.
+    (["--robots", "1"], "--robots 1 is one robot alone, no match: --solo --robots 1"),
+    (["--lockstep", "--domains", "3,4"], "--domains, --lockstep: for --solo robots only"),
+    (["--robots", "4v1", "--port", "0"], "soccer_match: error: argument --robots: '4v1'"),
 ])
 def test_the_demo_refuses_bad_options_in_one_line(args: list[str], error: str) -> None:
     result = subprocess.run([sys.executable, "-m", "debug_gui.demo", *args],

@@ -132,8 +132,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
 
-def serve(options: Options) -> int:
-    """Join the domains, then serve until Ctrl-C/SIGTERM (NiceGUI in this main thread)."""
+def serve(options: Options, *, default_layout: Layout | None = None) -> int:
+    """Join the domains, then serve until Ctrl-C/SIGTERM (NiceGUI in this main thread).
+
+    ``default_layout``: what a tab starts from when no ``--layout`` file holds one (by
+    default a team components panel); the demo of a team match starts from its world."""
     # NiceGUI takes a variable inherited from a pytest parent (a test that starts this
     # command) to mean it runs under its own test fixture, and then ignores --port.
     os.environ.pop("PYTEST_CURRENT_TEST", None)
@@ -156,7 +159,8 @@ def serve(options: Options) -> int:
             closers.append(_start_foxglove(hub, options))
         shell = Shell(hub=hub, policy=options.policy, layout=Layout(),
                       layout_path=options.layout_path)
-        shell.layout = layout if layout is not None else shell.default_layout()
+        shell.layout = (layout if layout is not None else default_layout
+                        if default_layout is not None else shell.default_layout())
         install(shell)
         address = url(options.policy, options.port)
 

@@ -15,7 +15,9 @@ B red (``1v1`` .. ``3v3``). A match starts:
 
 Domains: the world's and each robot's are reserved for the match's life through
 ``efficient_comm.testing.isolated_domain_id`` (domain_coordinator's port per id, what the
-tests use), so two matches, or a match and a test, never share a domain.
+tests use), so two matches, or a match and a test, never share a domain. The first line
+printed names them (:func:`watch_line`, what ``python -m debug_gui.demo`` reads to watch
+the match).
 
 Every ``--stats-period`` seconds it prints a line for the game (wall and simulated time,
 the world's real-time factor, game state, score) and one per robot (role, the behaviour's
@@ -426,6 +428,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="soccer_match_") as tmp:
         port_dir = Path(tmp, "ports")
         domains = {r: isolated_domain_id() for r in ["world", *robots]}
+        print(watch_line(domains), flush=True)
         plan = world_plan(robots, args, domains=domains, port_dir=port_dir,
                           status_period_s=period)
         skews = plan_recording(plan, robots, args, paths)
@@ -483,6 +486,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"\n{text}\nreport written to {args.report.resolve()}", flush=True)
     ok = ok and not any(c.ended for c in children.values()) and not world.ended
     return EXIT_OK if ok else EXIT_ENDED
+
+
+def watch_line(domains: dict[str, int]) -> str:
+    """The line that says, before anything starts, how to watch the match's robots with
+    debug_gui (``python -m debug_gui.demo`` reads it to find them): their domains, the
+    world's apart (its process is no robot)."""
+    robots = ",".join(str(d) for name, d in domains.items() if name != "world")
+    return (f"soccer match: debug_gui --domains {robots} watches its robots "
+            f"(the world is in domain {domains['world']})")
 
 
 def _wait_ready(child: Child, timeout_s: float) -> bool:

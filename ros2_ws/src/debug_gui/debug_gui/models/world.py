@@ -2,14 +2,28 @@
 
 Per robot it follows (relative to the robot's namespace):
 
+* ``localization/pose`` (geometry_msgs/PoseWithCovarianceStamped, field frame): the
+  robot's belief of its pose where it localizes (the team match's robots), else
 * ``odom`` (nav_msgs/Odometry): the robot's own belief of its pose, from its steps;
 * ``ball/estimate`` (geometry_msgs/PointStamped, frame ``torso``): the ball model's bearing
   (``x`` yaw, ``y`` pitch, radians) and line-of-sight distance (``z``, metres; 0 = unknown);
-* ``ground_truth/robot``, ``ground_truth/ball`` (PoseStamped, field frame): what a
-  simulation knows to be true, drawn apart from the beliefs so errors show;
+* ``team_ball`` (PoseWithCovarianceStamped, field frame): the ball the robot's team
+  shares, as this robot fused it (the team match's robots);
+* ``ground_truth/robot`` (``ground_truth/pose`` in the team match), ``ground_truth/ball``
+  (PoseStamped, field frame): what a simulation knows to be true, drawn apart from the
+  beliefs so errors show;
 * ``motion/state`` (std_msgs/String, latched): which motion owns the joints (``stand``,
   ``walk``, ``kick``, ``getup``, ``fallen``, as humanoid_sim's motion arbiter says), so a
-  robot that stopped, fell or is kicking says so on the field.
+  robot that stopped, fell or is kicking says so on the field;
+* ``role`` (std_msgs/String, latched): the robot's role in its team (``striker``, ...);
+* ``game_state`` (soccer_interfaces/GameState, latched): the referee's broadcast as the
+  robot received it: the view shows the newest any robot has (state, score, kick-off).
+
+Ages are judged on each robot's own clock: the robot's "now" is the newest stamp of the
+messages it stamps itself (odometry, localization, ball estimates, team ball), never of
+ground truth or the game state, which the world stamps: robots' clocks may be skewed
+against the world's (as separate computers' are), and a ball estimate must not look old
+because the world's clock runs ahead.
 
 Odometry starts where the robot started, not at the field's origin, so its frame is anchored
 where it agrees with ground truth the first time the view has both (a simulation: drift
@@ -19,13 +33,19 @@ is then the robot's belief on a true pose.
 
 The team's ball is what the robots' fresh estimates (younger than :data:`FRESH_S`) say
 together: their mean, each weighted by 1 / distance, because a ball seen from nearer is
-seen sharper. It is the GUI's fusion (the robots share no ball today), labelled as such.
+seen sharper. It is the GUI's fusion, labelled as such, drawn only while no robot tells
+the ball its team shares (``team_ball``): then each robot's own is drawn.
+
+Team colours: robots named as the team match names them (``blue1`` .. ``blue3``,
+``red1`` .. ``red3``) are drawn in shades of their team's colour; others get a colour of
+their own from their name.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import re
 import threading
 import time
 import zlib
@@ -56,7 +76,12 @@ FRESH_S = 1.0
 STALE_S = 3.0
 #: Distinct colours; each robot's is chosen by its name (see :func:`colours_for`).
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b")
-TOPICS = ("odom", "ball/estimate", "ground_truth/robot", "ground_truth/ball", "motion/state")
+#: Shades of each team's colour, player 1 first (the team match's robot names).
+TEAM_COLOURS = {"blue": ("#1f4fd8", "#00a2e8", "#0b1f66"),
+                "red": ("#d62728", "#ff7f50", "#7a0010")}
+_TEAM_ROBOT = re.compile(r"^(?P<team>blue|red)(?P<number>[1-9])$")
+TOPICS = ("odom", "localization/pose", "ball/estimate", "team_ball", "ground_truth/robot",
+          "ground_truth/pose", "ground_truth/ball", "motion/state", "role", "game_state")
 #: Latched state topics: a view opened later still learns the current state at once.
 LATCHED = latched_qos()
 
@@ -85,15 +110,93 @@ class RobotState:
     true_ball: tuple[float, float] | None
     #: Which motion owns the joints ("" until the robot says).
     motion: str = ""
+    #: The robot's role in its team ("" until it says, or a robot without one).
+    role: str = ""
+    #: The ball the robot's team shares, as this robot fused it (field frame), and its age
+    #: on the robot's clock (None: the robot tells none, or it is too old to be drawn).
+    team_ball: tuple[float, float] | None = None
+    team_ball_age_s: float | None = None
+
+    @property
+    def team(self) -> str:
+        """``blue`` or ``red`` for a robot named as the team match names them, else ""."""
+        return team_of(self.robot)
+
+
+@dataclass(frozen=True, slots=True)
+class Game:
+    """The referee's broadcast (soccer_interfaces/GameState) as the view shows it."""
+
+    #: ``initial``, ``ready``, ``set``, ``playing``, ``finished``.
+    state: str
+    #: The set play (``normal``, ``throw in``, ``corner kick``, ...).
+    secondary: str
+    first_half: bool
+    #: Goals by team colour (``{"blue": 1, "red": 0}``).
+    score: dict[str, int]
+    #: The team colour that has the kick-off or the set play ("" if neither team's).
+    kicking: str
+    seconds_remaining: int
+    secondary_seconds_remaining: int
+
+    def text(self) -> str:
+        """One line: ``playing, 1st half, blue 1 : 0 red, kick-off blue, 583 s left``."""
+        parts = [self.state, "1st half" if self.first_half else "2nd half",
+                 f"blue {self.score.get('blue', 0)} : {self.score.get('red', 0)} red"]
+        if self.secondary != "normal":
+            parts.append(f"{self.secondary} {self.kicking}".strip()
+                         + f" ({self.secondary_seconds_remaining} s)")
+        elif self.kicking and self.state in ("ready", "set"):
+            parts.append(f"kick-off {self.kicking}")
+        parts.append(f"{self.seconds_remaining} s left")
+        return ", ".join(parts)
+
+
+def _constant_names(cls: type, prefix: str) -> dict[int, str]:
+    """``{3: "playing"}`` from ``STATE_PLAYING = 3``: the message's own constants, so no
+    number is written twice."""
+    return {getattr(cls, name): name[len(prefix):].lower().replace("_", " ")
+            for name in dir(cls) if name.startswith(prefix) and name[len(prefix):].isupper()}
+
+
+def read_game(msg: Any) -> Game:
+    """A GameState message as the view shows it (teams by their ``team_colour``)."""
+    cls = type(msg)
+    states, secondaries = _constant_names(cls, "STATE_"), _constant_names(cls, "STATE2_")
+    score: dict[str, int] = {}
+    kicking = ""
+    for team in msg.teams:
+        colour = _constant_names(type(team), "COLOUR_").get(team.team_colour,
+                                                            f"team {team.team_number}")
+        score[colour] = int(team.score)
+        if team.team_number == msg.kicking_team and team.team_number:
+            kicking = colour
+    return Game(state=states.get(msg.game_state, f"state {msg.game_state}"),
+                secondary=secondaries.get(msg.secondary_state,
+                                          f"set play {msg.secondary_state}"),
+                first_half=bool(msg.first_half), score=score, kicking=kicking,
+                seconds_remaining=int(msg.seconds_remaining),
+                secondary_seconds_remaining=int(msg.secondary_seconds_remaining))
+
+
+def team_of(robot: RobotId) -> str:
+    """``blue`` or ``red`` for a robot named as the team match names them, else ""."""
+    m = _TEAM_ROBOT.match(robot.name)
+    return m["team"] if m else ""
 
 
 def colours_for(robots: list[RobotId]) -> dict[RobotId, str]:
     """Each robot's colour, from its name: a robot keeps its colour when others come and
-    go (colours by position changed every robot's colour when one appeared). Two names
-    that hash alike: the one first in name order keeps it, the next takes the next free
-    colour."""
+    go (colours by position changed every robot's colour when one appeared). A team
+    match's robot takes its team's shade for its number. Two other names that hash alike:
+    the one first in name order keeps it, the next takes the next free colour."""
     out: dict[RobotId, str] = {}
-    for robot in sorted(set(robots), key=lambda r: (r.namespace, r.domain)):
+    for robot in robots:
+        m = _TEAM_ROBOT.match(robot.name)
+        shades = TEAM_COLOURS[m["team"]] if m else ()
+        if m and int(m["number"]) <= len(shades):
+            out[robot] = shades[int(m["number"]) - 1]
+    for robot in sorted(set(robots) - set(out), key=lambda r: (r.namespace, r.domain)):
         slot = zlib.crc32(robot.namespace.encode()) % len(COLOURS)
         for step in range(len(COLOURS)):
             colour = COLOURS[(slot + step) % len(COLOURS)]
@@ -106,6 +209,11 @@ def colours_for(robots: list[RobotId]) -> dict[RobotId, str]:
 def yaw_of(q: Any) -> float:
     """Heading (rotation about z) of a geometry_msgs quaternion."""
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def pose_2d(pose: Any) -> Pose2D:
+    """A geometry_msgs Pose on the field's plane."""
+    return Pose2D(pose.position.x, pose.position.y, yaw_of(pose.orientation))
 
 
 def compose(base: Pose2D, local: Pose2D) -> Pose2D:
@@ -147,12 +255,24 @@ class _Robot:
         self.true_pose: Pose2D | None = None
         self.true_ball: tuple[float, float] | None = None
         self.motion = ""
+        self.role = ""
+        #: The robot's localization (field frame): preferred to odometry once heard.
+        self.localized: Pose2D | None = None
+        self.team_ball: tuple[float, float] | None = None
+        self.team_ball_stamp_ns = 0
         self.feeds: list[Feed] = []
 
     def heard(self, stamp: Any) -> int:
+        """A stamp of the robot's own clock (never one the world stamped: see the module
+        docstring)."""
         ns = from_msg(stamp)
         self.newest_ns = max(self.newest_ns, ns)
         return ns
+
+    def team_ball_age_s(self) -> float | None:
+        if self.team_ball is None:
+            return None
+        return max(0.0, (self.newest_ns - self.team_ball_stamp_ns) / 1e9)
 
     def ball_age_s(self, now: float) -> float | None:
         """By stamps where the robot stamps its messages (its clock, not the GUI's: under
@@ -186,15 +306,20 @@ class WorldModel:
         self._lock = threading.Lock()
         colours = colours_for(robots)
         self._robots = [_Robot(r, colours[r]) for r in robots]
+        #: The newest game state any robot received, and its stamp (the world's clock).
+        self._game: Game | None = None
+        self._game_key = (-1, -1)
         self.active = False
 
     # -- feeds ---------------------------------------------------------------------------
 
     def activate(self) -> None:
         """Subscribe to every robot's poses and ball at the view's rate (idempotent)."""
-        from geometry_msgs.msg import PointStamped, PoseStamped
+        from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
         from nav_msgs.msg import Odometry
         from std_msgs.msg import String
+
+        from soccer_interfaces.msg import GameState
 
         if self.active:
             return
@@ -202,18 +327,28 @@ class WorldModel:
         for r in self._robots:
             handlers: list[tuple[str, type, Callable[[RobotId, Any], None]]] = [
                 ("odom", Odometry, self.on_odom),
+                ("localization/pose", PoseWithCovarianceStamped, self.on_localization),
                 ("ball/estimate", PointStamped, self.on_ball),
+                ("team_ball", PoseWithCovarianceStamped, self.on_team_ball),
                 ("ground_truth/robot", PoseStamped, self.on_true_robot),
+                # The team match's robots get their ground truth under this name.
+                ("ground_truth/pose", PoseStamped, self.on_true_robot),
                 ("ground_truth/ball", PoseStamped, self.on_true_ball),
             ]
             r.feeds = [self.hub.subscribe(r.robot, topic, msg_type,
                                           functools.partial(handler, r.robot),
                                           rate_hz=self.rate_hz)
                        for topic, msg_type, handler in handlers]
-            # Every change of state, not a rate: a kick lasts a second or two.
-            r.feeds.append(self.hub.subscribe(r.robot, "motion/state", String,
-                                              functools.partial(self.on_motion, r.robot),
-                                              qos=LATCHED))
+            # Every change of state, not a rate: a kick lasts a second or two, a game
+            # state may last a second.
+            latched: list[tuple[str, type, Callable[[RobotId, Any], None]]] = [
+                ("motion/state", String, self.on_motion),
+                ("role", String, self.on_role),
+                ("game_state", GameState, self.on_game_state),
+            ]
+            r.feeds += [self.hub.subscribe(r.robot, topic, msg_type,
+                                           functools.partial(handler, r.robot), qos=LATCHED)
+                        for topic, msg_type, handler in latched]
 
     def deactivate(self) -> None:
         """Close every feed: the robots stop sending to this view."""
@@ -232,12 +367,24 @@ class WorldModel:
         raise KeyError(robot)
 
     def on_odom(self, robot: RobotId, msg: Any) -> None:
-        p = msg.pose.pose
         with self._lock:
             r = self._get(robot)
             r.heard(msg.header.stamp)
-            r.odom = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
+            r.odom = pose_2d(msg.pose.pose)
             r.anchor_if_possible()
+
+    def on_localization(self, robot: RobotId, msg: Any) -> None:
+        pose = pose_2d(msg.pose.pose)
+        with self._lock:
+            r = self._get(robot)
+            r.heard(msg.header.stamp)
+            r.localized = pose
+
+    def on_team_ball(self, robot: RobotId, msg: Any) -> None:
+        p = msg.pose.pose.position
+        with self._lock:
+            r = self._get(robot)
+            r.team_ball, r.team_ball_stamp_ns = (p.x, p.y), r.heard(msg.header.stamp)
 
     def on_ball(self, robot: RobotId, msg: Any) -> None:
         local = ball_in_torso(msg)
@@ -247,24 +394,37 @@ class WorldModel:
             if local is not None:
                 r.ball, r.ball_heard, r.ball_stamp_ns = local, self._clock(), stamp
 
+    # Ground truth and the game state are the world's, stamped on its clock: they never
+    # move the robot's "now" (see the module docstring).
+
     def on_true_robot(self, robot: RobotId, msg: Any) -> None:
-        p = msg.pose
-        pose = Pose2D(p.position.x, p.position.y, yaw_of(p.orientation))
+        pose = pose_2d(msg.pose)
         with self._lock:
             r = self._get(robot)
-            r.heard(msg.header.stamp)
             r.true_pose = pose
             r.anchor_if_possible()
 
     def on_true_ball(self, robot: RobotId, msg: Any) -> None:
         with self._lock:
-            r = self._get(robot)
-            r.heard(msg.header.stamp)
-            r.true_ball = (msg.pose.position.x, msg.pose.position.y)
+            self._get(robot).true_ball = (msg.pose.position.x, msg.pose.position.y)
 
     def on_motion(self, robot: RobotId, msg: Any) -> None:
         with self._lock:
             self._get(robot).motion = msg.data
+
+    def on_role(self, robot: RobotId, msg: Any) -> None:
+        with self._lock:
+            self._get(robot).role = msg.data
+
+    def on_game_state(self, robot: RobotId, msg: Any) -> None:
+        """Every robot hears the same referee: the newest broadcast (by the world's stamp,
+        then its packet number) is the game's state, whichever robot passed it on."""
+        key = (from_msg(msg.header.stamp), int(msg.packet_number))
+        game = read_game(msg)
+        with self._lock:
+            self._get(robot)
+            if key >= self._game_key:
+                self._game, self._game_key = game, key
 
     # -- what the view reads -------------------------------------------------------------
 
@@ -274,8 +434,11 @@ class WorldModel:
         out = []
         with self._lock:
             for r in self._robots:
-                if r.odom is not None:
-                    pose: Pose2D | None = compose(r.anchor or Pose2D(0.0, 0.0, 0.0), r.odom)
+                if r.localized is not None:
+                    pose: Pose2D | None = r.localized
+                    source = "localization"
+                elif r.odom is not None:
+                    pose = compose(r.anchor or Pose2D(0.0, 0.0, 0.0), r.odom)
                     source = "odom"
                 elif r.true_pose is not None:
                     pose, source = r.true_pose, "ground truth"
@@ -287,14 +450,28 @@ class WorldModel:
                         and age <= STALE_S:
                     b = compose(pose, Pose2D(r.ball[0], r.ball[1], 0.0))
                     ball = (b.x, b.y)
+                team_age = r.team_ball_age_s()
+                team_ball = r.team_ball if team_age is not None and team_age <= STALE_S \
+                    else None
                 out.append(RobotState(r.robot, r.colour, pose, source, ball, age,
-                                      r.true_pose, r.true_ball, r.motion))
+                                      r.true_pose, r.true_ball, r.motion, role=r.role,
+                                      team_ball=team_ball,
+                                      team_ball_age_s=team_age if team_ball else None))
         return out
 
+    def game(self) -> Game | None:
+        """The newest game state any robot received (None: no referee heard)."""
+        with self._lock:
+            return self._game
+
     def team_ball(self, states: list[RobotState] | None = None) -> tuple[float, float] | None:
-        """The robots' fresh ball estimates fused: mean weighted by 1 / distance."""
+        """The robots' fresh ball estimates fused: mean weighted by 1 / distance (None
+        while any robot tells the ball its team shares: the robots' own then count)."""
+        states = self.states() if states is None else states
+        if any(s.team_ball is not None for s in states):
+            return None
         total = wx = wy = 0.0
-        for s in self.states() if states is None else states:
+        for s in states:
             if s.ball is None or s.pose is None or s.ball_age_s is None:
                 continue
             if s.ball_age_s > FRESH_S:

@@ -5,9 +5,15 @@ dozen elements, which the browser swaps faster than a canvas script could be sen
 elements carry test ids and titles (hover a robot for its pose and sources). Field metres
 map to SVG units with y up, as the field frame has it.
 
-Each robot has its colour: a filled disc with a heading line for its pose belief, a small
-ring of the same colour for its ball estimate; ground truth is drawn hollow and grey (pose)
-or black-ringed (ball); the team's ball is a dark star.
+Each robot has its colour (a team match's robots their team's shades): a filled disc with
+a heading line for its pose belief, labelled with its name and role where it has one, a
+small ring of the same colour for its ball estimate and a diamond for the ball its team
+shares as it fused it; ground truth is drawn hollow and grey (pose) or black-ringed (ball);
+the GUI's own fusion of the robots' balls is a dark star. Above the field, the referee's
+game state and score, as the robots received them.
+
+The drawing reaches the browser only when it changed (NiceGUI sends a changed property
+only): robots standing still, a match in ``initial``, cost the browser nothing.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ from html import escape
 
 from nicegui import ui
 
-from ..models.world import FIELD, FRESH_S, STALE_S, RobotState, WorldModel
+from ..models.world import FIELD, FRESH_S, STALE_S, Game, RobotState, WorldModel
 from .registry import ViewContext, register
 
 POLL_S = 0.1
@@ -75,21 +81,33 @@ def _robot_svg(s: RobotState) -> str:
         hx, hy = _pt(s.pose.x + 0.3 * math.cos(s.pose.yaw), s.pose.y + 0.3 * math.sin(s.pose.yaw))
         title = (f"{s.robot.label}: x {s.pose.x:.2f} m, y {s.pose.y:.2f} m, "
                  f"heading {math.degrees(s.pose.yaw):.0f}° ({s.pose_source})"
-                 + (f", {s.motion}" if s.motion else ""))
+                 + "".join(f", {v}" for v in (s.role, s.motion) if v))
+        label = s.robot.name + (f" {s.role}" if s.role else "")
         out.append(
             f'<g data-testid="world-robot-{key}" data-x="{s.pose.x:.3f}" '
             f'data-y="{s.pose.y:.3f}" data-colour="{s.colour}" '
             f'data-source="{escape(s.pose_source, quote=True)}" '
-            f'data-motion="{escape(s.motion, quote=True)}">'
+            f'data-motion="{escape(s.motion, quote=True)}" '
+            f'data-role="{escape(s.role, quote=True)}" data-team="{s.team}">'
             f'<title>{escape(title)}</title>'
             f'<circle cx="{x}" cy="{y}" r="8" fill="{s.colour}" stroke="white"/>'
             f'<line x1="{x}" y1="{y}" x2="{hx}" y2="{hy}" stroke="{s.colour}" '
-            'stroke-width="3"/></g>')
+            'stroke-width="3"/>'
+            f'<text x="{x + 11}" y="{y - 9}" font-size="15" font-weight="bold" '
+            f'fill="{s.colour}" stroke="white" stroke-width="3" paint-order="stroke">'
+            f'{escape(label)}</text></g>')
     if s.ball is not None:
         x, y = _pt(*s.ball)
         out.append(f'<circle data-testid="world-ball-{key}" cx="{x}" cy="{y}" r="6" '
                    f'fill="none" stroke="{s.colour}" stroke-width="3" '
                    f'opacity="{ball_opacity(s.ball_age_s):.2f}"/>')
+    if s.team_ball is not None:
+        x, y = _pt(*s.team_ball)
+        out.append(f'<path data-testid="world-team-ball-{key}" d="M{x},{y - 8} L{x + 8},{y} '
+                   f'L{x},{y + 8} L{x - 8},{y} Z" fill="none" stroke="{s.colour}" '
+                   f'stroke-width="2.5" opacity="{ball_opacity(s.team_ball_age_s):.2f}">'
+                   f'<title>{escape(s.robot.name)}: the team ball as it fused it</title>'
+                   '</path>')
     return "".join(out)
 
 
@@ -129,10 +147,17 @@ def legend(states: list[RobotState]) -> str:
                  f"x {s.pose.x:.2f}, y {s.pose.y:.2f} ({s.pose_source})")
         ball = ("" if s.ball is None or s.ball_age_s is None else
                 f"; ball {s.ball[0]:.2f}, {s.ball[1]:.2f} ({s.ball_age_s:.1f} s ago)")
+        role = f" {s.role}" if s.role else ""
         motion = f" [{s.motion}]" if s.motion else ""
         rows.append(f'<span style="color:{s.colour}">●</span> '
-                    f"{escape(s.robot.label)}{escape(motion)}: {escape(where)}{escape(ball)}")
+                    f"{escape(s.robot.label)}{escape(role)}{escape(motion)}: "
+                    f"{escape(where)}{escape(ball)}")
     return "<br>".join(rows) or "no robots"
+
+
+def game_text(game: Game | None) -> str:
+    """The referee's state and score above the field (as the robots received them)."""
+    return "no game state (no referee heard)" if game is None else f"game: {game.text()}"
 
 
 @register(kind="world", title="World", team=True, order=40)
@@ -140,6 +165,8 @@ def build(ctx: ViewContext) -> None:
     robots = [ctx.robot] if ctx.robot is not None else list(ctx.robots)
     model = WorldModel(ctx.hub, robots)
     suffix = ctx.robot.key if ctx.robot is not None else "team"
+    game = ui.label(game_text(None)).classes("text-subtitle2").props(
+        f"data-testid=world-game-{suffix}")
     drawing = ui.html(world_svg([], None)).props(f"data-testid=world-{suffix}").classes("w-full")
     caption = ui.html("").classes("text-caption").props(f"data-testid=world-legend-{suffix}")
 
@@ -147,7 +174,9 @@ def build(ctx: ViewContext) -> None:
         if not model.active:
             return
         states = model.states()
+        # NiceGUI sends a property to the browser only when its value changed.
         drawing.content = world_svg(states, model.team_ball(states))
         caption.content = legend(states)
+        game.text = game_text(model.game())
 
     ctx.follow(model, ui.timer(POLL_S, refresh, active=False))
