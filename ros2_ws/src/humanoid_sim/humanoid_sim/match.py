@@ -129,6 +129,7 @@ class Child:
     log: Path
     status: dict[str, Any] = field(default_factory=dict)
     ready: threading.Event = field(default_factory=threading.Event)
+    eof: threading.Event = field(default_factory=threading.Event)  # stdout read to its end
     ended: str | None = None  # how it ended, once noticed
     cpu_s: float = 0.0
     started: float = field(default_factory=time.monotonic)
@@ -142,6 +143,7 @@ class Child:
                     self.status = json.loads(line[7:])
             elif line.strip() == "ready":
                 self.ready.set()
+        self.eof.set()
 
     def sample_cpu(self) -> None:
         """User + system CPU seconds so far (/proc/<pid>/stat, all threads)."""
@@ -189,10 +191,15 @@ def _parser() -> DemoArguments:
                         help="2 or 3: one team; AvB: A blue against B red, e.g. 3v3 "
                         "(default 3; 1 is the one-robot demo)")
     parser.add_argument("--duration", type=_number(low=0, what="seconds >= 0"),
-                        default=60.0, help="wall seconds; 0 = until Ctrl-C (default 60)")
+                        default=60.0, help="wall seconds (with --lockstep: simulated "
+                        "seconds); 0 = until Ctrl-C (default 60)")
     parser.add_argument("--seed", type=int, default=0,
                         help="start poses and ball (0: the default starts, ball on the "
                         "centre mark); printed in the report")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="the world steps every robot's process as one barrier on "
+                        "simulated time: slower than real time, never late, and a seed "
+                        "plays the same game every run")
     parser.add_argument("--stats-period", type=_number(low=0.5, what="seconds >= 0.5"),
                         default=2.0, help="seconds between live lines (default 2)")
     parser.add_argument("--camera-hz", type=_number(low=0, high=60, what="0 to 60 Hz"),
@@ -215,15 +222,16 @@ def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict
     world.update({f"{r}.pose": list(p) for r, p in poses.items()})
     return {"robots": list(robots), "domains": domains, "world": world, "step_hz": 100.0,
             "referee": {"robots": list(robots), "ready_s": args.ready_s},
-            "status_period_s": status_period_s}
+            "status_period_s": status_period_s, "lockstep": args.lockstep,
+            "end_s": args.duration if args.lockstep else 0.0}
 
 
 def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
-               bridge_file: Path, bag_dir: Path, status_period_s: float, players: int
-               ) -> dict[str, Any]:
+               bridge_file: Path, bag_dir: Path, status_period_s: float, players: int,
+               lockstep: bool = False) -> dict[str, Any]:
     team, number = robot.rstrip("123"), int(robot[-1])
     return {
-        "robot": robot, "port": port, "bridge_file": str(bridge_file),
+        "robot": robot, "port": port, "bridge_file": str(bridge_file), "lockstep": lockstep,
         "bag_dir": str(bag_dir), "status_period_s": status_period_s,
         "striker": {"robot": robot, "start_pose": list(start)},
         # A team of three keeps player 3 in goal (its kick-off spot is there); smaller
@@ -268,7 +276,8 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             for c in (world, *children.values())}
     lines = [
         "# Team match report", "",
-        f"Robots {', '.join(robots)}; seed {args.seed}; real time; "
+        f"Robots {', '.join(robots)}; seed {args.seed}; "
+        f"{'lockstep' if args.lockstep else 'real time'}; "
         f"{wall_s:.1f} s wall, {s.get('sim_time_s', 0.0):.1f} s simulated, real-time factor "
         f"{s.get('real_time_factor', 0.0):.2f} (world physics "
         f"{s.get('physics_ms', 0.0):.2f} ms a step, render {s.get('render_ms', 0.0):.1f} ms a "
@@ -293,6 +302,9 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             f"{st.get('frames', 0)} / {st.get('imus', 0)} | {st.get('falls', 0)} | {walked:.2f} | "
             f"{sent:.0f} / {received:.0f} | {rate:.0f} ({peak:.0f}) of {BUDGET_BYTES_PER_S} | "
             f"{cpus[name]:.0f} |")
+    if args.lockstep:
+        lines += ["", f"Ground truth fingerprint {s.get('truth_sha', '-')} (every robot's "
+                  "and the ball's pose each 0.1 s simulated: equal for equal games)."]
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
               f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.", ""]
     return "\n".join(lines)
@@ -340,10 +352,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 children[robot] = _start(robot, "humanoid_sim.match_robot", robot_plan(
                     robot, start=poses[robot], port=str(port_dir / robot), bridge_file=bridge_file,
                     bag_dir=args.out_dir / "bags" / robot, status_period_s=period,
-                    players=players), domain=domains[robot], log_dir=args.out_dir)
+                    players=players, lockstep=args.lockstep), domain=domains[robot],
+                    log_dir=args.out_dir)
             print(f"soccer match: {', '.join(robots)}, seed {args.seed}, domains "
                   + ", ".join(f"{k} {v}" for k, v in domains.items())
-                  + f"; {'until Ctrl-C' if not args.duration else f'{args.duration:g} s'}; "
+                  + f"; {'until Ctrl-C' if not args.duration else f'{args.duration:g} s'}"
+                  + (" simulated, in lockstep" if args.lockstep else "") + "; "
                   f"logs in {args.out_dir}", flush=True)
             ok = _run(world, children, args, started)
         except KeyboardInterrupt:
@@ -379,7 +393,8 @@ def _wait_ready(child: Child, timeout_s: float) -> bool:
 def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
          started: float) -> bool:
     """The live lines until the end; False if the world ended."""
-    end = started + args.duration if args.duration else math.inf
+    # In lockstep the world ends the match after --duration simulated seconds.
+    end = started + args.duration if args.duration and not args.lockstep else math.inf
     next_line = time.monotonic()
     told = 0  # game state changes printed
     while (now := time.monotonic()) < end:
@@ -395,6 +410,9 @@ def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
                 child.sample_cpu()
         world.sample_cpu()
         if world.proc.poll() is not None:
+            if world.proc.returncode == 0 and args.lockstep and args.duration:
+                world.eof.wait(10)  # its last status line: the end of the game
+                return True  # played its simulated --duration
             world.ended = _ended(world)
             print(f"world: its process ended ({world.ended}); the match is over "
                   f"(log {world.log})", flush=True)

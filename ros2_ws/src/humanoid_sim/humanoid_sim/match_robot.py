@@ -62,6 +62,11 @@ from .soccer.world_model import BallModel
 
 #: rf_bridge's status name for the team link on ``/diagnostics``.
 TEAM_LINK_STATUS = "rf_bridge: team link"
+#: What the world delivers under ``device/`` on the robot's domain: (type, topic, QoS).
+DEVICE_TOPICS: tuple[tuple[type, str, Any], ...] = (
+    (Image, "camera/image_raw", 2), (CameraInfo, "camera/camera_info", latched_qos()),
+    (Imu, "imu/data", 10), (GameState, "game_state", latched_qos()),
+    (PoseStamped, "ground_truth/pose", 10), (PoseStamped, "ground_truth/ball", 10))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -110,6 +115,19 @@ def main(argv: list[str] | None = None) -> int:
             self.thread.join(timeout=5)
             self.executor.shutdown()
             self.rnode.destroy_node()
+
+    class StepInput:
+        """In lockstep, the world's sensor topics taken by the container itself and
+        published in-process as ``<topic>``: the container's lockstep intake holds every
+        sample until the step after the world published it (:mod:`efficient_comm.simtime`),
+        so each robot hears each frame in the same step on every run. (A thread of its own,
+        as :class:`DeviceInput` takes them in real time, would hand them over whenever it
+        got them.)"""
+
+        def __init__(self, node: NodeHandle) -> None:
+            for msg_type, topic, qos in DEVICE_TOPICS:
+                pub = node.create_publisher(msg_type, topic, qos=qos)
+                node.create_subscription(msg_type, f"{DEVICE}/{topic}", pub.publish, qos=qos)
 
     class TruthPose:
         """The stand-in localization: ground truth as ``localization/pose`` with the sigma
@@ -187,9 +205,10 @@ def main(argv: list[str] | None = None) -> int:
             }), flush=True)
 
     stop_on_sigterm()
+    lockstep = bool(plan.get("lockstep"))
     with Container(f"{name}_robot", namespace=ns, dds=True, serve=False,
-                   stats_namespace=ns) as container:
-        container.add(DeviceInput, name="devices", namespace=ns)
+                   stats_namespace=ns, lockstep=name if lockstep else None) as container:
+        container.add(StepInput if lockstep else DeviceInput, name="devices", namespace=ns)
         driver: ServoDriver = container.add(
             ServoDriver, name="servo_driver", namespace=ns,
             parameters={"port": plan["port"], "ids": list(JOINTS),
