@@ -60,9 +60,11 @@ from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_gro
 from soccer_field import KIDSIZE
 
 from .demo import EXIT_OK, DemoArguments, _number
+from .match_world import GroundTruthLog
 from .world import DEFAULT_START
 
 EXIT_ENDED = 1
+STATE_SETTLE_S = GroundTruthLog.SETTLE_S
 #: The team link's budget per robot (bytes a second, and the burst), as in the team docs.
 BUDGET_BYTES_PER_S = 2048
 TEAM_NUMBERS = {"blue": 1, "red": 2}
@@ -267,6 +269,19 @@ def robot_line(child: Child) -> str:
             f"link {_link_figures(s)[2]:5.0f} B/s")
 
 
+def state_lines(world: dict[str, Any]) -> list[str]:
+    """One line per game state the world entered: ``- set from 2.0 s: blue1 at (-0.75,
+    0.00) moved 0.02 m; ...`` (what the SIL tests read)."""
+    lines = []
+    starts, moved = world.get("at_state_start", []), world.get("moved_in_state_m", [])
+    for i, (state, t) in enumerate(world.get("states", [])):
+        robots = [f"{r} at ({x:.2f}, {y:.2f}) moved {moved[i].get(r, 0.0):.2f} m"
+                  for r, (x, y) in (starts[i].items() if i < len(starts) else ())
+                  if i < len(moved)]
+        lines.append(f"- {state} from {t:.1f} s: " + ("; ".join(robots) or "-"))
+    return lines
+
+
 def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
            children: dict[str, Child], wall_s: float) -> str:
     s = world.status
@@ -302,6 +317,10 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             f"{st.get('frames', 0)} / {st.get('imus', 0)} | {st.get('falls', 0)} | {walked:.2f} | "
             f"{sent:.0f} / {received:.0f} | {rate:.0f} ({peak:.0f}) of {BUDGET_BYTES_PER_S} | "
             f"{cpus[name]:.0f} |")
+    lines += ["", "Game states (ground truth: where each robot stood as the state began, "
+              "and the farthest it moved from where it stood "
+              f"{STATE_SETTLE_S:g} s into it):", ""]
+    lines += state_lines(s)
     if args.lockstep:
         lines += ["", f"Ground truth fingerprint {s.get('truth_sha', '-')} (every robot's "
                   "and the ball's pose each 0.1 s simulated: equal for equal games)."]

@@ -33,6 +33,7 @@ from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from dynamixel_sdk import PortHandler
 from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -62,11 +63,33 @@ from .soccer.world_model import BallModel
 
 #: rf_bridge's status name for the team link on ``/diagnostics``.
 TEAM_LINK_STATUS = "rf_bridge: team link"
+#: Lockstep: how long (wall ms) the driver waits for a servo's reply (:class:`LockstepPort`).
+LOCKSTEP_REPLY_MS = 2000.0
 #: What the world delivers under ``device/`` on the robot's domain: (type, topic, QoS).
 DEVICE_TOPICS: tuple[tuple[type, str, Any], ...] = (
     (Image, "camera/image_raw", 2), (CameraInfo, "camera/camera_info", latched_qos()),
     (Imu, "imu/data", 10), (GameState, "game_state", latched_qos()),
     (PoseStamped, "ground_truth/pose", 10), (PoseStamped, "ground_truth/ball", 10))
+
+
+class LockstepPort(PortHandler):  # type: ignore[misc]  # the SDK is untyped
+    """dynamixel-sdk's PortHandler waiting up to :data:`LOCKSTEP_REPLY_MS` for a reply.
+
+    In lockstep every servo of the world answers every request (no line noise in the
+    match); a reply takes as long as the world's bus thread needs to get the CPU. The SDK's
+    own timeout (about 34 ms with the stock latency timer) would, on a loaded machine,
+    count misses an idle one never sees, and the game would change with the load. The
+    world's bus is in another process, so the in-process :class:`~.dynamixel.pty.
+    IdlePortHandler` cannot serve; a long wall-clock bound only stops a hang when the world
+    is gone.
+    """
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (the SDK's name)
+        super().setPacketTimeout(packet_length)
+        self.packet_timeout: float = max(float(self.packet_timeout), LOCKSTEP_REPLY_MS)
+
+    def setPacketTimeoutMillis(self, msec: float) -> None:  # noqa: N802
+        super().setPacketTimeoutMillis(max(msec, LOCKSTEP_REPLY_MS))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -213,6 +236,8 @@ def main(argv: list[str] | None = None) -> int:
             ServoDriver, name="servo_driver", namespace=ns,
             parameters={"port": plan["port"], "ids": list(JOINTS),
                         "joint_names": list(JOINTS.values())})
+        if lockstep:
+            driver.port_factory = LockstepPort
         container.add(BallDetector, name="ball_detector", namespace=ns)
         container.add(BallModel, name="ball_model", namespace=ns)
         fall: FallDetector = container.add(FallDetector, name="fall_detector", namespace=ns)

@@ -1,0 +1,114 @@
+"""The team match in lockstep, seeded, as a user starts it (``--lockstep``): one blue
+robot against one red, each robot's software in a process of its own on its own DDS
+domain, the world in another, stepped as one barrier on simulated time.
+
+Three matches of 6 simulated seconds run side by side (seed 5 twice, seed 6 once), so each
+also runs beside the others' load, and from their reports:
+
+* the same seed gives the same game across processes: the ground-truth fingerprint (every
+  robot's and the ball's exact pose each 0.1 s simulated) is equal for the two seed-5 runs,
+  and another seed plays another game (another fingerprint, other start poses);
+* the referee's states are obeyed: the game goes initial -> ready -> set -> playing, no
+  robot walks in initial or set (its torso stays within a few centimetres, as a standing
+  robot sways), every robot stands in its own half, inside the field, as set begins (placed
+  for the kick-off if it was not), and blue's striker (blue has the kick-off) walks once
+  playing;
+* nobody falls (a robot in lockstep is never late, however loaded the machine).
+
+Wall time: 191 s for the three side by side beside other engineers' work (load average
+13 to 15 on 2 cores, real-time factor 0.04 each); each step waits for the slowest process,
+so the figure is mostly the machine's load.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
+from soccer_field import KIDSIZE
+
+SIM_S = 6.0
+#: A standing robot's torso moves up to about 4 cm (settling after being put down, sway);
+#: a walking one 0.2 m in 2 s of playing (seen: 0.04 and 0.20 m).
+STANDING_M = 0.08
+_STATE = re.compile(r"^- (\w+) from ([\d.]+) s: (.*)$")
+_ROBOT = re.compile(r"(\w+) at \((-?[\d.]+), (-?[\d.]+)\) moved ([\d.]+) m")
+
+
+def _start(tmp: Path, seed: int, tag: str) -> tuple[subprocess.Popen[str], Path]:
+    report = tmp / f"{tag}.md"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "humanoid_sim.match", "--robots", "1v1", "--lockstep",
+         "--seed", str(seed), "--duration", str(SIM_S), "--ready-s", "1", "--camera-hz", "5",
+         "--stats-period", "5", "--out-dir", str(tmp / tag), "--report", str(report)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env=ros_env(isolated_domain_id()), start_new_session=True, cwd=tmp)
+    return proc, report
+
+
+def _states(text: str) -> list[tuple[str, float, dict[str, tuple[float, float, float]]]]:
+    states = []
+    for line in text.splitlines():
+        if m := _STATE.match(line):
+            robots = {r: (float(x), float(y), float(moved))
+                      for r, x, y, moved in _ROBOT.findall(m[3])}
+            states.append((m[1], float(m[2]), robots))
+    return states
+
+
+def _fingerprint(text: str) -> str:
+    m = re.search(r"Ground truth fingerprint (\w+)", text)
+    assert m, text
+    return m[1]
+
+
+@pytest.mark.timeout(1500)
+def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> None:
+    runs = {tag: _start(tmp_path, seed, tag)
+            for tag, seed in (("a5", 5), ("b5", 5), ("c6", 6))}
+    outputs: dict[str, str] = {}
+    try:
+        for tag, (proc, _) in runs.items():
+            outputs[tag], _ = proc.communicate(timeout=1400)
+    finally:
+        for proc, _ in runs.values():
+            stop_process_group(proc, timeout_s=30)
+    texts = {}
+    for tag, (proc, report) in runs.items():
+        assert proc.returncode == 0, outputs[tag][-3000:]
+        texts[tag] = report.read_text()
+        assert "; lockstep;" in texts[tag], texts[tag]
+        assert re.search(rf"{SIM_S:.1f} s simulated", texts[tag]), texts[tag]
+    assert "seed 5" in texts["a5"] and "seed 6" in texts["c6"]
+
+    # The same seed, the same game; another seed, another game from another start.
+    assert _fingerprint(texts["a5"]) == _fingerprint(texts["b5"]), (texts["a5"], texts["b5"])
+    assert _fingerprint(texts["a5"]) != _fingerprint(texts["c6"])
+    assert _states(texts["a5"])[0][2] != _states(texts["c6"])[0][2]
+
+    for tag, text in texts.items():
+        states = _states(text)
+        assert [s[0] for s in states][:4] == ["initial", "ready", "set", "playing"], text
+        for name, _, robots in states:
+            assert set(robots) == {"blue1", "red1"}, text
+            if name in ("initial", "set"):  # nobody walks
+                assert all(moved < STANDING_M for *_, moved in robots.values()), (tag, text)
+        # Blue has the kick-off: its striker walks once playing.
+        assert states[3][2]["blue1"][2] >= STANDING_M, (tag, text)
+        _, _, at_set = states[2]
+        for robot, (x, y, _) in at_set.items():  # in its own half, on the field
+            side = -1 if robot.startswith("blue") else 1
+            assert 0 < side * x <= KIDSIZE.half_length, (tag, robot, text)
+            assert abs(y) <= KIDSIZE.half_width, (tag, robot, text)
+        rows = {row.split("|")[1].strip(): [c.strip() for c in row.split("|")[2:-1]]
+                for row in text.splitlines() if re.match(r"^\| (blue|red)\d", row)}
+        assert set(rows) == {"blue1", "red1"}, text
+        for robot, row in rows.items():
+            assert row[0] == "ran to the end", (tag, robot, text)
+            assert row[2] == "playing", (tag, robot, text)  # the robot heard the game
+            assert row[4] == "0", (tag, robot, text)  # no falls
