@@ -112,3 +112,57 @@ def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> 
             assert row[0] == "ran to the end", (tag, robot, text)
             assert row[2] == "playing", (tag, robot, text)  # the robot heard the game
             assert row[4] == "0", (tag, robot, text)  # no falls
+
+
+_LIVE = re.compile(r"^ *[\d.]+ s wall, +([\d.]+) s simulated, RTF [\d.]+, (\w+)")
+_ROLE = re.compile(r"^  (blue\d) +(\w+) ")
+#: Both teammates may be striker until each has heard the other (the team sends 2 Hz)
+#: and while a switch settles (the roles' hold); longer than this is two robots at one ball.
+BOTH_STRIKER_S = 2.0
+
+
+@pytest.mark.timeout(1500)
+def test_two_teammates_in_lockstep_do_not_both_go_for_the_ball_for_long(tmp_path: Path
+                                                                         ) -> None:
+    """Two blue teammates (``--robots 2``) over the team link, in lockstep: from the live
+    lines (each robot's role as its process reports it, with the simulated time), while
+    playing the two are strikers at once for at most :data:`BOTH_STRIKER_S`, and one of them
+    is striker and the other not for most of the game."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "humanoid_sim.match", "--robots", "2", "--lockstep",
+         "--seed", "3", "--duration", "14", "--ready-s", "1", "--camera-hz", "5",
+         "--stats-period", "0.5", "--out-dir", str(tmp_path / "out"),
+         "--report", str(tmp_path / "report.md")],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env=ros_env(isolated_domain_id()), start_new_session=True, cwd=tmp_path)
+    try:
+        out, _ = proc.communicate(timeout=1400)
+    finally:
+        stop_process_group(proc, timeout_s=30)
+    assert proc.returncode == 0, out[-3000:]
+    samples: list[tuple[float, dict[str, str]]] = []  # (simulated s, roles) while playing
+    current: dict[str, str] | None = None  # the roles of the sample being read
+    for line in out.splitlines():
+        if m := _LIVE.match(line):
+            current = {} if m[2] == "playing" else None
+            if current is not None:
+                samples.append((float(m[1]), current))
+        elif (m := _ROLE.match(line)) and current is not None:
+            current[m[1]] = m[2]
+    samples = [(t, roles) for t, roles in samples if len(roles) == 2]
+    assert samples, out[-3000:]
+    playing_at = samples[0][0]
+    both = [t for t, roles in samples if set(roles.values()) == {"striker"}]
+    one = [t for t, roles in samples if sorted(roles.values()).count("striker") == 1]
+    # The longest run of samples with two strikers, in simulated seconds.
+    longest, start, last = 0.0, None, None
+    for t, roles in samples:
+        if set(roles.values()) == {"striker"}:
+            start = t if start is None else start
+            longest = max(longest, t - start)
+        else:
+            start = None
+        last = t
+    assert longest <= BOTH_STRIKER_S, (longest, both, out[-3000:])
+    assert len(one) > len(samples) / 2, (len(one), len(samples), out[-3000:])
+    assert last is not None and last - playing_at >= 8.0, out[-3000:]
