@@ -121,26 +121,27 @@ _ROLE = re.compile(r"^  (blue\d) +(\w+) ")
 BOTH_STRIKER_S = 2.0
 
 
-@pytest.mark.timeout(1500)
-def test_two_teammates_in_lockstep_do_not_both_go_for_the_ball_for_long(tmp_path: Path
-                                                                         ) -> None:
-    """Two blue teammates (``--robots 2``) over the team link, in lockstep: from the live
-    lines (each robot's role as its process reports it, with the simulated time), while
-    playing the two are strikers at once for at most :data:`BOTH_STRIKER_S`, and one of them
-    is striker and the other not for most of the game."""
+def _play_two(tmp: Path, *extra: str) -> tuple[str, str]:
+    """Two blue teammates (``--robots 2``) in lockstep, 14 simulated seconds (10 playing):
+    the match's output and its report."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "humanoid_sim.match", "--robots", "2", "--lockstep",
          "--seed", "3", "--duration", "14", "--ready-s", "1", "--camera-hz", "5",
-         "--stats-period", "0.5", "--out-dir", str(tmp_path / "out"),
-         "--report", str(tmp_path / "report.md")],
+         "--stats-period", "0.5", "--out-dir", str(tmp / "out"),
+         "--report", str(tmp / "report.md"), *extra],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=ros_env(isolated_domain_id()), start_new_session=True, cwd=tmp_path)
+        env=ros_env(isolated_domain_id()), start_new_session=True, cwd=tmp)
     try:
         out, _ = proc.communicate(timeout=1400)
     finally:
         stop_process_group(proc, timeout_s=30)
     assert proc.returncode == 0, out[-3000:]
-    samples: list[tuple[float, dict[str, str]]] = []  # (simulated s, roles) while playing
+    return out, (tmp / "report.md").read_text()
+
+
+def _roles_while_playing(out: str) -> list[tuple[float, dict[str, str]]]:
+    """(simulated s, each robot's role) from the live lines while the game is playing."""
+    samples: list[tuple[float, dict[str, str]]] = []
     current: dict[str, str] | None = None  # the roles of the sample being read
     for line in out.splitlines():
         if m := _LIVE.match(line):
@@ -150,19 +151,51 @@ def test_two_teammates_in_lockstep_do_not_both_go_for_the_ball_for_long(tmp_path
         elif (m := _ROLE.match(line)) and current is not None:
             current[m[1]] = m[2]
     samples = [(t, roles) for t, roles in samples if len(roles) == 2]
-    assert samples, out[-3000:]
-    playing_at = samples[0][0]
-    both = [t for t, roles in samples if set(roles.values()) == {"striker"}]
-    one = [t for t, roles in samples if sorted(roles.values()).count("striker") == 1]
-    # The longest run of samples with two strikers, in simulated seconds.
-    longest, start, last = 0.0, None, None
+    assert samples and samples[-1][0] - samples[0][0] >= 8.0, out[-3000:]
+    return samples
+
+
+def _longest_two_strikers(samples: list[tuple[float, dict[str, str]]]) -> float:
+    """The longest run of samples with two strikers, in simulated seconds."""
+    longest, start = 0.0, None
     for t, roles in samples:
         if set(roles.values()) == {"striker"}:
             start = t if start is None else start
             longest = max(longest, t - start)
         else:
             start = None
-        last = t
-    assert longest <= BOTH_STRIKER_S, (longest, both, out[-3000:])
+    return longest
+
+
+@pytest.mark.timeout(1500)
+def test_two_teammates_in_lockstep_do_not_both_go_for_the_ball_for_long(tmp_path: Path
+                                                                         ) -> None:
+    """From the live lines (each robot's role as its process reports it, with the
+    simulated time): while playing the two are strikers at once for at most
+    :data:`BOTH_STRIKER_S`, and one of them is striker and the other not for most of the
+    game."""
+    out, _ = _play_two(tmp_path)
+    samples = _roles_while_playing(out)
+    one = [t for t, roles in samples if sorted(roles.values()).count("striker") == 1]
+    assert _longest_two_strikers(samples) <= BOTH_STRIKER_S, out[-3000:]
     assert len(one) > len(samples) / 2, (len(one), len(samples), out[-3000:])
-    assert last is not None and last - playing_at >= 8.0, out[-3000:]
+
+
+@pytest.mark.timeout(1500)
+def test_a_cut_team_link_leaves_each_teammate_playing_alone(tmp_path: Path) -> None:
+    """``--team-link off`` (no robot connects to its teammate): nothing is received, each
+    robot is striker alone for the whole game (where the linked pair above share it), and
+    each still plays: it walks, does not fall, and its process runs to the end."""
+    out, text = _play_two(tmp_path, "--team-link", "off")
+    assert "team link cut" in text, text
+    samples = _roles_while_playing(out)
+    assert all(set(roles.values()) == {"striker"} for _, roles in samples), out[-3000:]
+    assert _longest_two_strikers(samples) > BOTH_STRIKER_S
+    rows = {row.split("|")[1].strip(): [c.strip() for c in row.split("|")[2:-1]]
+            for row in text.splitlines() if re.match(r"^\| blue\d", row)}
+    assert set(rows) == {"blue1", "blue2"}, text
+    for robot, row in rows.items():
+        assert row[0] == "ran to the end" and row[4] == "0", (robot, text)
+        assert float(row[5]) > 0.2, (robot, text)  # walked: played for the ball
+        sent, received = (float(v) for v in row[6].split(" / "))
+        assert sent > 0 and received == 0, (robot, text)

@@ -27,6 +27,13 @@ leader of its own process group, which is stopped whole; a child also dies with 
 process) and a report is printed and written (``--report``): goals per team, and per robot
 falls, distance walked (ground truth), role switches, team-link bytes and CPU.
 
+``--lockstep``: the world steps every robot's process as one barrier on simulated time
+(one ``StepCoordinator`` per robot domain, :func:`.match_world.play_in_lockstep`): slower
+than real time, never late; ``--duration`` then counts simulated seconds, and a seed plays
+the same game on every run as far as the team link (Zenoh, outside the barrier) does not
+decide it (docs/HUMANOID_SIM.md, "In lockstep"). ``--team-link off``: no robot connects to a
+teammate, as a cut link.
+
 A bad argument is refused with one line and exit status 2. Exit status 0: every process
 ran to the end; 1: one ended early (named in the report).
 """
@@ -198,6 +205,9 @@ def _parser() -> DemoArguments:
     parser.add_argument("--seed", type=int, default=0,
                         help="start poses and ball (0: the default starts, ball on the "
                         "centre mark); printed in the report")
+    parser.add_argument("--team-link", choices=["on", "off"], default="on",
+                        help="off: no robot connects to a teammate (a cut link: each "
+                        "plays alone); default on")
     parser.add_argument("--lockstep", action="store_true",
                         help="the world steps every robot's process as one barrier on "
                         "simulated time: slower than real time, never late, and a seed "
@@ -293,6 +303,7 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
         "# Team match report", "",
         f"Robots {', '.join(robots)}; seed {args.seed}; "
         f"{'lockstep' if args.lockstep else 'real time'}; "
+        f"{'' if args.team_link == 'on' else 'team link cut; '}"
         f"{wall_s:.1f} s wall, {s.get('sim_time_s', 0.0):.1f} s simulated, real-time factor "
         f"{s.get('real_time_factor', 0.0):.2f} (world physics "
         f"{s.get('physics_ms', 0.0):.2f} ms a step, render {s.get('render_ms', 0.0):.1f} ms a "
@@ -363,7 +374,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             poses, _ = start_poses(robots, args.seed)
             for robot in robots:
                 team = robot.rstrip("123")
-                mates = [ports[m] for m in robots if m.startswith(team) and m < robot]
+                mates = [ports[m] for m in robots if m.startswith(team) and m < robot
+                         and args.team_link == "on"]
                 bridge_file = Path(tmp, f"{robot}_bridge.yaml")
                 bridge_file.write_text(yaml.safe_dump(bridge_config(
                     robot, prefix=f"match_{token}_{team}", port=ports[robot], teammates=mates)))
