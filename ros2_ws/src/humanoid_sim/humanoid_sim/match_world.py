@@ -110,7 +110,6 @@ def main(argv: list[str] | None = None) -> int:
             if self._truth_count % self._truth_every == 0:
                 pub.publish(msg)
 
-
         def flush(self, timeout_s: float) -> None:
             """Wait until the robot's readers have what this link wrote (lockstep: what the
             robot takes at the next intake is then exactly this step's)."""
@@ -222,9 +221,14 @@ def prompt_heartbeats() -> None:
     """
     if os.environ.get(PROFILES_ENV):
         return
-    fd, path = tempfile.mkstemp(prefix="match_world_", suffix=".xml")
-    with os.fdopen(fd, "w") as out:
-        out.write(_WRITER_PROFILE)
+    # One file for every world process (its content never changes): nothing to clean up.
+    path = os.path.join(tempfile.gettempdir(), f"match_world_writer-{os.getuid()}.xml")
+    if not os.path.exists(path):
+        fd, staging = tempfile.mkstemp(prefix="match_world_", suffix=".tmp",
+                                       dir=os.path.dirname(path))
+        with os.fdopen(fd, "w") as out:
+            out.write(_WRITER_PROFILE)
+        os.replace(staging, path)  # atomic: a concurrent world never reads half a file
     os.environ[PROFILES_ENV] = path
 
 
