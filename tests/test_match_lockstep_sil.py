@@ -21,9 +21,8 @@ cut (``--team-link off``): the team link is outside the barrier (Zenoh), so thes
 properties of the game, not equality: linked, the two do not both go for the ball for long;
 cut, each plays alone.
 
-Wall time beside other engineers' work (load average 13 to 28 on 2 cores, real-time
-factor about 0.04 per match): 191 to 332 s for the first test, about 5 min for the second;
-each step waits for the slowest process, so the figures are mostly the machine's load.
+Wall time: 104 s and 150 s at load average 3 to 6 on 2 cores (real-time factor 0.07 per
+match); 191 to 332 s and 5 to 9 min beside other engineers' heavy work (load 13 to 28).
 """
 
 from __future__ import annotations
