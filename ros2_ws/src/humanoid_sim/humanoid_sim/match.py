@@ -34,6 +34,13 @@ by a seeded offset and drift that its ``ClockSync`` measures; the robots' bags a
 world's are merged into one log in the world's time, and the external video is filmed on a
 camera clock of its own.
 
+``--lockstep``: the world steps every robot's process as one barrier on simulated time
+(one ``StepCoordinator`` per robot domain, :func:`.match_world.play_in_lockstep`): slower
+than real time, never late; ``--duration`` then counts simulated seconds, and a seed plays
+the same game on every run as far as the team link (Zenoh, outside the barrier) does not
+decide it (docs/HUMANOID_SIM.md, "In lockstep"). ``--team-link off``: no robot connects to a
+teammate, as a cut link.
+
 A bad argument is refused with one line and exit status 2. Exit status 0: every process
 ran to the end; 1: one ended early (named in the report).
 """
@@ -75,10 +82,12 @@ from .match_recording import (
     recording_paths,
     recording_report,
 )
+from .match_world import GroundTruthLog
 from .soccer.localization import GROUND_TRUTH, NOISY_GROUND_TRUTH, PARTICLE_FILTER, SOURCES
 from .world import DEFAULT_START
 
 EXIT_ENDED = 1
+STATE_SETTLE_S = GroundTruthLog.SETTLE_S
 #: The team link's budget per robot (bytes a second, and the burst), as in the team docs.
 BUDGET_BYTES_PER_S = 2048
 TEAM_NUMBERS = {"blue": 1, "red": 2}
@@ -191,6 +200,7 @@ class Child:
     log: Path
     status: dict[str, Any] = field(default_factory=dict)
     ready: threading.Event = field(default_factory=threading.Event)
+    eof: threading.Event = field(default_factory=threading.Event)  # stdout read to its end
     ended: str | None = None  # how it ended, once noticed
     cpu_s: float = 0.0
     started: float = field(default_factory=time.monotonic)
@@ -204,6 +214,7 @@ class Child:
                     self.status = json.loads(line[7:])
             elif line.strip() == "ready":
                 self.ready.set()
+        self.eof.set()
 
     def sample_cpu(self) -> None:
         """User + system CPU seconds so far (/proc/<pid>/stat, all threads)."""
@@ -251,10 +262,18 @@ def _parser() -> DemoArguments:
                         help="2 or 3: one team; AvB: A blue against B red, e.g. 3v3 "
                         "(default 3; 1 is the one-robot demo)")
     parser.add_argument("--duration", type=_number(low=0, what="seconds >= 0"),
-                        default=60.0, help="wall seconds; 0 = until Ctrl-C (default 60)")
+                        default=60.0, help="wall seconds (with --lockstep: simulated "
+                        "seconds); 0 = until Ctrl-C (default 60)")
     parser.add_argument("--seed", type=int, default=0,
                         help="start poses and ball (0: the default starts, ball on the "
                         "centre mark); printed in the report")
+    parser.add_argument("--team-link", choices=["on", "off"], default="on",
+                        help="off: no robot connects to a teammate (a cut link: each "
+                        "plays alone); default on")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="the world steps every robot's process as one barrier on "
+                        "simulated time: slower than real time, never late, and a seed "
+                        "plays the same game every run")
     parser.add_argument("--stats-period", type=_number(low=0.5, what="seconds >= 0.5"),
                         default=2.0, help="seconds between live lines (default 2)")
     parser.add_argument("--camera-hz", type=_number(low=0, high=60, what="0 to 60 Hz"),
@@ -303,15 +322,17 @@ def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict
     world.update({f"{r}.pose": list(p) for r, p in poses.items()})
     return {"robots": list(robots), "domains": domains, "world": world, "step_hz": 100.0,
             "referee": {"robots": list(robots), "ready_s": args.ready_s},
-            "status_period_s": status_period_s}
+            "status_period_s": status_period_s, "lockstep": args.lockstep,
+            "end_s": args.duration if args.lockstep else 0.0}
 
 
 def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
                bridge_file: Path, bag_dir: Path, status_period_s: float, players: int,
-               localization: str = DEFAULT_LOCALIZATION, seed: int = 0) -> dict[str, Any]:
+               localization: str = DEFAULT_LOCALIZATION, seed: int = 0,
+               lockstep: bool = False) -> dict[str, Any]:
     team, number = robot.rstrip("123"), int(robot[-1])
     return {
-        "robot": robot, "port": port, "bridge_file": str(bridge_file),
+        "robot": robot, "port": port, "bridge_file": str(bridge_file), "lockstep": lockstep,
         "localization": localization_plan(robot, localization, start=start, seed=seed),
         "bag_dir": str(bag_dir), "status_period_s": status_period_s,
         "striker": {"robot": robot, "start_pose": list(start)},
@@ -353,6 +374,19 @@ def _figure(figures: dict[str, Any], key: str, spec: str) -> str:
     return "-" if value is None or not math.isfinite(value) else format(value, spec)
 
 
+def state_lines(world: dict[str, Any]) -> list[str]:
+    """One line per game state the world entered: ``- set from 2.0 s: blue1 at (-0.75,
+    0.00) moved 0.02 m; ...`` (what the SIL tests read)."""
+    lines = []
+    starts, moved = world.get("at_state_start", []), world.get("moved_in_state_m", [])
+    for i, (state, t) in enumerate(world.get("states", [])):
+        robots = [f"{r} at ({x:.2f}, {y:.2f}) moved {moved[i].get(r, 0.0):.2f} m"
+                  for r, (x, y) in (starts[i].items() if i < len(starts) else ())
+                  if i < len(moved)]
+        lines.append(f"- {state} from {t:.1f} s: " + ("; ".join(robots) or "-"))
+    return lines
+
+
 def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
            children: dict[str, Child], wall_s: float) -> str:
     s = world.status
@@ -362,7 +396,9 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             for c in (world, *children.values())}
     lines = [
         "# Team match report", "",
-        f"Robots {', '.join(robots)}; seed {args.seed}; real time; "
+        f"Robots {', '.join(robots)}; seed {args.seed}; "
+        f"{'lockstep' if args.lockstep else 'real time'}; "
+        f"{'' if args.team_link == 'on' else 'team link cut; '}"
         f"{wall_s:.1f} s wall, {s.get('sim_time_s', 0.0):.1f} s simulated, real-time factor "
         f"{s.get('real_time_factor', 0.0):.2f} (world physics "
         f"{s.get('physics_ms', 0.0):.2f} ms a step, render {s.get('render_ms', 0.0):.1f} ms a "
@@ -399,6 +435,13 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             f"{_figure(e, 'position_error_max_m', '.3f')} m; heading error mean "
             f"{_figure(e, 'heading_error_mean_deg', '.1f')}°, p95 "
             f"{_figure(e, 'heading_error_p95_deg', '.1f')}°")
+    lines += ["", "Game states (ground truth: where each robot stood as the state began, "
+              "and the farthest it moved from where it stood "
+              f"{STATE_SETTLE_S:g} s into it):", ""]
+    lines += state_lines(s)
+    if args.lockstep:
+        lines += ["", f"Ground truth fingerprint {s.get('truth_sha', '-')} (every robot's "
+                  "and the ball's pose each 0.1 s simulated: equal for equal games)."]
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
               f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.", ""]
     return "\n".join(lines)
@@ -447,7 +490,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             poses, _ = start_poses(robots, args.seed)
             for robot in robots:
                 team = robot.rstrip("123")
-                mates = [ports[m] for m in robots if m.startswith(team) and m < robot]
+                mates = [ports[m] for m in robots if m.startswith(team) and m < robot
+                         and args.team_link == "on"]
                 bridge_file = Path(tmp, f"{robot}_bridge.yaml")
                 bridge_file.write_text(yaml.safe_dump(bridge_config(
                     robot, prefix=f"match_{token}_{team}", port=ports[robot], teammates=mates)))
@@ -455,7 +499,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 plan = robot_plan(
                     robot, start=poses[robot], port=str(port_dir / robot), bridge_file=bridge_file,
                     bag_dir=paths.bag_dir(robot), status_period_s=period,
-                    players=players, localization=sources[robot], seed=args.seed)
+                    players=players, localization=sources[robot], seed=args.seed,
+                    lockstep=args.lockstep)
                 plan["clock"] = clocks[robot]
                 children[robot] = _start(robot, "humanoid_sim.match_robot", plan,
                                          domain=domains[robot], log_dir=args.out_dir)
@@ -463,7 +508,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                   flush=True)
             print(f"soccer match: {', '.join(robots)}, seed {args.seed}, domains "
                   + ", ".join(f"{k} {v}" for k, v in domains.items())
-                  + f"; {'until Ctrl-C' if not args.duration else f'{args.duration:g} s'}; "
+                  + f"; {'until Ctrl-C' if not args.duration else f'{args.duration:g} s'}"
+                  + (" simulated, in lockstep" if args.lockstep else "") + "; "
                   f"logs in {args.out_dir}", flush=True)
             ok = _run(world, children, args, started)
         except KeyboardInterrupt:
@@ -510,7 +556,8 @@ def _wait_ready(child: Child, timeout_s: float) -> bool:
 def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
          started: float) -> bool:
     """The live lines until the end; False if the world ended."""
-    end = started + args.duration if args.duration else math.inf
+    # In lockstep the world ends the match after --duration simulated seconds.
+    end = started + args.duration if args.duration and not args.lockstep else math.inf
     next_line = time.monotonic()
     told = 0  # game state changes printed
     while (now := time.monotonic()) < end:
@@ -526,6 +573,9 @@ def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
                 child.sample_cpu()
         world.sample_cpu()
         if world.proc.poll() is not None:
+            if world.proc.returncode == 0 and args.lockstep and args.duration:
+                world.eof.wait(10)  # its last status line: the end of the game
+                return True  # played its simulated --duration
             world.ended = _ended(world)
             print(f"world: its process ended ({world.ended}); the match is over "
                   f"(log {world.log})", flush=True)

@@ -36,6 +36,7 @@ from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from dynamixel_sdk import PortHandler
 from geometry_msgs.msg import PointStamped, PoseStamped
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -67,6 +68,33 @@ from .soccer.world_model import BallModel
 
 #: rf_bridge's status name for the team link on ``/diagnostics``.
 TEAM_LINK_STATUS = "rf_bridge: team link"
+#: Lockstep: how long (wall ms) the driver waits for a servo's reply (:class:`LockstepPort`).
+LOCKSTEP_REPLY_MS = 2000.0
+#: What the world delivers under ``device/`` on the robot's domain: (type, topic, QoS).
+DEVICE_TOPICS: tuple[tuple[type, str, Any], ...] = (
+    (Image, "camera/image_raw", 2), (CameraInfo, "camera/camera_info", latched_qos()),
+    (Imu, "imu/data", 10), (GameState, "game_state", latched_qos()),
+    (PoseStamped, "ground_truth/pose", 10), (PoseStamped, "ground_truth/ball", 10))
+
+
+class LockstepPort(PortHandler):  # type: ignore[misc]  # the SDK is untyped
+    """dynamixel-sdk's PortHandler waiting up to :data:`LOCKSTEP_REPLY_MS` for a reply.
+
+    In lockstep every servo of the world answers every request (no line noise in the
+    match); a reply takes as long as the world's bus thread needs to get the CPU. The SDK's
+    own timeout (about 34 ms with the stock latency timer) would, on a loaded machine,
+    count misses an idle one never sees, and the game would change with the load. The
+    world's bus is in another process, so the in-process :class:`~.dynamixel.pty.
+    IdlePortHandler` cannot serve; a long wall-clock bound only stops a hang when the world
+    is gone.
+    """
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (the SDK's name)
+        super().setPacketTimeout(packet_length)
+        self.packet_timeout: float = max(float(self.packet_timeout), LOCKSTEP_REPLY_MS)
+
+    def setPacketTimeoutMillis(self, msec: float) -> None:  # noqa: N802
+        super().setPacketTimeoutMillis(max(msec, LOCKSTEP_REPLY_MS))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -115,6 +143,19 @@ def main(argv: list[str] | None = None) -> int:
             self.thread.join(timeout=5)
             self.executor.shutdown()
             self.rnode.destroy_node()
+
+    class StepInput:
+        """In lockstep, the world's sensor topics taken by the container itself and
+        published in-process as ``<topic>``: the container's lockstep intake holds every
+        sample until the step after the world published it (:mod:`efficient_comm.simtime`),
+        so each robot hears each frame in the same step on every run. (A thread of its own,
+        as :class:`DeviceInput` takes them in real time, would hand them over whenever it
+        got them.)"""
+
+        def __init__(self, node: NodeHandle) -> None:
+            for msg_type, topic, qos in DEVICE_TOPICS:
+                pub = node.create_publisher(msg_type, topic, qos=qos)
+                node.create_subscription(msg_type, f"{DEVICE}/{topic}", pub.publish, qos=qos)
 
     class Status:
         """What the match prints about this robot (see the module docstring)."""
@@ -174,14 +215,18 @@ def main(argv: list[str] | None = None) -> int:
 
     stop_on_sigterm()
     clock = plan.get("clock", {})  # this computer's clock, off the world's (match_recording)
+    lockstep = bool(plan.get("lockstep"))
     with Container(f"{name}_robot", namespace=ns, dds=True, serve=False, stats_namespace=ns,
                    clock_offset_s=clock.get("offset_s", 0.0),
-                   clock_drift_ppm=clock.get("drift_ppm", 0.0)) as container:
-        container.add(DeviceInput, name="devices", namespace=ns)
+                   clock_drift_ppm=clock.get("drift_ppm", 0.0),
+                   lockstep=name if lockstep else None) as container:
+        container.add(StepInput if lockstep else DeviceInput, name="devices", namespace=ns)
         driver: ServoDriver = container.add(
             ServoDriver, name="servo_driver", namespace=ns,
             parameters={"port": plan["port"], "ids": list(JOINTS),
                         "joint_names": list(JOINTS.values())})
+        if lockstep:
+            driver.port_factory = LockstepPort
         container.add(BallDetector, name="ball_detector", namespace=ns)
         container.add(BallModel, name="ball_model", namespace=ns)
         fall: FallDetector = container.add(FallDetector, name="fall_detector", namespace=ns)

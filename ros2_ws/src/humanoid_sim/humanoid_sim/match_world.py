@@ -33,17 +33,32 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
 import json
 import math
+import os
+import struct
 import sys
+import tempfile
+from collections.abc import Sequence
 from typing import Any
 
 import rclpy
 from geometry_msgs.msg import PoseStamped
 from rclpy.context import Context
+from rclpy.duration import Duration
 from sensor_msgs.msg import CameraInfo, Image, Imu
 
-from efficient_comm import Container, latched_qos, stop_on_sigterm
+from efficient_comm import (
+    Container,
+    LockstepError,
+    ManualClock,
+    StepCoordinator,
+    advance_together,
+    latched_qos,
+    stop_on_sigterm,
+)
+from efficient_comm.dds import PROFILES_ENV
 from efficient_comm.handle import NodeHandle
 from robot_recorder import Recorder
 from soccer_interfaces.msg import GameState
@@ -57,6 +72,9 @@ from .world_simulator import WorldSimulator
 #: robot's :class:`~.match_robot.DeviceInput` takes each once from DDS and publishes it
 #: in-process under the usual name.
 DEVICE = "device"
+#: Lockstep: how long the world waits for a robot's step, and for every robot to join.
+STEP_TIMEOUT_S = 60.0
+JOIN_TIMEOUT_S = 180.0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -80,11 +98,14 @@ def main(argv: list[str] | None = None) -> int:
                 (Imu, f"/{robot}/imu/data", "imu/data", 10),
                 (GameState, "/game_state", "game_state", latched_qos()),
             ]
+            self.device_pubs: list[Any] = []  # what a lockstep step flushes
             for msg_type, source, target, qos in pairs:
                 pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
                 node.create_subscription(msg_type, source, pub.publish, qos=qos)
+                self.device_pubs.append(pub)
             pose_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/pose", 10)
             ball_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/ball", 10)
+            self.device_pubs += [pose_pub, ball_pub]
             node.create_subscription(PoseStamped, f"/ground_truth/{robot}/pose",
                                      lambda m: self._truth(pose_pub, m), qos=10)
             node.create_subscription(PoseStamped, "/ground_truth/ball",
@@ -96,20 +117,38 @@ def main(argv: list[str] | None = None) -> int:
             if self._truth_count % self._truth_every == 0:
                 pub.publish(msg)
 
+        def flush(self, timeout_s: float) -> None:
+            """Wait until the robot's readers have what this link wrote (lockstep: what the
+            robot takes at the next intake is then exactly this step's)."""
+            for pub in self.device_pubs:
+                if not pub.wait_for_all_acked(Duration(nanoseconds=round(timeout_s * 1e9))):
+                    raise LockstepError(f"lockstep: the robot's readers of {pub.topic_name} "
+                                        f"did not acknowledge within {timeout_s:g} s")
+
         def close(self) -> None:
             self.rnode.destroy_node()
             self.context.try_shutdown()
 
     stop_on_sigterm()
-    with Container("match_world", dds=True, serve=False, stats_namespace="/world") as container:
+    lockstep = bool(plan.get("lockstep"))
+    if lockstep:
+        prompt_heartbeats()
+    with contextlib.ExitStack() as stack:
+        # Coordinators first: they prepare the process's DDS for lockstep (efficient_comm.dds).
+        coordinators = [stack.enter_context(StepCoordinator(
+            [robot], domain_id=plan["domains"][robot], timeout_s=STEP_TIMEOUT_S,
+            name=f"{robot}_steps")) for robot in robots] if lockstep else []
+        container = stack.enter_context(Container(
+            "match_world", dds=True, serve=False, stats_namespace="/world",
+            clock=ManualClock() if lockstep else None))
         world: WorldSimulator = container.add(WorldSimulator, name="world",
                                               parameters=plan["world"])
         referee: TeamReferee = container.add(TeamReferee, name="team_referee",
                                              parameters=plan["referee"])
-        for robot in robots:
-            container.add(functools.partial(SensorLink, robot=robot,
-                                            domain_id=plan["domains"][robot]),
-                          name=f"{robot}_link")
+        links = [container.add(functools.partial(SensorLink, robot=robot,
+                                                 domain_id=plan["domains"][robot]),
+                               name=f"{robot}_link") for robot in robots]
+        truth = GroundTruthLog(robots)
         walked = dict.fromkeys(robots, 0.0)
         last: dict[str, tuple[float, float]] = {}
         sampled_at = [-math.inf]
@@ -121,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
             name = STATE_NAMES.get(referee.state, str(referee.state))
             if not states or states[-1][0] != name:
                 states.append([name, round(world.sim_time_s, 2)])
+            truth.sample(world, len(states) - 1)
             if world.sim_time_s - sampled_at[0] < 0.5:
                 return
             sampled_at[0] = world.sim_time_s
@@ -146,6 +186,10 @@ def main(argv: list[str] | None = None) -> int:
                 "physics_ms": round(status["physics_ms_mean"], 3),
                 "render_ms": round(status["render_ms_mean"], 3),
                 "frames": status["frames"],
+                "lockstep": bool(coordinators),
+                "truth_sha": truth.digest(),
+                "moved_in_state_m": truth.moved_m,
+                "at_state_start": truth.at_start,
             }), flush=True)
 
         clocks = add_world_recording(container, world, plan)
@@ -153,12 +197,126 @@ def main(argv: list[str] | None = None) -> int:
         tools.create_timer(0.1, sample)
         tools.create_timer(plan["status_period_s"], report)
         print("ready", flush=True)
+        ok = True
         with contextlib.suppress(KeyboardInterrupt):
-            container.spin()
+            if coordinators:
+                ok = play_in_lockstep(container, coordinators, links, dt_s=world.period_s,
+                                      end_s=float(plan.get("end_s", 0.0)))
+            else:
+                container.spin()
         report()
         if clocks is not None:
             clocks.close()
-    return 0
+    return 0 if ok else 1
+
+
+#: Fast DDS profile for the world's writers in lockstep: a heartbeat every 10 ms.
+_WRITER_PROFILE = """<?xml version="1.0" encoding="UTF-8"?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <data_writer profile_name="match_world_writer" is_default_profile="true">
+    <times><heartbeatPeriod><sec>0</sec><nanosec>10000000</nanosec></heartbeatPeriod></times>
+  </data_writer>
+</profiles>
+"""
+
+
+def prompt_heartbeats() -> None:
+    """Make the world's DDS writers send a heartbeat every 10 ms instead of Fast DDS's 3 s.
+
+    Every lockstep step waits until each robot's readers acknowledged its sensors; a
+    reader acknowledges (or asks again for what it missed) when a heartbeat comes, and
+    with the default period a step waited up to 3 s for one (the IMU's writer, seen). Set
+    before the process's first participant (Fast DDS reads the profile once); a profile
+    of the user's own (``FASTRTPS_DEFAULT_PROFILES_FILE``) is kept as it is.
+    """
+    if os.environ.get(PROFILES_ENV):
+        return
+    # One file for every world process (its content never changes): nothing to clean up.
+    path = os.path.join(tempfile.gettempdir(), f"match_world_writer-{os.getuid()}.xml")
+    if not os.path.exists(path):
+        fd, staging = tempfile.mkstemp(prefix="match_world_", suffix=".tmp",
+                                       dir=os.path.dirname(path))
+        with os.fdopen(fd, "w") as out:
+            out.write(_WRITER_PROFILE)
+        os.replace(staging, path)  # atomic: a concurrent world never reads half a file
+    os.environ[PROFILES_ENV] = path
+
+
+class GroundTruthLog:
+    """What the seeded SIL tests compare and check, from the world's ground truth.
+
+    ``digest()``: a fingerprint of every robot's and the ball's exact pose at each sample
+    (every 0.1 s simulated): two lockstep runs of one seed give the same, another seed
+    (another start) a different one. Per game state entered (the index of the ``states``
+    list), ``at_start`` holds each robot's (x, y) as the state began and ``moved_m`` the
+    farthest each robot's torso got from where it stood :data:`SETTLE_S` into the state (a
+    robot placed for the kick-off as ``set`` begins has not walked; the sway of a standing
+    robot is centimetres).
+    """
+
+    SETTLE_S = 0.3
+
+    def __init__(self, robots: Sequence[str]) -> None:
+        self.robots = list(robots)
+        self._sha = hashlib.sha256()
+        self.at_start: list[dict[str, list[float]]] = []
+        self.moved_m: list[dict[str, float]] = []
+        self._state = -1
+        self._state_began = 0.0
+        self._anchor: dict[str, tuple[float, float]] = {}
+
+    def sample(self, world: WorldSimulator, state: int) -> None:
+        now = world.sim_time_s
+        here: dict[str, tuple[float, float]] = {}
+        for robot in self.robots:
+            position, quat = world.world.torso_pose(robot)
+            self._sha.update(struct.pack("<7d", *position, *quat))
+            here[robot] = (float(position[0]), float(position[1]))
+        ball, _ = world.world.ball_pose()
+        self._sha.update(struct.pack("<3d", *ball))
+        if state != self._state:
+            self._state, self._state_began, self._anchor = state, now, {}
+            self.at_start.append({r: [round(x, 3), round(y, 3)] for r, (x, y) in here.items()})
+            self.moved_m.append(dict.fromkeys(self.robots, 0.0))
+        if not self._anchor and now - self._state_began >= self.SETTLE_S:
+            self._anchor = here
+        if self._anchor:
+            for robot, xy in here.items():
+                moved = round(math.dist(self._anchor[robot], xy), 3)
+                self.moved_m[-1][robot] = max(self.moved_m[-1][robot], moved)
+
+    def digest(self) -> str:
+        return self._sha.hexdigest()[:16]
+
+
+def play_in_lockstep(container: Container, coordinators: Sequence[StepCoordinator],
+                     links: Sequence[Any], *, dt_s: float, end_s: float) -> bool:
+    """Step the world and every robot's process as one barrier until ``end_s`` simulated
+    seconds (0: until stopped).
+
+    Each step the robots run first, from t to t + dt, on what the world published at t
+    (every robot's sensors, flushed to its domain before the step); then the world steps
+    from t to t + dt with what the drivers wrote on their servo buses meanwhile (the
+    world's tick syncs each bus first). The buses are ptys served by threads of their own
+    here, so a driver's request inside a robot's step is answered while this thread waits
+    on the barrier, and the world holds the buses' lock only while it steps, when no robot
+    runs. A robot that does not finish a step within :data:`STEP_TIMEOUT_S`, or whose
+    process is gone, ends the world with one line naming it: in lockstep nobody plays on
+    without it (the match then ends, reporting what was played); False then.
+    """
+    for c in coordinators:
+        c.wait_ready(timeout_s=JOIN_TIMEOUT_S)
+    print("lockstep: every robot joined", flush=True)
+    try:
+        while not end_s or container.executor.clock.now_ns() < round(end_s * 1e9):
+            for link in links:
+                link.flush(STEP_TIMEOUT_S)
+            advance_together(coordinators, dt_s)
+            container.advance(dt_s)
+    except LockstepError as exc:
+        container.logger.error(f"the match ends: {exc}")
+        return False
+    return True
 
 
 def add_world_recording(container: Container, world: WorldSimulator, plan: dict[str, Any]
