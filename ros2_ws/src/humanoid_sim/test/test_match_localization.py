@@ -131,7 +131,9 @@ def test_the_report_gives_each_robots_source_and_errors() -> None:
                                                       "errors": {"estimates": 0,
                                                                  "position_error_mean_m":
                                                                  math.nan}}})}
-    text = report(["blue1", "red1"], argparse.Namespace(seed=0, out_dir=Path("out")),
+    args = argparse.Namespace(seed=0, out_dir=Path("out"), lockstep=False,
+                              team_link="on")
+    text = report(["blue1", "red1"], args,
                   child("world", {}), robots, 10.0)
     assert ("- blue1: particle_filter, 12 estimates; position error mean 0.500 m, p95 "
             "0.700 m, max 0.900 m; heading error mean 3.0°, p95 5.0°") in text
