@@ -261,17 +261,19 @@ def _truth(x: float, y: float, yaw: float, stamp_ns: int) -> PoseStamped:
     return truth
 
 
-def _noisy_run(seed: int) -> list[PoseWithCovarianceStamped]:
+def _noisy_run(seed: int, *, truth_clock_off_s: float = 0.0
+               ) -> list[PoseWithCovarianceStamped]:
+    off_ns = round(truth_clock_off_s * 1e9)
     node = TestHandle("localization", parameters={"seed": seed, "sigma_m": 0.05,
                                                   "sigma_rad": 0.02, "delay_s": 0.2})
     NoisyTruthPose(node)
     assert [m.data for m in node.published("localization/source")] == [NOISY_GROUND_TRUTH]
     for _ in range(2000):  # 20 s of truth at 100 Hz: the robot at (1, -2) facing 0.5 rad
-        node.inject("ground_truth/robot", _truth(1.0, -2.0, 0.5, node.now_ns()))
+        node.inject("ground_truth/robot", _truth(1.0, -2.0, 0.5, node.now_ns() + off_ns))
         node.advance(0.01)
         for published in node.published("localization/pose")[-1:]:
             # Each pose is the truth of delay_s ago (stamped with that moment), not newer.
-            assert from_msg(published.header.stamp) <= node.now_ns() - 200_000_000
+            assert from_msg(published.header.stamp) <= node.now_ns() + off_ns - 200_000_000
     return node.published("localization/pose")
 
 
@@ -287,6 +289,17 @@ def test_noisy_ground_truth_adds_seeded_noise_and_delay() -> None:
     again, other = _noisy_run(seed=5), _noisy_run(seed=6)
     assert [m.pose.pose.position.x for m in again] == xs
     assert [m.pose.pose.position.x for m in other] != xs
+
+
+@pytest.mark.parametrize("off_s", [-0.8, 0.8])
+def test_noisy_ground_truth_keeps_its_rate_when_the_truths_clock_is_not_the_robots(
+        off_s: float) -> None:
+    """The match's robots run on clocks off the world's by up to 0.8 s: the delay counts
+    from arrival, the stamp stays the world's."""
+    poses = _noisy_run(seed=5, truth_clock_off_s=off_s)
+    assert 195 <= len(poses) <= 200
+    assert [m.pose.pose.position.x for m in poses] == [
+        m.pose.pose.position.x for m in _noisy_run(seed=5)]
 
 
 def test_the_error_monitor_compares_each_estimate_with_the_truth_at_its_stamp() -> None:

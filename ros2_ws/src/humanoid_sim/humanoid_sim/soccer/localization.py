@@ -462,6 +462,12 @@ class NoisyTruthPose:
     frame), ``sigma_m``, ``sigma_rad`` (Gaussian noise on x, y and heading), ``delay_s``
     (each pose published this long after the moment it shows, stamped with that moment),
     ``seed``, ``rate_hz``.
+
+    The delay counts from each sample's arrival on this robot's clock; the stamp stays the
+    truth's own (the moment it shows, on the clock of whoever measured it). The truth comes
+    from outside the robot (a simulator, a motion-capture system) whose clock is not the
+    robot's: compared with the stamp, a robot whose clock runs ahead by more than the delay
+    would publish every sample at once, one behind by more would publish none.
     """
 
     def __init__(self, node: NodeHandle) -> None:
@@ -472,8 +478,8 @@ class NoisyTruthPose:
         self.sigma_rad = node.declare_parameter("sigma_rad", 0.03, range=(0.0, 3.2))
         self.delay_ns = round(node.declare_parameter("delay_s", 0.1, range=(0.0, 10.0)) * 1e9)
         self.rng = random.Random(seed)
-        #: Truth samples not yet published: stamp (ns), x, y, heading.
-        self.pending: deque[tuple[int, float, float, float]] = deque()
+        #: Truth samples not yet published: arrival (ns, own clock), stamp (ns), x, y, heading.
+        self.pending: deque[tuple[int, int, float, float, float]] = deque()
         self.pub = node.create_publisher(PoseWithCovarianceStamped, "localization/pose", qos=10)
         node.create_publisher(String, "localization/source", qos=LATCHED).publish(
             String(data=NOISY_GROUND_TRUTH))
@@ -482,11 +488,12 @@ class NoisyTruthPose:
 
     def _on_truth(self, truth: PoseStamped) -> None:
         p = truth.pose
-        sample = (from_msg(truth.header.stamp), p.position.x, p.position.y,
+        now = self.node.clock.now_ns()
+        sample = (now, from_msg(truth.header.stamp), p.position.x, p.position.y,
                   yaw_of(p.orientation))
-        if all(map(math.isfinite, sample[1:])):
+        if all(map(math.isfinite, sample[2:])):
             self.pending.append(sample)
-        while len(self.pending) > 2 and self.pending[1][0] <= sample[0] - self.delay_ns:
+        while len(self.pending) > 2 and self.pending[1][0] <= now - self.delay_ns:
             self.pending.popleft()  # only the newest sample old enough is ever published
 
     def publish(self) -> None:
@@ -495,7 +502,7 @@ class NoisyTruthPose:
             return
         while len(self.pending) > 1 and self.pending[1][0] <= due:
             self.pending.popleft()
-        stamp, x, y, heading = self.pending.popleft()
+        _, stamp, x, y, heading = self.pending.popleft()
         g, sm, sr = self.rng.gauss, self.sigma_m, self.sigma_rad
         estimate = Estimate(x=x + g(0.0, sm), y=y + g(0.0, sm),
                             heading=wrap(heading + g(0.0, sr)),
