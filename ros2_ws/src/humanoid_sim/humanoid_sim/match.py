@@ -66,11 +66,12 @@ EXIT_ENDED = 1
 #: The team link's budget per robot (bytes a second, and the burst), as in the team docs.
 BUDGET_BYTES_PER_S = 2048
 TEAM_NUMBERS = {"blue": 1, "red": 2}
-_ROBOTS = re.compile(r"^(?:(?P<one>[1-3])|(?P<blue>[1-3])v(?P<red>[1-3]))$")
+_ROBOTS = re.compile(r"^(?:(?P<one>[1-3])|(?P<blue>[1-3])v(?P<red>[0-3]))$")
 
 
 def robot_names(text: str) -> list[str]:
-    """``--robots``: ``2``, ``3`` (one blue team) or ``AvB``; ``1`` is the demo's."""
+    """``--robots``: ``2``, ``3`` (one blue team) or ``AvB``; ``1`` is the demo's (``1v0``:
+    one robot in the match's processes, what the match bench measures)."""
     m = _ROBOTS.match(text.strip())
     if m is None:
         raise argparse.ArgumentTypeError(
@@ -294,8 +295,18 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             f"{sent:.0f} / {received:.0f} | {rate:.0f} ({peak:.0f}) of {BUDGET_BYTES_PER_S} | "
             f"{cpus[name]:.0f} |")
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
-              f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.", ""]
+              f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.",
+              "", world_cpu_line(s), ""]
     return "\n".join(lines)
+
+
+def world_cpu_line(status: dict[str, Any]) -> str:
+    """The world process's CPU by part and its ticks (each one IMU message per robot): what
+    ``bench/match_bench.py`` reads back."""
+    cpu = status.get("cpu_s") or {}
+    parts = ", ".join(f"{k} {cpu.get(k, 0.0):.2f}" for k in ("physics", "render", "bus",
+                                                              "other"))
+    return f"World CPU s: {parts}; ticks {status.get('ticks', 0)}."
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -21,8 +21,9 @@ joined the world's domain would see every other robot's topics. The links only p
 Every ``status_period_s`` it prints one line ``status {json}`` on stdout: simulated time,
 real-time factor, game state and its changes so far, score, goals, the distance each robot
 walked (ground truth, its torso sampled every half second of simulated time: one gait
-cycle, so the sway from foot to foot does not count) and the world's physics and render
-times.
+cycle, so the sway from foot to foot does not count), the world's physics and render
+times, its ticks (one IMU message per robot each) and its CPU split
+(:meth:`~.world_simulator.WorldSimulator.cpu_split`).
 """
 
 from __future__ import annotations
@@ -139,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
                 "physics_ms": round(status["physics_ms_mean"], 3),
                 "render_ms": round(status["render_ms_mean"], 3),
                 "frames": status["frames"],
+                "ticks": status["ticks"],
+                "cpu_s": {k: round(v, 3) for k, v in status["cpu_s"].items()},
             }), flush=True)
 
         tools = container.add(lambda n: n, name="match_status")
