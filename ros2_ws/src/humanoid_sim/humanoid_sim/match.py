@@ -296,7 +296,13 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
             f"{cpus[name]:.0f} |")
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
               f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.",
-              "", world_cpu_line(s), ""]
+              "", world_cpu_line(s),
+              "", "Since each robot was ready, IMU messages heard a wall second (the world "
+              f"ticks {s.get('tick_hz', 0.0):.1f}, one message per robot each) and CPU % of "
+              "a core: " + ", ".join(
+                  f"{n} {children[n].status.get('imu_hz', 0.0):.1f} Hz "
+                  f"{children[n].status.get('cpu_pct', 0.0):.0f} %"
+                  for n in robots if n in children) + ".", ""]
     return "\n".join(lines)
 
 

@@ -27,15 +27,12 @@ import contextlib
 import json
 import math
 import sys
-import threading
+import time
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
-from rclpy.context import Context
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import String
 
@@ -46,7 +43,7 @@ from soccer_interfaces.msg import GameState
 
 from .demo import add_recorder
 from .driver import ServoDriver
-from .match_world import DEVICE
+from .match_world import DEVICE, IMU_DEPTH
 from .mujoco_plant import JOINTS
 from .soccer.arbiter import MotionArbiter
 from .soccer.behaviour import HeadBehaviour
@@ -71,45 +68,26 @@ def main(argv: list[str] | None = None) -> int:
 
     class DeviceInput:
         """The world's sensor topics (``device/<topic>`` on this robot's domain), taken
-        from DDS by a participant and thread of their own and published in-process as
-        ``<topic>``.
+        from DDS once and published in-process as ``<topic>``.
 
-        Taken by the container itself, every composed subscription to a remote topic has a
-        DDS reader of its own, and the executor takes one DDS sample per wait between its
-        timers: the IMU's six subscribers made six readers, and the robot heard its IMU
-        after 10 s or never; with one reader per topic still at about 15 Hz of 100 (and it
-        fell). Here a thread takes every sample as it comes and publishes it through the
-        executor's thread-safe path (by reference to every subscriber).
+        One composed subscription, so one DDS reader, per device topic: every subscriber of
+        ``<topic>`` in the robot gets the sample by reference, and it is deserialized once
+        (six subscribers of the IMU, each with its own reader, made six readers). It used to
+        take them on a participant and thread of its own, because the container's executor
+        took one DDS sample per wait and the robot heard its IMU at a fraction of its rate;
+        the executor now takes every ready sample per wait (``efficient_comm``), so the
+        thread, its GIL hand-overs and its second participant are gone.
         """
 
         def __init__(self, node: NodeHandle) -> None:
-            self.context = Context()
-            rclpy.init(context=self.context)  # ROS_DOMAIN_ID: this robot's domain
-            self.rnode = rclpy.create_node(f"{name}_devices", namespace=ns,
-                                           context=self.context)
             for msg_type, topic, qos in ((Image, "camera/image_raw", 2),
                                          (CameraInfo, "camera/camera_info", latched_qos()),
-                                         (Imu, "imu/data", 10),
+                                         (Imu, "imu/data", IMU_DEPTH),
                                          (GameState, "game_state", latched_qos()),
                                          (PoseStamped, "ground_truth/pose", 10),
                                          (PoseStamped, "ground_truth/ball", 10)):
                 pub = node.create_publisher(msg_type, topic, qos=qos)
-                self.rnode.create_subscription(msg_type, f"{DEVICE}/{topic}", pub.publish, qos)
-            self.executor = SingleThreadedExecutor(context=self.context)
-            self.executor.add_node(self.rnode)
-            self.thread = threading.Thread(target=self._spin, daemon=True, name="devices")
-            self.thread.start()
-
-        def _spin(self) -> None:
-            with contextlib.suppress(ExternalShutdownException, RuntimeError):
-                while self.context.ok():
-                    self.executor.spin_once(timeout_sec=0.1)
-
-        def close(self) -> None:
-            self.context.try_shutdown()
-            self.thread.join(timeout=5)
-            self.executor.shutdown()
-            self.rnode.destroy_node()
+                node.create_subscription(msg_type, f"{DEVICE}/{topic}", pub.publish, qos=qos)
 
     class TruthPose:
         """The stand-in localization: ground truth as ``localization/pose`` with the sigma
@@ -138,6 +116,9 @@ def main(argv: list[str] | None = None) -> int:
         def __init__(self, node: NodeHandle) -> None:
             self.node = node
             self.frames = self.imus = self.role_switches = 0
+            self.first_imu = 0.0
+            # Made last, as the robot is ready: its CPU from here on is the running cost.
+            self.ready = (time.monotonic(), time.process_time())
             self.role = "-"
             self.link: dict[str, float] = {}
             self.ball: tuple[float, float, int] | None = None
@@ -152,7 +133,15 @@ def main(argv: list[str] | None = None) -> int:
             self.frames += 1
 
         def _count_imu(self, _: Imu) -> None:
+            if not self.imus:
+                self.first_imu = time.monotonic()
             self.imus += 1
+
+        def imu_hz(self) -> float:
+            """IMU messages heard a wall second since the first (the world ticks at most
+            100 Hz: a starved robot hears fewer)."""
+            wall = time.monotonic() - self.first_imu if self.imus > 1 else 0.0
+            return round((self.imus - 1) / wall, 1) if wall > 0 else 0.0
 
         def _on_role(self, msg: String) -> None:
             if self.role != "-" and msg.data != self.role:
@@ -181,7 +170,9 @@ def main(argv: list[str] | None = None) -> int:
                 "game_state": (STATE_NAMES.get(game.game_state, "?") if game is not None
                                else "-"),
                 "falls": fall.falls, "posture": fall.state, "ball_m": distance,
-                "frames": self.frames, "imus": self.imus,
+                "frames": self.frames, "imus": self.imus, "imu_hz": self.imu_hz(),
+                "cpu_pct": round(100 * (time.process_time() - self.ready[1])
+                                 / max(1e-9, time.monotonic() - self.ready[0]), 1),
                 "joint_states": len(driver.present),
                 "link": self.link,
             }), flush=True)

@@ -51,6 +51,10 @@ from .world_simulator import WorldSimulator
 #: robot's :class:`~.match_robot.DeviceInput` takes each once from DDS and publishes it
 #: in-process under the usual name.
 DEVICE = "device"
+#: The IMU's history on a robot's domain (both ends): at 100 Hz, half a second. A loaded
+#: robot takes DDS samples only between its callbacks; with 10, the writer overwrote what
+#: the robot had not taken yet.
+IMU_DEPTH = 50
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
                 (Image, f"/{robot}/camera/image_raw", "camera/image_raw", 2),
                 (CameraInfo, f"/{robot}/camera/camera_info", "camera/camera_info",
                  latched_qos()),
-                (Imu, f"/{robot}/imu/data", "imu/data", 10),
+                (Imu, f"/{robot}/imu/data", "imu/data", IMU_DEPTH),
                 (GameState, "/game_state", "game_state", latched_qos()),
             ]
             for msg_type, source, target, qos in pairs:
@@ -140,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
                 "physics_ms": round(status["physics_ms_mean"], 3),
                 "render_ms": round(status["render_ms_mean"], 3),
                 "frames": status["frames"],
-                "ticks": status["ticks"],
+                "ticks": status["ticks"], "tick_hz": round(status["tick_hz"], 1),
                 "cpu_s": {k: round(v, 3) for k, v in status["cpu_s"].items()},
             }), flush=True)
 

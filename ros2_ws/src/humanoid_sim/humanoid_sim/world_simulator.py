@@ -38,9 +38,9 @@ from __future__ import annotations
 import os
 import threading
 import time
-from pathlib import Path
 from contextlib import ExitStack
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from geometry_msgs.msg import Point, PoseStamped
@@ -163,6 +163,7 @@ class WorldSimulator:
             self.render_cpu_ns = 0  # thread CPU: what a loaded machine does not stretch
             self.physics_cpu_ns = 0
             self.ticks = 0
+            self._first_tick = self._first_tick_cpu = 0.0
             node.create_timer(self.period_s, self.tick)
             self._opened = opened.pop_all()
         node.logger.info(
@@ -235,6 +236,8 @@ class WorldSimulator:
             self.world.step(step)
         self.physics_cpu_ns += time.thread_time_ns() - cpu
         self.physics_ns += time.perf_counter_ns() - started
+        if not self.ticks:
+            self._first_tick, self._first_tick_cpu = time.monotonic(), time.process_time()
         self.ticks += 1
         now = self.node.clock.now_ns()
         for name, robot in self.robots.items():
@@ -277,12 +280,15 @@ class WorldSimulator:
             "physics_ms_mean": self.physics_ns / self.ticks / 1e6 if self.ticks else 0.0,
             "bus_exceptions": {n: len(r.pty.errors) for n, r in self.robots.items()},
             "ticks": self.ticks,
+            "tick_hz": ((self.ticks - 1) / (time.monotonic() - self._first_tick)
+                        if self.ticks > 1 else 0.0),
             "cpu_s": self.cpu_split(),
         }
 
     def cpu_split(self) -> dict[str, float]:
-        """This process's CPU seconds so far: physics, render, bus, other (the rest)."""
-        process = time.process_time()
+        """This process's CPU seconds since the first tick: physics, render, bus, other
+        (the rest: DDS, the sensor topics, the referee; start-up not counted)."""
+        process = time.process_time() - self._first_tick_cpu if self.ticks else 0.0
         physics = self.physics_cpu_ns / 1e9
         render = self.render_cpu_ns / 1e9 + (rasteriser_cpu_s() if self.renderer else 0.0)
         bus = sum(_thread_cpu_s(Path(f"/proc/self/task/{r.pty.thread_id}"))
