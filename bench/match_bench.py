@@ -107,7 +107,7 @@ def main() -> int:
     args = ap.parse_args()
     sizes = args.sizes.split(",")
     if args.quick:
-        args.repeat, args.duration, sizes = 1, 30.0, ["1v0"]
+        args.repeat, args.duration, sizes = 1, 45.0, ["1v0"]
     unknown = [s for s in sizes if s not in SIZES]
     if unknown:
         ap.error(f"--sizes: {', '.join(unknown)} not among {', '.join(SIZES)}")
@@ -118,7 +118,7 @@ def main() -> int:
                                         camera_hz=args.camera_hz))
 
     def med(size: str, key: str) -> float:
-        return statistics.median(r[key] for r in runs[size])
+        return float(statistics.median(r[key] for r in runs[size]))
 
     base = sizes[0]
     loads = [x for rs in runs.values() for r in rs for x in r["load"]]

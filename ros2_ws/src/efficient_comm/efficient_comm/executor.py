@@ -29,7 +29,7 @@ import itertools
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from ._clock import ManualClock, SimClock, SystemClock
@@ -486,7 +486,7 @@ class ConsecutiveExecutor:
         from rclpy.subscription import Subscription
 
         ran = 0
-        ready = dds._wait_for_ready_callbacks(timeout_sec=timeout_s)
+        ready: Iterator[Any] = dds._wait_for_ready_callbacks(timeout_sec=timeout_s)
         start = time.monotonic_ns()
         try:
             try:
