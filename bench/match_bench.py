@@ -13,8 +13,11 @@ machine load hits all sizes alike; medians printed. It reads the match's report:
 * the real-time factor, the world's tick rate and the IMU rate each robot heard (a starved
   robot hears fewer than the world sends, and falls), falls.
 
-CPU is given in ms per simulated second (what a robot costs whatever the machine's speed;
-1000 is one core at real time) and as ratios against the one-robot match of the same run.
+CPU is given in ms a second per robot: physics, render and the world's rest per simulated
+second (they follow the world's steps), bus emulation and robot software per wall second
+(they follow the robots' wall-clock timers: a world slowed to a real-time factor of 0.1
+does not make a robot cheaper); so the sum is what a robot needs at real time (1000 = one
+core), and ratios are against the one-robot match of the same run.
 Lockstep in the match is not measured here (``bench/world_bench.py`` and
 ``bench/lockstep_bench.py`` measure the world and the barrier). Run:
 ``source scripts/env.sh && python bench/match_bench.py`` (``--quick``: one short one-robot
@@ -62,10 +65,11 @@ def parse_report(text: str, robots: int) -> dict[str, Any]:
         raise ValueError(f"the match did not run (no simulated time, or robots not ready):"
                          f"\n{text}")
     per_robot = {
-        "physics": float(cpu[1]), "render": float(cpu[2]), "bus": float(cpu[3]),
+        "physics": float(cpu[1]), "render": float(cpu[2]), "bus": float(cpu[3]) * rtf,
         "world_other": float(cpu[4]),
-        # each robot's CPU rate since it was ready, over the whole run
-        "robot_software": sum(float(pct) / 100 * wall for _, _, pct in robot),
+        # Wall-clock driven (robots' timers, their drivers' packets the bus answers): per
+        # wall second, i.e. per simulated second at real time, whatever the world's pace.
+        "robot_software": sum(float(pct) / 100 for _, _, pct in robot) * sim,
     }
     return {
         "wall_s": wall, "sim_s": sim, "rtf": rtf, "ticks": int(cpu[5]),
@@ -124,8 +128,9 @@ def main() -> int:
     loads = [x for rs in runs.values() for r in rs for x in r["load"]]
     print(f"medians of {args.repeat} run(s) of {args.duration:g} s, cameras at "
           f"{args.camera_hz:g} Hz, real time; load average {min(loads):.1f} to "
-          f"{max(loads):.1f}; CPU ms per simulated second per robot (1000 = one core at "
-          f"real time), ratio against --robots {base}")
+          f"{max(loads):.1f}; CPU ms a second per robot (physics, render, world other: per "
+          f"simulated s; bus, robot software: per wall s; 1000 = one core), ratio against "
+          f"--robots {base}")
     print("robots | physics | render | bus | world other | robot software | total (x) | "
           "RTF | world ticks Hz | IMU heard Hz (lowest) | falls")
     summary: dict[str, Any] = {}

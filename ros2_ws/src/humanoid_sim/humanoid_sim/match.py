@@ -297,6 +297,10 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
               f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.",
               "", world_cpu_line(s),
+              "", "IMU messages heard of those the world sent while the robot's reader was "
+              "matched: " + ", ".join(
+                  f"{n} {children[n].status.get('imus', 0)} of "
+                  f"{s.get('imu_sent', {}).get(n, 0)}" for n in robots if n in children) + ".",
               "", "Since each robot was ready, IMU messages heard a wall second (the world "
               f"ticks {s.get('tick_hz', 0.0):.1f}, one message per robot each) and CPU % of "
               "a core: " + ", ".join(

@@ -180,7 +180,6 @@ def main(argv: list[str] | None = None) -> int:
     stop_on_sigterm()
     with Container(f"{name}_robot", namespace=ns, dds=True, serve=False,
                    stats_namespace=ns) as container:
-        container.add(DeviceInput, name="devices", namespace=ns)
         driver: ServoDriver = container.add(
             ServoDriver, name="servo_driver", namespace=ns,
             parameters={"port": plan["port"], "ids": list(JOINTS),
@@ -202,6 +201,9 @@ def main(argv: list[str] | None = None) -> int:
                                      parameters={"config": plan["bridge_file"]},
                                      source=f"the match's plan for {name}"))
         add_recorder(container, ns, Path(plan["bag_dir"]))
+        # Last but the status: its readers match the world's writers only now, so the
+        # samples sent while the robot was still being built do not overflow their history.
+        container.add(DeviceInput, name="devices", namespace=ns)
         container.add(Status, name="match_status", namespace=ns)
         print("ready", flush=True)
         with contextlib.suppress(KeyboardInterrupt):

@@ -22,7 +22,8 @@ Every ``status_period_s`` it prints one line ``status {json}`` on stdout: simula
 real-time factor, game state and its changes so far, score, goals, the distance each robot
 walked (ground truth, its torso sampled every half second of simulated time: one gait
 cycle, so the sway from foot to foot does not count), the world's physics and render
-times, its ticks (one IMU message per robot each) and its CPU split
+times, its ticks (one IMU message per robot each), the IMU messages sent to each robot
+while its reader was matched, and its CPU split
 (:meth:`~.world_simulator.WorldSimulator.cpu_split`).
 """
 
@@ -78,15 +79,25 @@ def main(argv: list[str] | None = None) -> int:
                 (Imu, f"/{robot}/imu/data", "imu/data", IMU_DEPTH),
                 (GameState, "/game_state", "game_state", latched_qos()),
             ]
+            #: IMU messages sent while the robot's reader was matched: what it should hear.
+            self.imu_sent = 0
             for msg_type, source, target, qos in pairs:
                 pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
-                node.create_subscription(msg_type, source, pub.publish, qos=qos)
+                relay = self._imu(pub) if msg_type is Imu else pub.publish
+                node.create_subscription(msg_type, source, relay, qos=qos)
             pose_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/pose", 10)
             ball_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/ball", 10)
             node.create_subscription(PoseStamped, f"/ground_truth/{robot}/pose",
                                      lambda m: self._truth(pose_pub, m), qos=10)
             node.create_subscription(PoseStamped, "/ground_truth/ball",
                                      lambda m: self._truth(ball_pub, m, count=False), qos=10)
+
+        def _imu(self, pub: Any) -> Any:
+            def relay(msg: Imu) -> None:
+                pub.publish(msg)
+                if pub.get_subscription_count():
+                    self.imu_sent += 1
+            return relay
 
         def _truth(self, pub: Any, msg: PoseStamped, *, count: bool = True) -> None:
             if count:
@@ -104,10 +115,11 @@ def main(argv: list[str] | None = None) -> int:
                                               parameters=plan["world"])
         referee: TeamReferee = container.add(TeamReferee, name="team_referee",
                                              parameters=plan["referee"])
-        for robot in robots:
-            container.add(functools.partial(SensorLink, robot=robot,
-                                            domain_id=plan["domains"][robot]),
-                          name=f"{robot}_link")
+        links: dict[str, SensorLink] = {
+            robot: container.add(functools.partial(SensorLink, robot=robot,
+                                                   domain_id=plan["domains"][robot]),
+                                 name=f"{robot}_link")
+            for robot in robots}
         walked = dict.fromkeys(robots, 0.0)
         last: dict[str, tuple[float, float]] = {}
         sampled_at = [-math.inf]
@@ -145,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
                 "render_ms": round(status["render_ms_mean"], 3),
                 "frames": status["frames"],
                 "ticks": status["ticks"], "tick_hz": round(status["tick_hz"], 1),
+                "imu_sent": {r: link.imu_sent for r, link in links.items()},
                 "cpu_s": {k: round(v, 3) for k, v in status["cpu_s"].items()},
             }), flush=True)
 
