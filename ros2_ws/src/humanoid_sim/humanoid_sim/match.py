@@ -261,7 +261,10 @@ def robot_line(child: Child) -> str:
 
 
 def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
-           children: dict[str, Child], wall_s: float) -> str:
+           children: dict[str, Child], wall_s: float, *,
+           imu_sent: dict[str, int] | None = None) -> str:
+    """``imu_sent``: the world's IMU counts as the robots were stopped (its later status
+    counts on while a stopping robot's reader is still matched but no longer counting)."""
     s = world.status
     score = s.get("score", {})
     goals = ", ".join(f"{team} at {t:.1f} s" for t, team in s.get("goals", [])) or "none"
@@ -300,7 +303,8 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
               "", "IMU messages heard of those the world sent while the robot's reader was "
               "matched: " + ", ".join(
                   f"{n} {children[n].status.get('imus', 0)} of "
-                  f"{s.get('imu_sent', {}).get(n, 0)}" for n in robots if n in children) + ".",
+                  f"{(imu_sent or s.get('imu_sent', {})).get(n, 0)}"
+                  for n in robots if n in children) + ".",
               "", "Since each robot was ready, IMU messages heard a wall second (the world "
               f"ticks {s.get('tick_hz', 0.0):.1f}, one message per robot each) and CPU % of "
               "a core: " + ", ".join(
@@ -370,6 +374,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:
             print("interrupted", flush=True)
         finally:
+            imu_sent = dict(world.status.get("imu_sent", {}))
             for child in (*children.values(), world):
                 child.sample_cpu()
             wall_s = time.monotonic() - started
@@ -379,7 +384,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             for child in (world, *children.values()):
                 if child.proc.stdout is not None:
                     child.proc.stdout.close()
-    text = report(robots, args, world, children, wall_s)
+    text = report(robots, args, world, children, wall_s, imu_sent=imu_sent)
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(text)
     print(f"\n{text}\nreport written to {args.report.resolve()}", flush=True)
