@@ -91,7 +91,7 @@ STATE_SETTLE_S = GroundTruthLog.SETTLE_S
 #: The team link's budget per robot (bytes a second, and the burst), as in the team docs.
 BUDGET_BYTES_PER_S = 2048
 TEAM_NUMBERS = {"blue": 1, "red": 2}
-_ROBOTS = re.compile(r"^(?:(?P<one>[1-3])|(?P<blue>[1-3])v(?P<red>[1-3]))$")
+_ROBOTS = re.compile(r"^(?:(?P<one>[1-3])|(?P<blue>[1-3])v(?P<red>[0-3]))$")
 #: ``--localization``'s short names for the sources of ``localization/pose``.
 LOCALIZATION_NAMES = {"pf": PARTICLE_FILTER, "noisy": NOISY_GROUND_TRUTH,
                       "truth": GROUND_TRUTH} | {s: s for s in SOURCES}
@@ -101,7 +101,8 @@ DEFAULT_LOCALIZATION = NOISY_GROUND_TRUTH
 
 
 def robot_names(text: str) -> list[str]:
-    """``--robots``: ``2``, ``3`` (one blue team) or ``AvB``; ``1`` is the demo's."""
+    """``--robots``: ``2``, ``3`` (one blue team) or ``AvB``; ``1`` is the demo's (``1v0``:
+    one robot in the match's processes, what the match bench measures)."""
     m = _ROBOTS.match(text.strip())
     if m is None:
         raise argparse.ArgumentTypeError(
@@ -388,7 +389,10 @@ def state_lines(world: dict[str, Any]) -> list[str]:
 
 
 def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
-           children: dict[str, Child], wall_s: float) -> str:
+           children: dict[str, Child], wall_s: float, *,
+           imu_sent: dict[str, int] | None = None) -> str:
+    """``imu_sent``: the world's IMU counts as the robots were stopped (its later status
+    counts on while a stopping robot's reader is still matched but no longer counting)."""
     s = world.status
     score = s.get("score", {})
     goals = ", ".join(f"{team} at {t:.1f} s" for t, team in s.get("goals", [])) or "none"
@@ -443,8 +447,29 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
         lines += ["", f"Ground truth fingerprint {s.get('truth_sha', '-')} (every robot's "
                   "and the ball's pose each 0.1 s simulated: equal for equal games)."]
     lines += ["", f"World process CPU {cpus['world']:.0f} % of one core "
-              f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.", ""]
+              f"({world.ended or 'ran to the end'}); logs and bags in {args.out_dir}.",
+              "", world_cpu_line(s),
+              "", "IMU messages heard of those the world sent while the robot's reader was "
+              "matched: " + ", ".join(
+                  f"{n} {children[n].status.get('imus', 0)} of "
+                  f"{(imu_sent or s.get('imu_sent', {})).get(n, 0)}"
+                  for n in robots if n in children) + ".",
+              "", "Since each robot was ready, IMU messages heard a wall second (the world "
+              f"ticks {s.get('tick_hz', 0.0):.1f}, one message per robot each) and CPU % of "
+              "a core: " + ", ".join(
+                  f"{n} {children[n].status.get('imu_hz', 0.0):.1f} Hz "
+                  f"{children[n].status.get('cpu_pct', 0.0):.0f} %"
+                  for n in robots if n in children) + ".", ""]
     return "\n".join(lines)
+
+
+def world_cpu_line(status: dict[str, Any]) -> str:
+    """The world process's CPU by part and its ticks (each one IMU message per robot): what
+    ``bench/match_bench.py`` reads back."""
+    cpu = status.get("cpu_s") or {}
+    parts = ", ".join(f"{k} {cpu.get(k, 0.0):.2f}" for k in ("physics", "render", "bus",
+                                                              "other"))
+    return f"World CPU s: {parts}; ticks {status.get('ticks', 0)}."
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -515,6 +540,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:
             print("interrupted", flush=True)
         finally:
+            imu_sent = dict(world.status.get("imu_sent", {}))
             for child in (*children.values(), world):
                 child.sample_cpu()
             wall_s = time.monotonic() - started
@@ -525,7 +551,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if child.proc.stdout is not None:
                     child.proc.stdout.close()
     _, merge_line = merge_recordings(paths, robots)
-    text = report(robots, args, world, children, wall_s) + recording_report(
+    text = report(robots, args, world, children, wall_s, imu_sent=imu_sent) + recording_report(
         paths, skews, merge_line, video=bool(args.video_fps))
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(text)

@@ -27,30 +27,36 @@ and IMU messages received, and the team link's usage as rf_bridge reports it on
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
 import sys
-import threading
+import time
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from dynamixel_sdk import PortHandler
 from geometry_msgs.msg import PointStamped, PoseStamped
-from rclpy.context import Context
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import String
 
 from debug_probes import JpegCompressor
-from efficient_comm import ComponentSpec, Container, latched_qos, stop_on_sigterm
+from efficient_comm import (
+    ComponentSpec,
+    Container,
+    SkewedClock,
+    from_msg,
+    latched_qos,
+    stop_on_sigterm,
+    to_msg,
+)
 from efficient_comm.handle import NodeHandle
 from soccer_interfaces.msg import GameState
 
 from .driver import ServoDriver
 from .match_recording import add_robot_recording
-from .match_world import DEVICE
+from .match_world import DEVICE, IMU_DEPTH
 from .mujoco_plant import JOINTS
 from .soccer.arbiter import MotionArbiter
 from .soccer.behaviour import HeadBehaviour
@@ -73,7 +79,7 @@ LOCKSTEP_REPLY_MS = 2000.0
 #: What the world delivers under ``device/`` on the robot's domain: (type, topic, QoS).
 DEVICE_TOPICS: tuple[tuple[type, str, Any], ...] = (
     (Image, "camera/image_raw", 2), (CameraInfo, "camera/camera_info", latched_qos()),
-    (Imu, "imu/data", 10), (GameState, "game_state", latched_qos()),
+    (Imu, "imu/data", IMU_DEPTH), (GameState, "game_state", latched_qos()),
     (PoseStamped, "ground_truth/pose", 10), (PoseStamped, "ground_truth/ball", 10))
 
 
@@ -104,58 +110,44 @@ def main(argv: list[str] | None = None) -> int:
 
     class DeviceInput:
         """The world's sensor topics (``device/<topic>`` on this robot's domain), taken
-        from DDS by a participant and thread of their own and published in-process as
-        ``<topic>``.
+        from DDS once and published in-process as ``<topic>``.
 
-        Taken by the container itself, every composed subscription to a remote topic has a
-        DDS reader of its own, and the executor takes one DDS sample per wait between its
-        timers: the IMU's six subscribers made six readers, and the robot heard its IMU
-        after 10 s or never; with one reader per topic still at about 15 Hz of 100 (and it
-        fell). Here a thread takes every sample as it comes and publishes it through the
-        executor's thread-safe path (by reference to every subscriber).
+        One composed subscription, so one DDS reader, per device topic: every subscriber of
+        ``<topic>`` in the robot gets the sample by reference, and it is deserialized once
+        (six subscribers of the IMU, each with its own reader, made six readers). It used to
+        take them on a participant and thread of its own, because the container's executor
+        took one DDS sample per wait and the robot heard its IMU at a fraction of its rate;
+        the executor now takes every ready sample per wait (``efficient_comm``), so the
+        thread, its GIL hand-overs and its second participant are gone. In lockstep the
+        container's intake holds every sample until the step after the world published it
+        (:mod:`efficient_comm.simtime`), so each robot hears each frame in the same step on
+        every run.
+
+        The camera and the IMU are this robot's own devices, so their stamps are on its
+        clock: the world stamps them on its own, and the robot's clock is off the world's
+        (the plan's ``clock``), so each stamp is moved to what this robot's clock read at
+        that moment (exactly: the simulation knows the skew). Compared with the world's
+        stamps, the ball model predicted the ball as far ahead as the clocks are apart (up
+        to 0.8 s). Ground truth and the game state come from outside the robot and keep the
+        world's stamps (the merged log matches them to the world's own records).
         """
 
-        def __init__(self, node: NodeHandle) -> None:
-            self.context = Context()
-            rclpy.init(context=self.context)  # ROS_DOMAIN_ID: this robot's domain
-            self.rnode = rclpy.create_node(f"{name}_devices", namespace=ns,
-                                           context=self.context)
-            for msg_type, topic, qos in ((Image, "camera/image_raw", 2),
-                                         (CameraInfo, "camera/camera_info", latched_qos()),
-                                         (Imu, "imu/data", 10),
-                                         (GameState, "game_state", latched_qos()),
-                                         (PoseStamped, "ground_truth/pose", 10),
-                                         (PoseStamped, "ground_truth/ball", 10)):
-                pub = node.create_publisher(msg_type, topic, qos=qos)
-                self.rnode.create_subscription(msg_type, f"{DEVICE}/{topic}", pub.publish, qos)
-            self.executor = SingleThreadedExecutor(context=self.context)
-            self.executor.add_node(self.rnode)
-            self.thread = threading.Thread(target=self._spin, daemon=True, name="devices")
-            self.thread.start()
-
-        def _spin(self) -> None:
-            with contextlib.suppress(ExternalShutdownException, RuntimeError):
-                while self.context.ok():
-                    self.executor.spin_once(timeout_sec=0.1)
-
-        def close(self) -> None:
-            self.context.try_shutdown()
-            self.thread.join(timeout=5)
-            self.executor.shutdown()
-            self.rnode.destroy_node()
-
-    class StepInput:
-        """In lockstep, the world's sensor topics taken by the container itself and
-        published in-process as ``<topic>``: the container's lockstep intake holds every
-        sample until the step after the world published it (:mod:`efficient_comm.simtime`),
-        so each robot hears each frame in the same step on every run. (A thread of its own,
-        as :class:`DeviceInput` takes them in real time, would hand them over whenever it
-        got them.)"""
+        OWN = ("camera/image_raw", "imu/data")
 
         def __init__(self, node: NodeHandle) -> None:
+            clock = node.clock
+            local = clock.local_ns if isinstance(clock, SkewedClock) else None
             for msg_type, topic, qos in DEVICE_TOPICS:
                 pub = node.create_publisher(msg_type, topic, qos=qos)
-                node.create_subscription(msg_type, f"{DEVICE}/{topic}", pub.publish, qos=qos)
+                relay = pub.publish
+                if local is not None and topic in self.OWN:
+                    relay = functools.partial(self._restamped, pub.publish, local)
+                node.create_subscription(msg_type, f"{DEVICE}/{topic}", relay, qos=qos)
+
+        @staticmethod
+        def _restamped(publish: Any, local: Any, msg: Any) -> None:
+            msg.header.stamp = to_msg(local(from_msg(msg.header.stamp)))
+            publish(msg)
 
     class Status:
         """What the match prints about this robot (see the module docstring)."""
@@ -163,6 +155,9 @@ def main(argv: list[str] | None = None) -> int:
         def __init__(self, node: NodeHandle) -> None:
             self.node = node
             self.frames = self.imus = self.role_switches = 0
+            self.first_imu = 0.0
+            # Made last, as the robot is ready: its CPU from here on is the running cost.
+            self.ready = (time.monotonic(), time.process_time())
             self.role = "-"
             self.link: dict[str, float] = {}
             self.ball: tuple[float, float, int] | None = None
@@ -177,7 +172,15 @@ def main(argv: list[str] | None = None) -> int:
             self.frames += 1
 
         def _count_imu(self, _: Imu) -> None:
+            if not self.imus:
+                self.first_imu = time.monotonic()
             self.imus += 1
+
+        def imu_hz(self) -> float:
+            """IMU messages heard a wall second since the first (the world ticks at most
+            100 Hz: a starved robot hears fewer)."""
+            wall = time.monotonic() - self.first_imu if self.imus > 1 else 0.0
+            return round((self.imus - 1) / wall, 1) if wall > 0 else 0.0
 
         def _on_role(self, msg: String) -> None:
             if self.role != "-" and msg.data != self.role:
@@ -206,7 +209,9 @@ def main(argv: list[str] | None = None) -> int:
                 "game_state": (STATE_NAMES.get(game.game_state, "?") if game is not None
                                else "-"),
                 "falls": fall.falls, "posture": fall.state, "ball_m": distance,
-                "frames": self.frames, "imus": self.imus,
+                "frames": self.frames, "imus": self.imus, "imu_hz": self.imu_hz(),
+                "cpu_pct": round(100 * (time.process_time() - self.ready[1])
+                                 / max(1e-9, time.monotonic() - self.ready[0]), 1),
                 "joint_states": len(driver.present),
                 "link": self.link,
                 "localization": {"source": pose_error.errors.source,
@@ -220,7 +225,6 @@ def main(argv: list[str] | None = None) -> int:
                    clock_offset_s=clock.get("offset_s", 0.0),
                    clock_drift_ppm=clock.get("drift_ppm", 0.0),
                    lockstep=name if lockstep else None) as container:
-        container.add(StepInput if lockstep else DeviceInput, name="devices", namespace=ns)
         driver: ServoDriver = container.add(
             ServoDriver, name="servo_driver", namespace=ns,
             parameters={"port": plan["port"], "ids": list(JOINTS),
@@ -249,6 +253,9 @@ def main(argv: list[str] | None = None) -> int:
                                      source=f"the match's plan for {name}"))
         _, clock_sync = add_robot_recording(container, ns, robot=name,
                                             bag_dir=Path(plan["bag_dir"]))
+        # Last but the status: its readers match the world's writers only now, so the
+        # samples sent while the robot was still being built do not overflow their history.
+        container.add(DeviceInput, name="devices", namespace=ns)
         container.add(Status, name="match_status", namespace=ns)
         print("ready", flush=True)
         with contextlib.suppress(KeyboardInterrupt):

@@ -25,8 +25,10 @@ domain as the team's reference clock, and films the external video.
 Every ``status_period_s`` it prints one line ``status {json}`` on stdout: simulated time,
 real-time factor, game state and its changes so far, score, goals, the distance each robot
 walked (ground truth, its torso sampled every half second of simulated time: one gait
-cycle, so the sway from foot to foot does not count) and the world's physics and render
-times.
+cycle, so the sway from foot to foot does not count), the world's physics and render
+times, its ticks (one IMU message per robot each), the IMU messages sent to each robot
+while its reader was matched, and its CPU split
+(:meth:`~.world_simulator.WorldSimulator.cpu_split`).
 """
 
 from __future__ import annotations
@@ -75,6 +77,10 @@ DEVICE = "device"
 #: Lockstep: how long the world waits for a robot's step, and for every robot to join.
 STEP_TIMEOUT_S = 60.0
 JOIN_TIMEOUT_S = 180.0
+#: The IMU's history on a robot's domain (both ends): at 100 Hz, half a second. A loaded
+#: robot takes DDS samples only between its callbacks; with 10, the writer overwrote what
+#: the robot had not taken yet.
+IMU_DEPTH = 50
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -95,13 +101,16 @@ def main(argv: list[str] | None = None) -> int:
                 (Image, f"/{robot}/camera/image_raw", "camera/image_raw", 2),
                 (CameraInfo, f"/{robot}/camera/camera_info", "camera/camera_info",
                  latched_qos()),
-                (Imu, f"/{robot}/imu/data", "imu/data", 10),
+                (Imu, f"/{robot}/imu/data", "imu/data", IMU_DEPTH),
                 (GameState, "/game_state", "game_state", latched_qos()),
             ]
             self.device_pubs: list[Any] = []  # what a lockstep step flushes
+            #: IMU messages sent while the robot's reader was matched: what it should hear.
+            self.imu_sent = 0
             for msg_type, source, target, qos in pairs:
                 pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
-                node.create_subscription(msg_type, source, pub.publish, qos=qos)
+                relay = self._imu(pub) if msg_type is Imu else pub.publish
+                node.create_subscription(msg_type, source, relay, qos=qos)
                 self.device_pubs.append(pub)
             pose_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/pose", 10)
             ball_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/ball", 10)
@@ -110,6 +119,13 @@ def main(argv: list[str] | None = None) -> int:
                                      lambda m: self._truth(pose_pub, m), qos=10)
             node.create_subscription(PoseStamped, "/ground_truth/ball",
                                      lambda m: self._truth(ball_pub, m, count=False), qos=10)
+
+        def _imu(self, pub: Any) -> Any:
+            def relay(msg: Imu) -> None:
+                pub.publish(msg)
+                if pub.get_subscription_count():
+                    self.imu_sent += 1
+            return relay
 
         def _truth(self, pub: Any, msg: PoseStamped, *, count: bool = True) -> None:
             if count:
@@ -145,9 +161,11 @@ def main(argv: list[str] | None = None) -> int:
                                               parameters=plan["world"])
         referee: TeamReferee = container.add(TeamReferee, name="team_referee",
                                              parameters=plan["referee"])
-        links = [container.add(functools.partial(SensorLink, robot=robot,
-                                                 domain_id=plan["domains"][robot]),
-                               name=f"{robot}_link") for robot in robots]
+        links: dict[str, SensorLink] = {
+            robot: container.add(functools.partial(SensorLink, robot=robot,
+                                                   domain_id=plan["domains"][robot]),
+                                 name=f"{robot}_link")
+            for robot in robots}
         truth = GroundTruthLog(robots)
         walked = dict.fromkeys(robots, 0.0)
         last: dict[str, tuple[float, float]] = {}
@@ -190,6 +208,9 @@ def main(argv: list[str] | None = None) -> int:
                 "truth_sha": truth.digest(),
                 "moved_in_state_m": truth.moved_m,
                 "at_state_start": truth.at_start,
+                "ticks": status["ticks"], "tick_hz": round(status["tick_hz"], 1),
+                "imu_sent": {r: link.imu_sent for r, link in links.items()},
+                "cpu_s": {k: round(v, 3) for k, v in status["cpu_s"].items()},
             }), flush=True)
 
         clocks = add_world_recording(container, world, plan)
@@ -200,7 +221,8 @@ def main(argv: list[str] | None = None) -> int:
         ok = True
         with contextlib.suppress(KeyboardInterrupt):
             if coordinators:
-                ok = play_in_lockstep(container, coordinators, links, dt_s=world.period_s,
+                ok = play_in_lockstep(container, coordinators, list(links.values()),
+                                      dt_s=world.period_s,
                                       end_s=float(plan.get("end_s", 0.0)))
             else:
                 container.spin()

@@ -21,6 +21,12 @@ topics are ``/<robot>/...``):
   the ball at rest). Placements that name no robot of the world or lie beyond the field's
   border strip are refused with one logged line.
 
+CPU (:meth:`WorldSimulator.status`, ``cpu_s``): the world process's CPU seconds split into
+physics (the executor thread while it steps), rendering (that thread while it draws, and
+the software rasteriser's ``llvmpipe`` threads), bus emulation (every pty's emulator
+thread) and the rest of the process (DDS, the sensor topics, the referee): what the match
+reports and ``bench/match_bench.py`` measures.
+
 Parameters: ``robots`` (names, ``blue1``..``red3``), per robot ``<robot>.pose`` (x, y,
 heading; default :data:`~.world.DEFAULT_START`), ``ball_position``,
 ``step_hz``, ``camera_hz`` (0: no cameras), ``camera_width``, ``camera_height``, ``port_dir``,
@@ -34,6 +40,7 @@ import threading
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from geometry_msgs.msg import Point, PoseStamped
@@ -55,6 +62,28 @@ from .render import OffscreenRenderer
 from .sensors import CAMERA
 from .simulator import SimParameters
 from .world import DEFAULT_START, Pose2D, World, team_of
+
+
+def _thread_cpu_s(task: Path) -> float:
+    """User + system CPU seconds of one thread (``/proc/<pid>/task/<tid>``); 0 if gone."""
+    try:
+        fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+def rasteriser_cpu_s() -> float:
+    """CPU seconds of this process's software-rasteriser threads (Mesa's ``llvmpipe-N``):
+    the part of a frame that is not on the thread that asked for it."""
+    total = 0.0
+    for task in Path("/proc/self/task").iterdir():
+        try:
+            if task.joinpath("comm").read_text().startswith("llvmpipe"):
+                total += _thread_cpu_s(task)
+        except OSError:
+            continue
+    return total
 
 
 @dataclass
@@ -131,7 +160,10 @@ class WorldSimulator:
             self.frames_skipped = 0
             self.render_ns = 0
             self.physics_ns = 0
+            self.render_cpu_ns = 0  # thread CPU: what a loaded machine does not stretch
+            self.physics_cpu_ns = 0
             self.ticks = 0
+            self._first_tick = self._first_tick_cpu = 0.0
             node.create_timer(self.period_s, self.tick)
             self._opened = opened.pop_all()
         node.logger.info(
@@ -199,9 +231,13 @@ class WorldSimulator:
                     self.node.logger.error(f"{robot.name}'s servo bus emulator has stopped: "
                                            "physics steps without its last writes")
         started = time.perf_counter_ns()
+        cpu = time.thread_time_ns()
         with self.lock:
             self.world.step(step)
+        self.physics_cpu_ns += time.thread_time_ns() - cpu
         self.physics_ns += time.perf_counter_ns() - started
+        if not self.ticks:
+            self._first_tick, self._first_tick_cpu = time.monotonic(), time.process_time()
         self.ticks += 1
         now = self.node.clock.now_ns()
         for name, robot in self.robots.items():
@@ -225,8 +261,10 @@ class WorldSimulator:
                 self.frames_skipped += 1
                 continue
             started = time.perf_counter_ns()
+            cpu = time.thread_time_ns()
             image = sensors.image(self.renderer, self.data, camera=f"{name}/{CAMERA}",
                                   stamp_ns=now)
+            self.render_cpu_ns += time.thread_time_ns() - cpu
             self.render_ns += time.perf_counter_ns() - started
             self.frames += 1
             robot.image_pub.publish(image)
@@ -241,7 +279,22 @@ class WorldSimulator:
             "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
             "physics_ms_mean": self.physics_ns / self.ticks / 1e6 if self.ticks else 0.0,
             "bus_exceptions": {n: len(r.pty.errors) for n, r in self.robots.items()},
+            "ticks": self.ticks,
+            "tick_hz": ((self.ticks - 1) / (time.monotonic() - self._first_tick)
+                        if self.ticks > 1 else 0.0),
+            "cpu_s": self.cpu_split(),
         }
+
+    def cpu_split(self) -> dict[str, float]:
+        """This process's CPU seconds since the first tick: physics, render, bus, other
+        (the rest: DDS, the sensor topics, the referee; start-up not counted)."""
+        process = time.process_time() - self._first_tick_cpu if self.ticks else 0.0
+        physics = self.physics_cpu_ns / 1e9
+        render = self.render_cpu_ns / 1e9 + (rasteriser_cpu_s() if self.renderer else 0.0)
+        bus = sum(_thread_cpu_s(Path(f"/proc/self/task/{r.pty.thread_id}"))
+                  for r in self.robots.values() if r.pty.thread_id is not None)
+        return {"physics": physics, "render": render, "bus": bus,
+                "other": max(0.0, process - physics - render - bus), "total": process}
 
     def close(self) -> None:
         """Close the GL context, the ptys and the port links (each once)."""

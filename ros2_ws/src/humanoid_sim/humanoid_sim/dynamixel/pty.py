@@ -121,6 +121,11 @@ class PtyBus(Closing):
         return self._closed
 
     @property
+    def thread_id(self) -> int | None:
+        """The emulator thread's native id (its CPU is the bus emulation's cost)."""
+        return self._thread.native_id
+
+    @property
     def lock(self) -> threading.Lock:
         """Hold it to change servos or step the plant while the bus may be answering."""
         return self._lock
