@@ -550,7 +550,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             for child in (world, *children.values()):
                 if child.proc.stdout is not None:
                     child.proc.stdout.close()
-    _, merge_line = merge_recordings(paths, robots)
+    _, merge_line = merge_recordings(paths, robots, lockstep=args.lockstep)
     text = report(robots, args, world, children, wall_s, imu_sent=imu_sent) + recording_report(
         paths, skews, merge_line, video=bool(args.video_fps))
     args.report.parent.mkdir(parents=True, exist_ok=True)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
 from team_clock import MergeReport, NoEstimateError, OffsetModel, RobotLog, TeamClockError, merge
@@ -39,8 +39,12 @@ def merge_match(
     *,
     world_name: str = WORLD,
     stamps: bool = True,
+    on_world_time: Collection[str] = (),
 ) -> MergeReport:
     """Merge ``robots`` (name -> bag) and the ``world``'s ground-truth bag into ``output``.
+
+    ``on_world_time``: robots whose clock is the world's (a lockstep match: every process
+    on the world's simulated time), merged as they are, estimates or not.
 
     Raises team_clock's errors (a :class:`~team_clock.TeamClockError`): a robot's bag
     without estimates, robots aligned to another reference than the world, an existing
@@ -51,7 +55,10 @@ def merge_match(
     except NoEstimateError:
         world_model = OffsetModel.identity(robot=world_name, reference=world_name)
     logs = [RobotLog(Path(world), namespace=world_name, model=world_model)]
-    logs += [RobotLog(Path(path), namespace=name) for name, path in robots.items()]
+    logs += [RobotLog(Path(path), namespace=name,
+                      model=OffsetModel.identity(robot=name, reference=world_name)
+                      if name in on_world_time else None)
+             for name, path in robots.items()]
     return merge(logs, output, stamps=stamps)
 
 

@@ -234,14 +234,15 @@ def newest_bag(directory: Path) -> Path | None:
     return bags[-1] if bags else None
 
 
-def merge_recordings(paths: RecordingPaths, robots: Sequence[str]
-                     ) -> tuple[MergeReport | None, str]:
+def merge_recordings(paths: RecordingPaths, robots: Sequence[str], *,
+                     lockstep: bool = False) -> tuple[MergeReport | None, str]:
     """Merge the robots' and the world's bags into ``paths.merged``; the report's line.
 
-    Header stamps are left as recorded: the world stamps what a robot's devices deliver
-    (camera, IMU, ground truth) with its own time, so most stamps in a robot's bag are
-    the world's already; log times are aligned. A robot without a bag (its process died
-    before recording) is left out and named.
+    Log times are aligned; header stamps are left as recorded: ground truth and the game
+    state carry the world's time, what the robot measured (camera, IMU, joints, its
+    estimates) its own clock's. A robot without a bag (its process died before recording)
+    is left out and named. ``lockstep``: every robot ran on the world's simulated time,
+    so its log is merged as it is.
     """
     world = newest_bag(paths.bag_dir(WORLD))
     if world is None:
@@ -250,7 +251,8 @@ def merge_recordings(paths: RecordingPaths, robots: Sequence[str]
     missing = sorted(robot for robot, bag in bags.items() if bag is None)
     try:
         report = merge_match({r: b for r, b in bags.items() if b is not None}, world,
-                             paths.merged, stamps=False)
+                             paths.merged, stamps=False,
+                             on_world_time=robots if lockstep else ())
     except (TeamClockError, OSError) as exc:
         return None, f"no merged log: {exc}"
     offsets = ", ".join(f"{r.namespace} ±{r.max_uncertainty_ns / 1e6:.2f} ms"

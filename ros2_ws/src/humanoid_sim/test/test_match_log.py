@@ -123,3 +123,13 @@ def test_the_installed_command_runs_as_typed(match, tmp_path) -> None:
                           capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 0, done.stderr
     assert "/blue1:" in done.stdout and "/world:" in done.stdout
+
+
+def test_a_lockstep_robot_on_the_worlds_time_merges_as_it_is(match, tmp_path) -> None:
+    """In lockstep every process runs on the world's simulated time: a robot's bag needs no
+    estimate (its clock sync has no offset to find) and keeps its times."""
+    _, world, truth = match
+    merge_match({"blue1": world}, world, tmp_path / "m", on_world_time=["blue1"])
+    times = sorted(m.log_time_ns for m in BagReader(tmp_path / "m").messages()
+                   if m.topic == "/blue1/ground_truth/ball")
+    assert times == sorted(truth.values())
