@@ -115,9 +115,14 @@ def recording_paths(out_dir: Path, run: str) -> RecordingPaths:
 
 
 def add_robot_recording(container: Container, namespace: str, *, robot: str,
-                        bag_dir: Path) -> tuple[Recorder, ClockSyncThread]:
+                        bag_dir: Path, clock_sync: bool = True
+                        ) -> tuple[Recorder, ClockSyncThread | None]:
     """The robot's clock sync against the world (:class:`ClockSyncThread`, on the
-    container's clock) and its recorder, recording at once; close the thread at the end."""
+    container's clock) and its recorder, recording at once; close the thread at the end.
+
+    ``clock_sync=False`` (a lockstep match: the robot runs on the world's simulated time,
+    there is no offset to measure): the recorder alone, and the merge takes the log as it
+    is (:func:`merge_recordings`)."""
     from team_clock.sync import OFFSET_QOS
     from team_clock_interfaces.msg import ClockOffset
 
@@ -134,7 +139,7 @@ def add_robot_recording(container: Container, namespace: str, *, robot: str,
             "epoch_ns": clock.epoch_ns,
             "doc": "local = world + offset_ns + drift_ppm*1e-6*(world - epoch_ns)"}) + "\n")
     sync = ClockSyncThread(robot=robot, reference=WORLD, namespace=namespace, clock=clock,
-                           on_estimate=local.publish)
+                           on_estimate=local.publish) if clock_sync else None
     try:
         recorder: Recorder = container.add(
             Recorder, name="recorder", namespace=namespace,
@@ -142,7 +147,8 @@ def add_robot_recording(container: Container, namespace: str, *, robot: str,
                         "autostart": True, "clock_robot": robot,
                         "clock_topic": LOCAL_OFFSET_TOPIC})
     except BaseException:
-        sync.close()
+        if sync is not None:
+            sync.close()
         raise
     return recorder, sync
 

@@ -252,7 +252,8 @@ def main(argv: list[str] | None = None) -> int:
                                      parameters={"config": plan["bridge_file"]},
                                      source=f"the match's plan for {name}"))
         _, clock_sync = add_robot_recording(container, ns, robot=name,
-                                            bag_dir=Path(plan["bag_dir"]))
+                                            bag_dir=Path(plan["bag_dir"]),
+                                            clock_sync=not lockstep)
         # Last but the status: its readers match the world's writers only now, so the
         # samples sent while the robot was still being built do not overflow their history.
         container.add(DeviceInput, name="devices", namespace=ns)
@@ -260,7 +261,8 @@ def main(argv: list[str] | None = None) -> int:
         print("ready", flush=True)
         with contextlib.suppress(KeyboardInterrupt):
             container.spin()
-        clock_sync.close()
+        if clock_sync is not None:
+            clock_sync.close()
     return 0
 
 
