@@ -9,8 +9,8 @@ and records it on board, on its own clock. Merged, every robot copy is one of th
 messages and none lies before the world sent it; and its merged time is the world time at
 which the robot recorded it (its clock's truth, written beside its bag, inverted) within
 1 ms, or within the bound the merge states where that is wider (the online estimates'
-round trips grow under load), from the robot's first valid clock estimate on. Without the merge, or with the
-offsets not applied, the copies lie hundreds of milliseconds off.
+round trips grow under load), from the robot's first valid clock estimate on. Without the
+merge, or with the offsets not applied, the copies lie hundreds of milliseconds off.
 """
 
 from __future__ import annotations
