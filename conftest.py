@@ -12,8 +12,11 @@ after an edit and new test files get a tier without a marker of their own. Tests
 as root, a skipped one fails the run, since CI is where they are meant to run.
 """
 
+import faulthandler
 import importlib.util
 import os
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -82,6 +85,58 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     return KindScheduling(config, log)
 
 
+#: Where a stuck test's stacks go: a directory the controlling process makes and its xdist
+#: workers inherit through the environment; the controller prints what is in it at the end.
+BACKSTOP_DIR = "EFFICIENT_COMM_TEST_BACKSTOP_DIR"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if not os.environ.get(BACKSTOP_DIR):
+        os.environ[BACKSTOP_DIR] = tempfile.mkdtemp(prefix="pytest-backstop-")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
+    """A backstop behind pytest-timeout: a test still running long after its timeout (every
+    phase and every rerun spent) dumps every thread's stack and ends its process.
+
+    pytest-timeout interrupts a test with SIGALRM, whose Python handler runs only once the
+    main thread returns to the interpreter; a thread stuck in native code (a DDS or rclpy
+    call waiting on a lock) never does, and the xdist worker would then idle until CI's
+    hard limit. faulthandler's watchdog is a native thread: it still dumps the stacks, and
+    the exit makes xdist report the test as crashed and go on with a new worker. The stacks
+    go to a file (the worker's stderr is pytest's capture, lost with the process), which the
+    controller prints in its summary.
+    """
+    marker = item.get_closest_marker("timeout")
+    timeout = float(marker.args[0]) if marker and marker.args else float(
+        item.config.getini("timeout") or 0)
+    if timeout <= 0:
+        yield
+        return
+    limit = 2 * timeout * (int(item.config.getoption("reruns", 0) or 0) + 1) + 10
+    dump = Path(os.environ[BACKSTOP_DIR]) / f"{os.getpid()}.txt"
+    with dump.open("w") as out:
+        out.write(f"{item.nodeid} still ran {limit:.0f} s after it began; its threads:\n")
+        out.flush()
+        faulthandler.dump_traceback_later(limit, exit=True, file=out)
+        try:
+            yield
+        finally:
+            faulthandler.cancel_dump_traceback_later()
+    dump.unlink(missing_ok=True)
+
+
+def _print_stuck_tests(terminalreporter: Any) -> None:
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # a replaced worker's files are the controller's
+        return
+    folder = Path(os.environ.get(BACKSTOP_DIR, "/nonexistent"))
+    for dump in sorted(folder.glob("*.txt")):
+        terminalreporter.write_sep("=", "stuck test (conftest.py's backstop)", red=True)
+        terminalreporter.write_line(dump.read_text(errors="replace"))
+        dump.unlink()
+
+
 _root_outcomes: dict[str, str] = {}
 
 
@@ -104,6 +159,7 @@ def _root_required() -> bool:
 
 
 def pytest_terminal_summary(terminalreporter: Any) -> None:
+    _print_stuck_tests(terminalreporter)
     ran, skipped = _root_counts()
     if ran or skipped:
         terminalreporter.write_line(f"root-only tests: {ran} ran, {skipped} skipped")
