@@ -210,6 +210,11 @@ def test_world_view_shows_two_robots_in_two_colours(tmp_path: Path, browser) -> 
         wait_for_text(browser, f"beta @ domain {d2}", alive=alive)
         _add_view(browser, "World", "team: every robot")
         ka, kb = f"{d1}:/alpha", f"{d2}:/beta"
+        # Until a robot's ground truth is heard its odometry is drawn unanchored (x = 1.0,
+        # not the 1.1 where truth fixes the odometry frame): await the anchored drawing.
+        wait_for(lambda: present(browser, f"world-ball-{ka}") and present(
+            browser, "world-team-ball") and present(browser, f"world-truth-{ka}") and present(
+            browser, f"world-truth-{kb}"), what="balls, team ball and ground truth", alive=alive)
         # The drawing is replaced at the display rate: read each robot's attributes at once.
         ra, rb = wait_for(lambda: (a_ := _robot_attrs(browser, ka)) and (b_ := _robot_attrs(
             browser, kb)) and (a_, b_), what="both robots drawn", alive=alive)
@@ -218,9 +223,6 @@ def test_world_view_shows_two_robots_in_two_colours(tmp_path: Path, browser) -> 
         assert float(rb["x"]) == pytest.approx(-2.9, abs=1e-3)
         assert ra["source"] == rb["source"] == "odom"
         assert ra["motion"] == rb["motion"] == "walk"
-        wait_for(lambda: present(browser, f"world-ball-{ka}") and present(
-            browser, "world-team-ball") and present(browser, f"world-truth-{kb}"),
-            what="balls, team ball and ground truth", alive=alive)
         screenshot(browser, "world_two_robots")
 
 
