@@ -240,7 +240,7 @@ class ShmTransport:
         line saying why DDS alone carries the topic."""
         why = _unfit(pub.topic.msg_type, pub.qos)
         if isinstance(why, str):
-            logger.info(f"topic {pub.topic_name}: no shared memory ({why}); DDS carries it")
+            _tell(logger, pub.topic_name, why)
             return None
         try:
             return ShmPublisher(self, pub, why, logger)
@@ -253,7 +253,7 @@ class ShmTransport:
     ) -> ShmSubscription | None:
         why = _unfit(sub.topic.msg_type, sub.qos)
         if isinstance(why, str):
-            logger.info(f"topic {sub.topic_name}: no shared memory ({why}); DDS carries it")
+            _tell(logger, sub.topic_name, why)
             return None
         try:
             return ShmSubscription(self, sub, why, logger, on_lost)
@@ -265,6 +265,17 @@ class ShmTransport:
         with self._lock:
             self._services.clear()
         self.node = None  # iceoryx2 removes the node when its last port is gone
+
+
+def _tell(logger: Logger, topic: str, why: str) -> None:
+    """The one line saying why DDS carries ``topic``: at debug level for the common case of
+    a type with nothing large in it (a String, a Twist), so a robot's many small topics do
+    not fill the log; at info level for what one might have expected to take shared memory."""
+    line = f"topic {topic}: no shared memory ({why}); DDS carries it"
+    if " 0 top-level arrays" in why:
+        logger.debug(line)
+    else:
+        logger.info(line)
 
 
 def _unfit(msg_type: type, qos: QoSProfile) -> Layout | str:
