@@ -208,7 +208,7 @@ ROSDEP_KEYS = {"yaml": "python3-yaml", "numpy": "python3-numpy", "cv2": "python3
 #: Python modules from PyPI with no rosdep key (tools/requirements.txt installs them); a
 #: package.xml cannot name them, so they are the only imports it may leave out.
 PIP_ONLY = frozenset({"mujoco", "nicegui", "fastapi", "foxglove", "websockets", "zenoh",
-                      "mcap", "mcap_ros2", "rosbags", "zstandard"})
+                      "mcap", "mcap_ros2", "rosbags", "zstandard", "iceoryx2"})
 
 
 def _imports(package: str) -> dict[str, list[str]]:

@@ -8,6 +8,8 @@ Where things live (read ARCHITECTURE.md for the why):
   ``executor`` (consecutive, one thread) over the in-process ``bus``;
 * ``testing``    a handle with no DDS and a manual clock, for users' own tests;
 * ``config``     container files; ``dds`` keeping in-process and DDS delivery apart;
+* ``shm``        large messages to same-machine processes through shared memory
+                 (``Container(shm=True)``), DDS still for everyone else;
 * ``guard``      finding callbacks that modify shared messages; ``stats`` callback timing
                  (``format_stats`` prints it), ``stats_publisher`` its topic for tools;
 * ``simtime``    simulated time from another process (``/clock``) and the lockstep barrier

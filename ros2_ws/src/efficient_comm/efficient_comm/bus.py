@@ -56,6 +56,7 @@ class LocalSubscription:
         "observer",
         "qos",
         "queue",
+        "shm",
         "stats",
         "topic",
     )
@@ -76,6 +77,7 @@ class LocalSubscription:
         self.queue: deque[tuple[Any, bytes | None, str]] = deque(maxlen=queue_limit(qos))
         self.active = True
         self.dds: Any = None  # the reader for remote publishers, if the container has DDS
+        self.shm: Any = None  # its shared-memory side (efficient_comm.shm), if any
         # Test taps: they record what is published but are nobody's demand.
         self.observer = False
 
@@ -109,6 +111,7 @@ class LocalPublisher:
         "logger",
         "name",
         "qos",
+        "shm",
         "topic",
     )
 
@@ -134,6 +137,9 @@ class LocalPublisher:
         self.dds: Any = None
         self.dds_always = False
         self.dds_matched = 0
+        # Set by the container when large messages also go through shared memory: it
+        # writes DDS too (efficient_comm.shm).
+        self.shm: Any = None
         self.closed = False
 
     @property
@@ -156,7 +162,9 @@ class LocalPublisher:
                 f"{self.topic.name} carries {self._msg_type.__name__}, "
                 f"not {type(msg).__name__}"
             )
-        if self.dds is not None and (self.dds_matched or self.dds_always):
+        if self.shm is not None:
+            self.shm.publish(msg)
+        elif self.dds is not None and (self.dds_matched or self.dds_always):
             self.dds.publish(msg)
         if self._history is not None:
             self._history.append(msg)
@@ -304,6 +312,9 @@ class Bus:
         pub.closed = True
         pub._subs = ()
         pub.dds = None
+        if pub.shm is not None:
+            pub.shm.close()
+            pub.shm = None
         topic = pub.topic
         if pub in topic.publishers:
             topic.publishers.remove(pub)

@@ -260,6 +260,8 @@ class ComposedHandle(ParameterMethods):
             )
             pub.dds_always = is_transient_local(profile)
             pub.dds_matched = pub.dds.get_subscription_count()
+            if self._container.shm is not None:
+                pub.shm = self._container.shm.publisher(pub, self._logger)
         self._publishers.append(pub)
         return pub
 
@@ -278,9 +280,13 @@ class ComposedHandle(ParameterMethods):
         if node is not None:
             # Only peers in other processes reach this reader (local endpoints are ignored).
             remote = (sub,)
+            shm = self._container.shm
+            sub.shm = shm.subscription(sub, self._logger, on_lost) if shm is not None else None
             sub.dds = node.create_subscription(
-                msg_type, name, lambda msg: executor.receive_remote(remote, msg), profile,
-                event_callbacks=lost_events(on_lost),
+                msg_type, name,
+                sub.shm.from_dds if sub.shm is not None
+                else lambda msg: executor.receive_remote(remote, msg),
+                profile, event_callbacks=lost_events(on_lost),
             )
         self._subscriptions.append(sub)
         return sub
@@ -355,6 +361,9 @@ class ComposedHandle(ParameterMethods):
 
     def _destroy_subscription(self, subscription: LocalSubscription) -> None:
         self._container.bus.remove_subscription(subscription)
+        if subscription.shm is not None:
+            subscription.shm.close()
+            subscription.shm = None
         if subscription.dds is not None and self.rclpy_node is not None:
             self.rclpy_node.destroy_subscription(subscription.dds)
             subscription.dds = None

@@ -46,6 +46,7 @@ from .dds import local_endpoints_ignored, prepare_process
 from .errors import ComponentError, ConfigError, DdsSetupError, EfficientCommError
 from .executor import ConsecutiveExecutor, GuardMode, Strategy
 from .handle import Clock, ClockKind, Logger
+from .shm import ShmTransport, enabled_from_env, threshold_from_env
 from .simtime import LockstepParticipant, follow_clock
 from .stats import StatsSnapshot
 from .stats_publisher import DEFAULT_STATS_PERIOD_S, StatsPublisher, check_stats_period
@@ -100,6 +101,8 @@ class Container(Closing):
         lockstep_flush_timeout_s: float = 5.0,
         clock_offset_s: float = 0.0,
         clock_drift_ppm: float = 0.0,
+        shm: bool | None = None,
+        shm_threshold_bytes: int | None = None,
     ) -> None:
         """``sim_time``: follow ``/clock`` from another process; ``lockstep``: run in
         lockstep with it as the named participant (implies ``sim_time``); see
@@ -107,6 +110,9 @@ class Container(Closing):
         system clock shifted and running fast by that much, as on a separate computer
         (components' ``clock`` and timers; rclpy's own stamps, such as /rosout's, keep the
         true clock). ``lockstep_flush_timeout_s`` bounds each step's wait for DDS readers.
+        ``shm``: large messages to and from other processes of this machine through shared
+        memory (default: ``EFFICIENT_COMM_SHM``), from arrays of ``shm_threshold_bytes``
+        (default: ``EFFICIENT_COMM_SHM_THRESHOLD``, else 64 KiB); see :mod:`efficient_comm.shm`.
         """
         self.name, self.namespace = check_node_name(name, namespace)
         clock = self._choose_clock(clock, dds=dds, sim_time=sim_time or lockstep is not None,
@@ -157,6 +163,9 @@ class Container(Closing):
             logger=logger,
         )
         self.bus = Bus(self.executor)
+        self.shm: ShmTransport | None = None
+        if shm if shm is not None else enabled_from_env():
+            self.shm = self._start_shm(lockstep, shm_threshold_bytes)
         self._rclpy_executor: SingleThreadedExecutor | None = None
         if self.context is not None:
             self._rclpy_executor = SingleThreadedExecutor(context=self.context)
@@ -179,6 +188,24 @@ class Container(Closing):
                 self.executor.attach_lockstep(self.lockstep)
         if stats_period_s > 0:
             self._start_stats(stats_period_s, stats_namespace)
+
+    def _start_shm(self, lockstep: str | None, threshold: int | None) -> ShmTransport | None:
+        """The shared-memory transport, or None with one log line saying why not."""
+        why = ("the container has no DDS" if self.context is None
+               else "lockstep counts a step's messages through DDS" if lockstep is not None
+               else "")
+        if not why:
+            try:
+                return ShmTransport(
+                    domain_id=self.context.get_domain_id() if self.context else 0,
+                    threshold_bytes=threshold_from_env() if threshold is None else threshold,
+                    executor=self.executor,
+                )
+            except Exception as exc:  # iceoryx2 missing, or refusing (/dev/shm, limits)
+                why = f"{type(exc).__name__}: {exc}"
+        self.logger.warning(f"container {self.name}: no shared memory ({why}); DDS carries "
+                            "every message")
+        return None
 
     def _choose_clock(
         self, clock: Clock | None, *, dds: bool, sim_time: bool, offset_s: float,
@@ -408,6 +435,9 @@ class Container(Closing):
             self.executor.detach_dds()
             self._rclpy_executor.shutdown()
             self._rclpy_executor = None
+        if self.shm is not None:
+            self.shm.close()
+            self.shm = None
         if self._node is not None:
             self._node.destroy_node()
             self._node = None

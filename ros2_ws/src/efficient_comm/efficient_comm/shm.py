@@ -1,0 +1,496 @@
+"""Large messages between efficient_comm processes on one machine, through shared memory.
+
+DDS hands a 1 MiB image from one Python process to another in milliseconds: CDR
+serialization and two full copies. This module carries the big array of such a message
+(``sensor_msgs/Image``'s ``data``, ``PointCloud2``'s, ``CompressedImage``'s, a
+``Float32MultiArray``'s: any message with exactly one top-level sequence of numbers)
+through iceoryx2's zero-copy publish-subscribe instead. The publisher copies the array once
+into a loaned chunk, next to the rest of the message in CDR (small: header, sizes,
+encoding); each subscribing process reads the chunk in place: the message it gets holds a
+read-only numpy array over the shared chunk, and the chunk stays its until the last
+reference to that array is gone (iceoryx2 never reuses a chunk a reader holds).
+
+Turned on per container (``Container(shm=True)``) or for every container of a process by
+``EFFICIENT_COMM_SHM=1``; ``shm_threshold_bytes`` (``EFFICIENT_COMM_SHM_THRESHOLD``) is the
+array size from which a message takes this path. Components see nothing of it: the node
+handle's API is the same.
+
+**Exactly once.** DDS stays: discovery, other machines, plain rclpy nodes and the ``ros2``
+tools. So a subscriber in a process with the transport has both a DDS reader and a
+shared-memory subscriber, and must not get a message over both. The publisher writes the
+DDS copy only while DDS has matched more readers than shared memory serves (a plain peer
+listens); when it writes it, it notes the DDS sequence number and the wall-clock window of
+the write in the chunk's header. A subscriber drops the DDS sample with that sequence
+number and a source timestamp inside that window (or, if the DDS copy came first, the
+chunk). Messages below the threshold go over DDS alone, and are delivered from there.
+
+**Loss.** Every chunk carries its publisher's sequence number; a gap (a slow reader whose
+queue overflowed: the publisher never waits for one) is counted in the subscription's
+``dropped`` statistic and told to ``on_lost``, as DDS's losses are.
+
+**Crashes.** A process killed with SIGKILL leaves its shared-memory files behind; the next
+iceoryx2 node created on the machine (any container with the transport) removes them. The
+publisher never blocks on a reader (iceoryx2's safe overflow), so a dead reader stalls
+nobody; a dead publisher's chunks a reader still holds stay readable.
+
+**Fallbacks**, each said once in the endpoint's log: a type without exactly one array of
+numbers, a transient-local publisher (DDS keeps the history for late joiners), a lockstep
+container (a step's messages are counted through DDS's acknowledgements), iceoryx2 missing
+or failing: DDS carries the topic, as without the transport. Publishers and subscribers
+pair up only with the same message type, reliability and DDS domain.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import functools
+import itertools
+import os
+import secrets
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+
+from ._qos import is_transient_local
+from .typenames import type_name
+
+if TYPE_CHECKING:
+    from .bus import LocalPublisher, LocalSubscription
+    from .executor import ConsecutiveExecutor
+    from .handle import Logger
+
+SHM_ENV = "EFFICIENT_COMM_SHM"
+THRESHOLD_ENV = "EFFICIENT_COMM_SHM_THRESHOLD"
+#: Arrays from this size take shared memory: below it, DDS costs little more.
+DEFAULT_THRESHOLD_BYTES = 64 * 1024
+
+# Per service: a few publishers (one per process, usually one), a few subscribing processes,
+# each keeping up to _BUFFER unread chunks and holding up to _BORROWED. The data segment
+# is about max_subscribers x (buffer + borrowed) chunks of the largest message, sparse.
+_MAX_PUBLISHERS = 4
+_MAX_SUBSCRIBERS = 4
+_BUFFER = 2
+_BORROWED = 4
+_INITIAL_SLICE = 64 * 1024
+_ALIGN = 16
+# How long a subscriber remembers DDS copies it may still have to drop (or did deliver).
+_REMEMBER = 64
+_WAKE_MS = 500
+
+# rosidl's basic types -> numpy dtypes (the array field's element type).
+_DTYPES = {
+    "octet": np.uint8, "uint8": np.uint8, "int8": np.int8, "char": np.uint8,
+    "uint16": np.uint16, "int16": np.int16, "uint32": np.uint32, "int32": np.int32,
+    "uint64": np.uint64, "int64": np.int64, "float": np.float32, "double": np.float64,
+}
+
+
+def enabled_from_env() -> bool:
+    """Whether ``EFFICIENT_COMM_SHM`` turns the transport on for containers that do not say."""
+    return os.environ.get(SHM_ENV, "").lower() in ("1", "true", "yes", "on")
+
+
+def threshold_from_env() -> int:
+    value = os.environ.get(THRESHOLD_ENV, "")
+    try:
+        return max(0, int(value)) if value else DEFAULT_THRESHOLD_BYTES
+    except ValueError:
+        return DEFAULT_THRESHOLD_BYTES
+
+
+class _Header(ctypes.Structure):
+    """What travels next to every chunk (iceoryx2's user header)."""
+
+    _fields_ = (
+        ("publisher", ctypes.c_uint64),  # random per publisher: whose sequence `seq` is
+        ("pid", ctypes.c_uint64),  # the publishing process (its own subscribers skip it)
+        ("seq", ctypes.c_uint64),  # 1, 2, 3, ... per publisher: gaps are losses
+        ("dds_seq", ctypes.c_uint64),  # DDS's sequence number of the DDS copy, 0: none
+        ("dds_t0", ctypes.c_int64),  # wall-clock window of the DDS write (its source stamp)
+        ("dds_t1", ctypes.c_int64),
+        ("meta_len", ctypes.c_uint32),  # CDR bytes of the message without its array
+        ("array_offset", ctypes.c_uint32),
+    )
+
+    @staticmethod
+    def type_name() -> str:  # iceoryx2 matches both sides' header types by this name
+        return "efficient_comm.ShmHeader.1"
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where a message type keeps its big array: the field and its element type."""
+
+    field: str
+    dtype: np.dtype[Any]
+
+
+def layout(msg_type: type) -> Layout | str:
+    """The type's one top-level array of numbers, or why it does not fit."""
+    from rosidl_parser.definition import (  # type: ignore[import-untyped]
+        BasicType,
+        UnboundedSequence,
+    )
+
+    fields = list(getattr(msg_type, "get_fields_and_field_types", dict)())
+    slots = getattr(msg_type, "SLOT_TYPES", ())
+    arrays = [
+        (name, slot.value_type.typename)
+        for name, slot in zip(fields, slots, strict=False)
+        if isinstance(slot, UnboundedSequence) and isinstance(slot.value_type, BasicType)
+        and slot.value_type.typename in _DTYPES
+    ]
+    if len(arrays) != 1:
+        return (f"{type_name(msg_type)} has {len(arrays)} top-level arrays of numbers "
+                "(shared memory carries types with exactly one)")
+    name, element = arrays[0]
+    return Layout(name, np.dtype(_DTYPES[element]))
+
+
+class _Chunk:
+    """A received sample, alive as long as any array over it (views do not keep it)."""
+
+    __slots__ = ("_transport", "sample")
+
+    def __init__(self, sample: Any, transport: ShmTransport) -> None:
+        self.sample = sample
+        self._transport = transport
+        transport.held += 1
+
+    def __del__(self) -> None:
+        self._transport.held -= 1
+        self.sample.delete()
+
+
+@functools.lru_cache(maxsize=64)
+def _bytes_type(n: int) -> type[ctypes.Array[ctypes.c_uint8]]:
+    """A ctypes byte array type of length ``n`` that can carry the chunk it maps."""
+    return type(f"ShmBytes{n}", (ctypes.c_uint8 * n,), {})
+
+
+def _view(chunk: _Chunk, address: int, nbytes: int, dtype: np.dtype[Any]) -> np.ndarray:
+    raw = _bytes_type(nbytes).from_address(address)
+    raw.chunk = chunk  # type: ignore[attr-defined]  # the array's base keeps the sample
+    array: np.ndarray = np.frombuffer(memoryview(raw), dtype=dtype)
+    array.flags.writeable = False  # the mapping is read-only: a write would crash
+    return array
+
+
+class ShmTransport:
+    """One process's (one container's) iceoryx2 node and its endpoints."""
+
+    def __init__(self, *, domain_id: int, threshold_bytes: int,
+                 executor: ConsecutiveExecutor) -> None:
+        import iceoryx2 as iox2
+
+        iox2.set_log_level(iox2.LogLevel.Error)  # not its "no config file" warning
+        self.iox2 = iox2
+        self.domain_id = domain_id
+        self.threshold_bytes = threshold_bytes
+        self.executor = executor
+        self.held = 0  # chunks held by messages in this process
+        # Creating a node removes what processes killed earlier left behind.
+        self.node = (iox2.NodeBuilder.new()
+                     .signal_handling_mode(iox2.SignalHandlingMode.Disabled)
+                     .create(iox2.ServiceType.Ipc))
+        self._services: dict[str, tuple[Any, Any]] = {}
+        self._local_subs: dict[str, int] = {}  # service -> this process's shm subscribers
+        self._lock = threading.Lock()
+
+    def service_name(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
+        reliability = "r" if qos.reliability == ReliabilityPolicy.RELIABLE else "b"
+        return f"efficient_comm/{self.domain_id}/{reliability}/{type_name(msg_type)}{topic}"
+
+    def services(self, name: str) -> tuple[Any, Any]:
+        """The publish-subscribe and the event service of ``name`` (opened once)."""
+        with self._lock:
+            found = self._services.get(name)
+            if found is None:
+                iox2 = self.iox2
+                service_name = iox2.ServiceName.new(name)
+                pubsub = (self.node.service_builder(service_name)
+                          .publish_subscribe(iox2.Slice[ctypes.c_uint8])
+                          .user_header(_Header)
+                          .max_publishers(_MAX_PUBLISHERS).max_subscribers(_MAX_SUBSCRIBERS)
+                          .subscriber_max_buffer_size(_BUFFER)
+                          .subscriber_max_borrowed_samples(_BORROWED)
+                          .history_size(0).enable_safe_overflow(True)
+                          .open_or_create())
+                event = self.node.service_builder(service_name).event().open_or_create()
+                found = self._services[name] = (pubsub, event)
+            return found
+
+    def local_subscribers(self, name: str) -> int:
+        return self._local_subs.get(name, 0)
+
+    def _count_local(self, name: str, change: int) -> None:
+        with self._lock:
+            self._local_subs[name] = self._local_subs.get(name, 0) + change
+
+    def publisher(self, pub: LocalPublisher, logger: Logger) -> ShmPublisher | None:
+        """The shared-memory side of ``pub`` (which has a DDS writer), or None with a log
+        line saying why DDS alone carries the topic."""
+        why = _unfit(pub.topic.msg_type, pub.qos)
+        if isinstance(why, str):
+            _tell(logger, pub.topic_name, why)
+            return None
+        try:
+            return ShmPublisher(self, pub, why, logger)
+        except Exception as exc:  # iceoryx2 refusing (e.g. /dev/shm full)
+            logger.warning(f"topic {pub.topic_name}: no shared memory ({exc}); DDS carries it")
+            return None
+
+    def subscription(
+        self, sub: LocalSubscription, logger: Logger, on_lost: Callable[[int], None] | None,
+    ) -> ShmSubscription | None:
+        why = _unfit(sub.topic.msg_type, sub.qos)
+        if isinstance(why, str):
+            _tell(logger, sub.topic_name, why)
+            return None
+        try:
+            return ShmSubscription(self, sub, why, logger, on_lost)
+        except Exception as exc:
+            logger.warning(f"topic {sub.topic_name}: no shared memory ({exc}); DDS carries it")
+            return None
+
+    def close(self) -> None:
+        with self._lock:
+            self._services.clear()
+        self.node = None  # iceoryx2 removes the node when its last port is gone
+
+
+def _tell(logger: Logger, topic: str, why: str) -> None:
+    """The one line saying why DDS carries ``topic``: at debug level for the common case of
+    a type with nothing large in it (a String, a Twist), so a robot's many small topics do
+    not fill the log; at info level for what one might have expected to take shared memory."""
+    line = f"topic {topic}: no shared memory ({why}); DDS carries it"
+    if " 0 top-level arrays" in why:
+        logger.debug(line)
+    else:
+        logger.info(line)
+
+
+def _unfit(msg_type: type, qos: QoSProfile) -> Layout | str:
+    if is_transient_local(qos):
+        return "transient local: DDS keeps the history for late joiners"
+    return layout(msg_type)
+
+
+class ShmPublisher:
+    """Writes a publisher's large messages to shared memory (and DDS while a plain peer
+    listens); called from :meth:`LocalPublisher.publish` instead of its DDS write."""
+
+    def __init__(self, transport: ShmTransport, pub: LocalPublisher, fit: Layout,
+                 logger: Logger) -> None:
+        self._transport = transport
+        self._pub = pub
+        self._layout = fit
+        self._logger = logger
+        self.name = transport.service_name(pub.topic_name, pub.topic.msg_type, pub.qos)
+        pubsub, event = transport.services(self.name)
+        iox2 = transport.iox2
+        self._pubsub = pubsub
+        self._port = (pubsub.publisher_builder()
+                      .initial_max_slice_len(_INITIAL_SLICE)
+                      .allocation_strategy(iox2.AllocationStrategy.PowerOfTwo)
+                      .create())
+        self._notifier = event.notifier_builder().create()
+        self._id = secrets.randbits(63)
+        self._pid = os.getpid()
+        self._seq = itertools.count(1)
+        self._dds_seq = 0  # DDS's sequence number of our last DDS write (it counts from 1)
+        self._empty = pub.topic.msg_type()
+        self._warned = False
+        self._subscribers = 0  # what the port was last connected to
+
+    def publish(self, msg: Any) -> None:
+        pub = self._pub
+        dds = pub.dds
+        array = getattr(msg, self._layout.field)
+        data = memoryview(array).cast("B") if not isinstance(array, list) else None
+        subscribers = self._pubsub.dynamic_config.number_of_subscribers
+        if subscribers != self._subscribers:  # connect new readers before this send
+            self._subscribers = subscribers
+            self._port.update_connections()
+        remote = subscribers - self._transport.local_subscribers(self.name)
+        if data is None or data.nbytes < self._transport.threshold_bytes or remote <= 0:
+            if dds is not None and pub.dds_matched:
+                dds.publish(msg)
+                self._dds_seq += 1
+            return
+        try:
+            self._send(msg, data, write_dds=dds is not None and pub.dds_matched > remote)
+        except Exception as exc:  # a loan refused: the message still goes over DDS
+            if not self._warned:
+                self._warned = True
+                self._logger.warning(
+                    f"topic {pub.topic_name}: shared memory refused a message of "
+                    f"{data.nbytes} bytes ({exc}); DDS carries such messages")
+            if dds is not None and pub.dds_matched:
+                dds.publish(msg)
+                self._dds_seq += 1
+
+    def _send(self, msg: Any, data: memoryview, *, write_dds: bool) -> None:
+        meta = self._meta(msg)
+        offset = -(-len(meta) // _ALIGN) * _ALIGN
+        sample = self._port.loan_slice_uninit(offset + data.nbytes)
+        base = sample.payload_ptr
+        ctypes.memmove(base, meta, len(meta))
+        target = np.frombuffer(memoryview(_bytes_type(data.nbytes).from_address(base + offset)),
+                               dtype=np.uint8)
+        target[:] = np.frombuffer(data, dtype=np.uint8)  # the one copy
+        header = _Header.from_address(sample.user_header_ptr)
+        header.publisher, header.pid, header.seq = self._id, self._pid, next(self._seq)
+        header.meta_len, header.array_offset = len(meta), offset
+        header.dds_seq = header.dds_t0 = header.dds_t1 = 0
+        if write_dds:
+            dds = self._pub.dds
+            header.dds_t0 = time.time_ns()
+            dds.publish(msg)
+            header.dds_t1 = time.time_ns()
+            self._dds_seq += 1
+            header.dds_seq = self._dds_seq
+        sample.assume_init().send()
+        self._notifier.notify()
+
+    def _meta(self, msg: Any) -> bytes:
+        """The message without its array, in CDR (its fields shared, not copied)."""
+        empty = self._empty
+        for name in msg.get_fields_and_field_types():
+            if name != self._layout.field:
+                setattr(empty, name, getattr(msg, name))
+        return bytes(serialize_message(empty))
+
+    def close(self) -> None:
+        self._notifier.delete()
+        self._port.delete()
+
+
+class ShmSubscription:
+    """Receives a subscription's large messages from shared memory and keeps the DDS
+    copies of them out (see the module docstring)."""
+
+    def __init__(self, transport: ShmTransport, sub: LocalSubscription, fit: Layout,
+                 logger: Logger, on_lost: Callable[[int], None] | None) -> None:
+        self._transport = transport
+        self._sub = sub
+        self._remote = (sub,)
+        self._layout = fit
+        self._logger = logger
+        self._on_lost = on_lost
+        self._msg_type = sub.topic.msg_type
+        self.name = transport.service_name(sub.topic_name, self._msg_type, sub.qos)
+        pubsub, event = transport.services(self.name)
+        depth = sub.queue.maxlen or _BUFFER
+        self._port = pubsub.subscriber_builder().buffer_size(min(depth, _BUFFER)).create()
+        transport._count_local(self.name, 1)
+        self._listener = event.listener_builder().create()
+        self._waker = event.notifier_builder().create()  # ends the waiter on close
+        self._last: dict[int, int] = {}  # publisher -> last sequence number
+        self._expected: deque[tuple[int, int, int]] = deque(maxlen=_REMEMBER)  # DDS copies
+        self._delivered: deque[tuple[int, int]] = deque(maxlen=_REMEMBER)  # from DDS
+        self._pid = os.getpid()
+        self._pending = False
+        self._running = True
+        self._thread = threading.Thread(target=self._wait, daemon=True,
+                                        name=f"shm {sub.topic_name}")
+        self._thread.start()
+        transport.executor.post(self.drain)  # a first receive connects the port
+
+    # -- the waiter thread ---------------------------------------------------------------
+
+    def _wait(self) -> None:
+        """Block on the event (the GIL released) and have the executor drain the port."""
+        timeout = self._transport.iox2.Duration.from_millis(_WAKE_MS)
+        while self._running:
+            try:
+                woken = self._listener.timed_wait(timeout)
+            except Exception:
+                return
+            if woken and self._running and not self._pending:
+                self._pending = True
+                self._transport.executor.post(self.drain)
+
+    # -- the executor thread -------------------------------------------------------------
+
+    def drain(self) -> None:
+        """Deliver every chunk waiting (executor thread)."""
+        self._pending = False
+        while self._running:
+            sample = self._port.receive()
+            if sample is None:
+                return
+            msg = self._decode(sample)
+            if msg is not None:
+                self._transport.executor.receive_remote(self._remote, msg)
+
+    def _decode(self, sample: Any) -> Any | None:
+        header = _Header.from_address(sample.user_header_ptr)
+        if header.pid == self._pid:
+            sample.delete()  # our own process: the bus delivered it by reference
+            return None
+        last = self._last.get(header.publisher)
+        if last is not None and header.seq > last + 1:
+            self._lost(header.seq - last - 1)
+        self._last[header.publisher] = header.seq
+        if header.dds_seq:
+            copy = (header.dds_seq, header.dds_t0, header.dds_t1)
+            if any(seq == copy[0] and copy[1] <= stamp <= copy[2]
+                   for seq, stamp in self._delivered):
+                sample.delete()  # DDS was first: delivered already
+                return None
+            self._expected.append(copy)
+        base = sample.payload_ptr
+        msg = deserialize_message(ctypes.string_at(base, header.meta_len), self._msg_type)
+        nbytes = sample.header.number_of_elements - header.array_offset
+        transport = self._transport
+        chunk = _Chunk(sample, transport)
+        array = _view(chunk, base + header.array_offset, nbytes, self._layout.dtype)
+        if transport.held >= _BORROWED:
+            # The process holds as many chunks as it may borrow: copy this one out, so that
+            # the next receive succeeds (a component keeping every image, say).
+            array = array.copy()
+            array.flags.writeable = False
+        del chunk
+        setattr(msg, "_" + self._layout.field, array)  # the setter would copy it
+        return msg
+
+    def _lost(self, count: int) -> None:
+        self._sub.stats.dropped += count
+        if self._on_lost is not None:
+            self._on_lost(count)
+
+    def from_dds(self, msg: Any, info: Any) -> None:
+        """The DDS reader's callback: deliver unless shared memory carries this message.
+
+        What shared memory holds is delivered first: a publisher's earlier chunks were sent
+        before this DDS sample was written, so the order stays the publisher's, and a chunk
+        announcing this very sample's DDS copy is seen before the sample.
+        """
+        self.drain()
+        seq = info.get("publication_sequence_number", 0) if isinstance(info, dict) else 0
+        stamp = info.get("source_timestamp", 0) if isinstance(info, dict) else 0
+        for copy in self._expected:
+            if copy[0] == seq and copy[1] <= stamp <= copy[2]:
+                self._expected.remove(copy)
+                return
+        self._delivered.append((seq, stamp))
+        self._transport.executor.receive_remote(self._remote, msg)
+
+    def close(self) -> None:
+        self._running = False
+        with contextlib.suppress(Exception):  # the event service may be gone already
+            self._waker.notify()
+        self._thread.join(timeout=2 * _WAKE_MS / 1000)
+        self._transport._count_local(self.name, -1)
+        self._waker.delete()
+        self._listener.delete()
+        self._port.delete()
