@@ -1,27 +1,30 @@
 """What the team match costs: CPU per robot split into physics, rendering, bus emulation and
-robot software, and the real-time factor, for 1, 3 and 6 robots in real time.
+robot software, and the real-time factor, for 1, 3 and 6 robots, in real time and in lockstep.
 
 Each run is the match as a user starts it (``python -m humanoid_sim.match --robots R
---duration D``: one world process, one process per robot), for ``1v0`` (one robot in the
-match's processes), ``3`` (one team) and ``3v3``, ``--repeat`` times interleaved, so drifting
-machine load hits all sizes alike; medians printed. It reads the match's report:
+--duration D [--lockstep]``: one world process, one process per robot), for ``1v0`` (one
+robot in the match's processes), ``3`` (one team) and ``3v3``, each in real time (``D`` wall
+seconds) and in lockstep (``--lockstep-duration`` simulated seconds), ``--repeat`` times
+interleaved, so drifting machine load hits all sizes alike; medians printed. It reads the
+match's report:
 
 * the world process's CPU split (``World CPU s``: physics, render with the rasteriser's
-  threads, bus emulation, the rest: DDS sensor links, referee) divided by the robots;
+  threads, bus emulation, the rest: DDS sensor links, referee, the barrier) divided by the
+  robots;
 * each robot process's CPU (its software: driver, vision, behaviour, walk, team link,
-  recorder, the camera and IMU it takes from DDS);
+  recorder, the camera and IMU it takes from DDS, its end of the barrier);
 * the real-time factor, the world's tick rate and the IMU rate each robot heard (a starved
   robot hears fewer than the world sends, and falls), falls.
 
-CPU is given in ms a second per robot: physics, render and the world's rest per simulated
-second (they follow the world's steps), bus emulation and robot software per wall second
-(they follow the robots' wall-clock timers: a world slowed to a real-time factor of 0.1
-does not make a robot cheaper); so the sum is what a robot needs at real time (1000 = one
-core), and ratios are against the one-robot match of the same run.
-Lockstep in the match is not measured here (``bench/world_bench.py`` and
-``bench/lockstep_bench.py`` measure the world and the barrier). Run:
-``source scripts/env.sh && python bench/match_bench.py`` (``--quick``: one short one-robot
-match, a smoke test).
+CPU is given in ms per simulated second per robot (1000 = one core at real time). In real
+time, physics, render and the world's rest follow the world's steps (per simulated second),
+bus emulation and robot software the robots' wall-clock timers (per wall second: a world
+slowed to a real-time factor of 0.1 does not make a robot cheaper), so the sum is what a
+robot needs at real time. In lockstep everything follows the steps: the robots' CPU is
+their share of a core divided by the world's steps a wall second, which, unlike the
+real-time factor, hardly depends on the machine's load. Ratios are against the one-robot
+real-time match of the same run. Run: ``source scripts/env.sh && python
+bench/match_bench.py`` (``--quick``: one short one-robot match each way, a smoke test).
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "bench" / "out" / "match_bench.json"
 SIZES = {"1v0": 1, "3": 3, "3v3": 6}
 PARTS = ("physics", "render", "bus", "world_other", "robot_software")
+STEP_HZ = 100.0  # the match world's physics steps a simulated second
 
 _WORLD_CPU = re.compile(r"World CPU s: physics ([\d.]+), render ([\d.]+), bus ([\d.]+), "
                         r"other ([\d.]+); ticks (\d+)")
@@ -49,7 +53,7 @@ _IMU = re.compile(r"ticks ([\d.]+), one message per robot each\) and CPU % of a 
 _ROW = re.compile(r"^\| (\w+) \| ([^|]+) \|(?:[^|]*\|){3} (\d+) \|(?:[^|]*\|){3} (\d+) \|$")
 
 
-def parse_report(text: str, robots: int) -> dict[str, Any]:
+def parse_report(text: str, robots: int, *, lockstep: bool = False) -> dict[str, Any]:
     """The figures of one match report; ValueError if it lacks one."""
     times, cpu, imu = _TIMES.search(text), _WORLD_CPU.search(text), _IMU.search(text)
     if not (times and cpu and imu):
@@ -64,12 +68,16 @@ def parse_report(text: str, robots: int) -> dict[str, Any]:
     if sim <= 0 or rtf <= 0 or len(robot) != robots:
         raise ValueError(f"the match did not run (no simulated time, or robots not ready):"
                          f"\n{text}")
+    share = sum(float(pct) / 100 for _, _, pct in robot)  # of a core, since ready
     per_robot = {
-        "physics": float(cpu[1]), "render": float(cpu[2]), "bus": float(cpu[3]) * rtf,
+        "physics": float(cpu[1]), "render": float(cpu[2]),
+        "bus": float(cpu[3]) * (1.0 if lockstep else rtf),
         "world_other": float(cpu[4]),
-        # Wall-clock driven (robots' timers, their drivers' packets the bus answers): per
-        # wall second, i.e. per simulated second at real time, whatever the world's pace.
-        "robot_software": sum(float(pct) / 100 for _, _, pct in robot) * sim,
+        # Real time: wall-clock driven (robots' timers, their drivers' packets the bus
+        # answers): per wall second, i.e. per simulated second at real time, whatever the
+        # world's pace. Lockstep: per step, the world's steps a wall second being its ticks.
+        "robot_software": (share / float(imu[1]) * STEP_HZ * sim if lockstep
+                           else share * sim),
     }
     return {
         "wall_s": wall, "sim_s": sim, "rtf": rtf, "ticks": int(cpu[5]),
@@ -82,19 +90,21 @@ def parse_report(text: str, robots: int) -> dict[str, Any]:
     }
 
 
-def run_match(robots: str, *, duration_s: float, camera_hz: float) -> dict[str, Any]:
+def run_match(robots: str, *, duration_s: float, camera_hz: float, lockstep: bool = False
+              ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="match_bench_") as tmp:
         report = Path(tmp, "report.md")
         load = os.getloadavg()[0]
         subprocess.run(
             [sys.executable, "-m", "humanoid_sim.match", "--robots", robots, "--duration",
              str(duration_s), "--camera-hz", str(camera_hz), "--stats-period", "5",
-             "--out-dir", tmp, "--report", str(report)],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=duration_s + 300,
-            check=False)
+             "--ready-s", "1", "--out-dir", tmp, "--report", str(report)]
+            + (["--lockstep"] if lockstep else []),
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            timeout=duration_s * (300 if lockstep else 1) + 300, check=False)
         if not report.exists():
             raise SystemExit(f"match_bench: the match ({robots}) wrote no report")
-        figures = parse_report(report.read_text(), SIZES[robots])
+        figures = parse_report(report.read_text(), SIZES[robots], lockstep=lockstep)
     figures["load"] = (load, os.getloadavg()[0])
     return figures
 
@@ -102,50 +112,63 @@ def run_match(robots: str, *, duration_s: float, camera_hz: float) -> dict[str, 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--duration", type=float, default=40.0, help="wall seconds per match")
+    ap.add_argument("--duration", type=float, default=40.0,
+                    help="wall seconds per real-time match")
+    ap.add_argument("--lockstep-duration", type=float, default=4.0,
+                    help="simulated seconds per lockstep match (0: no lockstep runs)")
     ap.add_argument("--camera-hz", type=float, default=30.0)
     ap.add_argument("--sizes", default=",".join(SIZES),
                     help=f"--robots values, comma-separated (default {','.join(SIZES)})")
-    ap.add_argument("--quick", action="store_true", help="one short one-robot match")
+    ap.add_argument("--quick", action="store_true",
+                    help="one short one-robot match in real time and one in lockstep")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = ap.parse_args()
     sizes = args.sizes.split(",")
     if args.quick:
-        args.repeat, args.duration, sizes = 1, 45.0, ["1v0"]
+        args.repeat, args.duration, args.lockstep_duration, sizes = 1, 45.0, 1.0, ["1v0"]
     unknown = [s for s in sizes if s not in SIZES]
     if unknown:
         ap.error(f"--sizes: {', '.join(unknown)} not among {', '.join(SIZES)}")
-    runs: dict[str, list[dict[str, Any]]] = {s: [] for s in sizes}
+    kinds = [(size, False) for size in sizes]
+    if args.lockstep_duration > 0:
+        kinds += [(size, True) for size in sizes]
+    runs: dict[str, list[dict[str, Any]]] = {_key(*k): [] for k in kinds}
     for _ in range(args.repeat):  # interleaved
-        for size in sizes:
-            runs[size].append(run_match(size, duration_s=args.duration,
-                                        camera_hz=args.camera_hz))
+        for size, lockstep in kinds:
+            runs[_key(size, lockstep)].append(run_match(
+                size, duration_s=args.lockstep_duration if lockstep else args.duration,
+                camera_hz=args.camera_hz, lockstep=lockstep))
 
-    def med(size: str, key: str) -> float:
-        return float(statistics.median(r[key] for r in runs[size]))
+    def med(key: str, part: str) -> float:
+        return float(statistics.median(r[part] for r in runs[key]))
 
-    base = sizes[0]
+    base = _key(sizes[0], False)
     loads = [x for rs in runs.values() for r in rs for x in r["load"]]
-    print(f"medians of {args.repeat} run(s) of {args.duration:g} s, cameras at "
-          f"{args.camera_hz:g} Hz, real time; load average {min(loads):.1f} to "
-          f"{max(loads):.1f}; CPU ms a second per robot (physics, render, world other: per "
-          f"simulated s; bus, robot software: per wall s; 1000 = one core), ratio against "
-          f"--robots {base}")
+    print(f"medians of {args.repeat} run(s) (real time: {args.duration:g} s wall; lockstep: "
+          f"{args.lockstep_duration:g} s simulated), cameras at {args.camera_hz:g} Hz; load "
+          f"average {min(loads):.1f} to {max(loads):.1f}; CPU ms per simulated second per "
+          f"robot (real time: bus and robot software per wall s; 1000 = one core), ratio "
+          f"against {base}")
     print("robots | physics | render | bus | world other | robot software | total (x) | "
           "RTF | world ticks Hz | IMU heard Hz (lowest) | falls")
     summary: dict[str, Any] = {}
-    for size in sizes:
-        row = {k: med(size, k) for k in (*PARTS, "rtf", "tick_hz", "imu_hz_min", "falls")}
+    base_total = sum(med(base, k) for k in PARTS)
+    for key in runs:
+        row = {k: med(key, k) for k in (*PARTS, "rtf", "tick_hz", "imu_hz_min", "falls")}
         row["total"] = sum(row[k] for k in PARTS)
-        base_total = sum(med(base, k) for k in PARTS)
         row["total_ratio"] = row["total"] / base_total if base_total else 0.0
-        summary[size] = row
-        print(f"{size:>6} | " + " | ".join(f"{row[k]:6.0f}" for k in PARTS)
+        summary[key] = row
+        print(f"{key:>12} | " + " | ".join(f"{row[k]:6.0f}" for k in PARTS)
               + f" | {row['total']:6.0f} ({row['total_ratio']:.2f}) | {row['rtf']:.2f} | "
               f"{row['tick_hz']:5.1f} | {row['imu_hz_min']:5.1f} | {row['falls']:g}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"summary": summary, "runs": runs}, indent=1))
     return 0
+
+
+def _key(size: str, lockstep: bool) -> str:
+    """A row's name: the --robots value, and " lockstep" for lockstep runs."""
+    return f"{size} lockstep" if lockstep else size
 
 
 if __name__ == "__main__":

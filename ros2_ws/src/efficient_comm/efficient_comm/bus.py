@@ -245,6 +245,12 @@ class Bus:
     def topics(self) -> dict[str, type]:
         return {name: t.msg_type for name, t in self._topics.items()}
 
+    def dds_readers(self) -> list[Any]:
+        """The DDS reader (rclpy subscription) of every subscription that has one, by topic
+        name: what a lockstep intake takes from (:mod:`efficient_comm.simtime`)."""
+        return [sub.dds for name in sorted(self._topics)
+                for sub in self._topics[name].subscriptions if sub.dds is not None]
+
     def publisher_qos(self, name: str) -> list[QoSProfile]:
         """The QoS profiles of this process's publishers on topic ``name`` (none: ``[]``).
 

@@ -180,12 +180,13 @@ class Container(Closing):
                 serve_container(self, self._node)
         self.lockstep: LockstepParticipant | None = None
         if isinstance(clock, SimClock) and self._node is not None:
-            follow_clock(self._node, clock, reliable=lockstep is not None)
-            if lockstep is not None:
+            if lockstep is not None:  # /clock on the barrier's own node
                 self.lockstep = LockstepParticipant(
-                    self, lockstep, flush_timeout_s=lockstep_flush_timeout_s
+                    self, lockstep, clock=clock, flush_timeout_s=lockstep_flush_timeout_s
                 )
                 self.executor.attach_lockstep(self.lockstep)
+            else:
+                follow_clock(self._node, clock, reliable=False)
         if stats_period_s > 0:
             self._start_stats(stats_period_s, stats_namespace)
 
@@ -400,6 +401,8 @@ class Container(Closing):
                 writer = pub.dds
                 if writer is None or pub.qos.reliability != ReliabilityPolicy.RELIABLE:
                     continue
+                if not (pub.dds_matched or pub.dds_always):
+                    continue  # it wrote nothing to DDS: nobody outside matched it
                 left = max(0.0, end - time.monotonic())
                 if not writer.wait_for_all_acked(Duration(nanoseconds=round(left * 1e9))):
                     late.append(name)
@@ -431,6 +434,9 @@ class Container(Closing):
                 self._rclpy_executor.remove_node(node)
             self._stats_handle.close()
             self._stats_handle = None
+        if self.lockstep is not None:
+            self.executor.detach_lockstep()
+            self.lockstep.close()
         if self._rclpy_executor is not None:
             self.executor.detach_dds()
             self._rclpy_executor.shutdown()

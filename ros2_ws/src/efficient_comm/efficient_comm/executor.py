@@ -231,6 +231,10 @@ class ConsecutiveExecutor:
             raise ExecutorError("lockstep needs an executor on a SimClock")
         self._lockstep = participant
 
+    def detach_lockstep(self) -> None:
+        """Stop waiting on the barrier (the container is leaving DDS)."""
+        self._lockstep = None
+
     @property
     def clock_kind(self) -> ClockKind:
         """"manual" on a :class:`ManualClock` (time moves in :meth:`advance`), "sim" on a
@@ -452,12 +456,23 @@ class ConsecutiveExecutor:
         return timers[0][0] if timers else None
 
     def _wake(self) -> None:
+        if self._lockstep is not None and self._lockstep.joined:
+            self._lockstep.wake()
         if self._dds_wake is not None:
             self._dds_wake()
         else:
             self._wake_event.set()
 
     def _wait(self, timeout_s: float) -> None:
+        lockstep = self._lockstep
+        if lockstep is not None and lockstep.joined and self._dds is not None:
+            # The barrier's rounds on their own small wait set; the rest of DDS (services,
+            # events; the composed readers are taken at intake) in a poll now and then.
+            lockstep.wait(timeout_s)
+            if time.monotonic_ns() - self._last_dds_poll > self._dds_poll_interval:
+                self._run_dds_ready(self._dds, 0.0)
+                self._last_dds_poll = time.monotonic_ns()
+            return
         if self._dds is not None:
             self._run_dds_ready(self._dds, timeout_s)
             self._last_dds_poll = time.monotonic_ns()
@@ -616,18 +631,14 @@ class ConsecutiveExecutor:
         did = False
         if lockstep.intake_due is not None:
             t, lockstep.intake_due = lockstep.intake_due, None
-            self.take_dds()  # every step's message is in a DDS cache by now: take it
-            # Topic by topic (by name), each topic's messages in arrival order.
-            batch = sorted(
-                (subs[0].topic.name, seq, subs, msg)
-                for subs, held in self._held.values() for seq, msg in held
-            )
-            self._held.clear()
-            self._inbox.extend((subs, msg) for _, _, subs, msg in batch)
+            self._intake(lockstep, t)
             lockstep.done_intake(t)
             did = True
         target = clock.target_ns
         if target > clock.now_ns():
+            if lockstep.last_intake_ns < clock.now_ns():
+                # One round (the coordinator's only participant): /clock is the intake too.
+                self._intake(lockstep, clock.now_ns())
             inbox, self._inbox = self._inbox, []
             for subs, msg in inbox:
                 if subs[0].active:  # not unsubscribed meanwhile
@@ -637,6 +648,19 @@ class ConsecutiveExecutor:
             lockstep.done_step(target)
             did = True
         return did
+
+    def _intake(self, lockstep: LockstepParticipant, t_ns: int) -> None:
+        """The intake round: every step's message is in a DDS cache by now: take it, and
+        put what was held into the inbox, topic by topic (by name), each topic's messages
+        in arrival order."""
+        lockstep.take()
+        batch = sorted(
+            (subs[0].topic.name, seq, subs, msg)
+            for subs, held in self._held.values() for seq, msg in held
+        )
+        self._held.clear()
+        self._inbox.extend((subs, msg) for _, _, subs, msg in batch)
+        lockstep.last_intake_ns = t_ns
 
     def take_dds(self) -> int:
         """Run every DDS callback that is ready now, without waiting; returns how many.

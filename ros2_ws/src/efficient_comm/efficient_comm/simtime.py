@@ -49,6 +49,15 @@ barrier. The world's own DDS messages (sensors) are covered when the world passe
 container to the coordinator (flushed before each intake, and what the robots sent is taken
 after each step).
 
+**One round.** A coordinator with one participant (each robot on a DDS domain of its own,
+as in the team match) skips the intake round: the participant takes its inbox when
+``/clock`` arrives, before it runs the step. That is exact because nobody else in the
+barrier publishes on its domain: the coordinator's process flushed what it wrote before
+``/clock``, and there is no second participant that could already be publishing the next
+step. It saves a round trip between the processes each step, which on a loaded machine
+is a wait for the scheduler on each side. The participant tells the two apart by itself:
+a ``/clock`` for a step whose start it has not taken in is a one-round step.
+
 **Failures.** The coordinator never waits forever: a participant that does not acknowledge
 within ``timeout_s`` raises :class:`~efficient_comm.LockstepError` naming it, and one whose
 process died is noticed earlier through DDS liveliness on its acknowledgement topic (lease
@@ -163,19 +172,29 @@ class LockstepParticipant:
     loop of its own, ``spin_for`` and printing, calls ``container.lockstep.join()``).
     """
 
-    def __init__(self, container: Container, name: str, *, flush_timeout_s: float) -> None:
-        node = container._node
-        if node is None:
+    def __init__(self, container: Container, name: str, *, clock: SimClock,
+                 flush_timeout_s: float) -> None:
+        if container.context is None:
             raise ConfigError(f"container {container.name}: lockstep needs DDS (dds=True)")
         self.name = check_participant_name(name)
         self._container = container
         self._flush_timeout_s = flush_timeout_s
+        # The barrier's own node and wait set (see wait()).
+        self._node = rclpy.create_node(f"lockstep_{name}", context=container.context,
+                                       enable_rosout=False, start_parameter_services=False)
+        node = self._node
         self._ack = node.create_publisher(Header, ack_topic(name), _ack_qos())
         self._intake_sub = node.create_subscription(
             Header, INTAKE_TOPIC, self._on_intake, _step_qos()
         )
+        follow_clock(node, clock, reliable=True)
+        self._wake = node.create_guard_condition(lambda: None)
+        self._executor = SingleThreadedExecutor(context=container.context)
+        self._executor.add_node(node)
         #: The time of an intake round asked for and not yet done (the executor does it).
         self.intake_due: int | None = None
+        #: The time of the last intake done (asked for, or implied by a one-round step).
+        self.last_intake_ns = -1
         self._last_intake = -1
         self.joined = False
 
@@ -190,6 +209,32 @@ class LockstepParticipant:
         if not self.joined:
             self.joined = True
             self._send("ready", self._container.executor.clock.now_ns())
+
+    def wait(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` for the coordinator's next round (intake or ``/clock``).
+
+        The barrier's two subscriptions have a node and a wait set of their own: the
+        container's wait set holds every component's node (each with its DDS readers,
+        parameter services and events), and building it is milliseconds of Python; a step
+        waited on it twice and took its inbox through it, so the barrier, not the robot's
+        work, was most of a robot's CPU in lockstep. Everything else on DDS is taken
+        directly at intake (:meth:`take`) or polled now and then by the executor.
+        """
+        self._executor.spin_once(timeout_sec=timeout_s)
+
+    def wake(self) -> None:
+        """End a :meth:`wait` early (another thread queued work for the executor)."""
+        self._wake.trigger()
+
+    def take(self) -> int:
+        """Take every sample the container's DDS readers hold (the intake round), without
+        a wait set: each reader of a composed subscription is asked until it is empty, and
+        its samples go where its callback puts them (held for the step). Returns how many.
+        """
+        taken = 0
+        for reader in self._container.bus.dds_readers():
+            taken += take_all(reader)
+        return taken
 
     def done_intake(self, t_ns: int) -> None:
         self._send("intake", t_ns)
@@ -207,6 +252,32 @@ class LockstepParticipant:
 
     def _send(self, round_: Round, t_ns: int) -> None:
         self._ack.publish(Header(stamp=to_msg(t_ns), frame_id=round_))
+
+    def close(self) -> None:
+        self._executor.shutdown()
+        self._node.destroy_node()
+
+
+def take_all(reader: Any) -> int:
+    """Run an rclpy subscription's callback on every sample its reader holds now; returns
+    how many (0 once the subscription is destroyed)."""
+    from rclpy.exceptions import InvalidHandle
+
+    whole = reader._callback_type is not reader.CallbackType.MessageOnly
+    taken = 0
+    while True:
+        try:
+            with reader.handle:
+                info = reader.handle.take_message(reader.msg_type, reader.raw)
+        except InvalidHandle:  # destroyed meanwhile
+            return taken
+        if info is None:
+            return taken
+        taken += 1
+        if whole:
+            reader.callback(*info)
+        else:
+            reader.callback(info[0])
 
 
 class StepCoordinator(Closing):
@@ -244,6 +315,8 @@ class StepCoordinator(Closing):
             raise ConfigError(f"timeout_s must be positive, got {timeout_s!r}")
         self.timeout_s = timeout_s
         self._now = start_ns
+        #: One participant: no intake round (see "One round" in the module docstring).
+        self.one_round = len(self.participants) == 1
         #: The world's container (see above); may be set after creating the coordinator,
         #: which is best created first (it prepares the process's DDS: efficient_comm.dds).
         self.container = container
@@ -385,9 +458,10 @@ def advance_together(coordinators: Sequence[StepCoordinator], dt_s: float) -> in
     target = times.pop() + dt_ns
     for c in coordinators:
         c._flush_world()
-    for c in coordinators:
+    two_rounds = [c for c in coordinators if not c.one_round]
+    for c in two_rounds:
         c._start_intake()
-    for c in coordinators:
+    for c in two_rounds:
         c._wait_intake()
     for c in coordinators:
         c._start_step(target)

@@ -142,7 +142,17 @@ class _Participant:
     def __init__(self) -> None:
         self.joined = True
         self.intake_due: int | None = None
+        self.last_intake_ns = -1
         self.acks: list[tuple[str, int]] = []
+
+    def take(self) -> int:
+        return 0  # no DDS readers: the test calls receive_remote as they would
+
+    def wait(self, timeout_s: float) -> None:
+        pass
+
+    def wake(self) -> None:
+        pass
 
     def done_intake(self, t_ns: int) -> None:
         self.acks.append(("intake", t_ns))
@@ -184,3 +194,35 @@ def test_lockstep_holds_remote_messages_until_an_intake_and_delivers_them_in_ord
     clock.receive(20 * MS)
     executor.spin_once(0.0)
     assert heard[3:] == ["a2"] and participant.acks[-1] == ("step", 20 * MS)
+
+
+def test_a_step_without_an_intake_round_takes_its_inbox_first() -> None:
+    """One round (a coordinator's only participant): /clock implies the intake, so what
+    was held before it is delivered in this step, and only the step is acknowledged."""
+    clock = SimClock()
+    executor = ConsecutiveExecutor(clock=clock)
+    participant = _Participant()
+    executor.attach_lockstep(participant)  # type: ignore[arg-type]
+    bus = Bus(executor)
+    heard: list[str] = []
+    sub = bus.add_subscription(
+        "/a", String, lambda m: heard.append(m.data), QoSProfile(depth=5),
+        stats=CallbackStats("n", "subscription", "/a"), logger=TestHandle().logger,
+    )
+    executor.receive_remote((sub,), String(data="a1"))
+    executor.spin_once(0.0)
+    assert heard == []  # held until the step
+    clock.receive(10 * MS)
+    executor.spin_once(0.0)
+    assert heard == ["a1"] and participant.acks == [("step", 10 * MS)]
+    assert participant.last_intake_ns == 0
+    executor.receive_remote((sub,), String(data="a2"))  # sent in the step: the next one's
+    clock.receive(20 * MS)
+    executor.spin_once(0.0)
+    assert heard == ["a1", "a2"] and participant.acks[-1] == ("step", 20 * MS)
+
+
+def test_a_coordinator_of_one_participant_has_one_round() -> None:
+    with StepCoordinator(["solo"], domain_id=isolated_domain_id()) as one, \
+            StepCoordinator(["a", "b"], domain_id=isolated_domain_id()) as two:
+        assert one.one_round and not two.one_round

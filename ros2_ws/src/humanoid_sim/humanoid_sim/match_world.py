@@ -83,67 +83,84 @@ JOIN_TIMEOUT_S = 180.0
 IMU_DEPTH = 50
 
 
+class SensorLink:
+    """One robot's sensors on its own domain (see the module docstring).
+
+    The camera's frames are observed on the world's bus, not subscribed: the link tells the
+    world (:meth:`~.world_simulator.WorldSimulator.add_camera_demand`) that it wants a
+    frame only while a reader on the robot's domain matches its image writer, so a robot
+    that reads no camera costs no rendering.
+    """
+
+    def __init__(self, node: NodeHandle, *, robot: str, domain_id: int, truth_every: int,
+                 world: WorldSimulator) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.rnode = rclpy.create_node(f"{robot}_sensors", namespace=f"/{robot}",
+                                       context=self.context)
+        self._truth_every = max(1, truth_every)
+        self._truth_count = 0
+        pairs: list[tuple[type, str, str, Any]] = [
+            (Image, f"/{robot}/camera/image_raw", "camera/image_raw", 2),
+            (CameraInfo, f"/{robot}/camera/camera_info", "camera/camera_info",
+             latched_qos()),
+            (Imu, f"/{robot}/imu/data", "imu/data", IMU_DEPTH),
+            (GameState, "/game_state", "game_state", latched_qos()),
+        ]
+        self.device_pubs: list[Any] = []  # what a lockstep step flushes
+        #: IMU messages sent while the robot's reader was matched: what it should hear.
+        self.imu_sent = 0
+        for msg_type, source, target, qos in pairs:
+            pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
+            if msg_type is Image:
+                node.observe_in_process(Image, source, pub.publish)
+                world.add_camera_demand(robot, functools.partial(_has_reader, pub))
+            else:
+                relay = self._imu(pub) if msg_type is Imu else pub.publish
+                node.create_subscription(msg_type, source, relay, qos=qos)
+            self.device_pubs.append(pub)
+        pose_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/pose", 10)
+        ball_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/ball", 10)
+        self.device_pubs += [pose_pub, ball_pub]
+        node.create_subscription(PoseStamped, f"/ground_truth/{robot}/pose",
+                                 lambda m: self._truth(pose_pub, m), qos=10)
+        node.create_subscription(PoseStamped, "/ground_truth/ball",
+                                 lambda m: self._truth(ball_pub, m, count=False), qos=10)
+
+    def _imu(self, pub: Any) -> Any:
+        def relay(msg: Imu) -> None:
+            pub.publish(msg)
+            if pub.get_subscription_count():
+                self.imu_sent += 1
+        return relay
+
+    def _truth(self, pub: Any, msg: PoseStamped, *, count: bool = True) -> None:
+        if count:
+            self._truth_count += 1
+        if self._truth_count % self._truth_every == 0:
+            pub.publish(msg)
+
+    def flush(self, timeout_s: float) -> None:
+        """Wait until the robot's readers have what this link wrote (lockstep: what the
+        robot takes at the next intake is then exactly this step's)."""
+        for pub in self.device_pubs:
+            if not pub.wait_for_all_acked(Duration(nanoseconds=round(timeout_s * 1e9))):
+                raise LockstepError(f"lockstep: the robot's readers of {pub.topic_name} "
+                                    f"did not acknowledge within {timeout_s:g} s")
+
+    def close(self) -> None:
+        self.rnode.destroy_node()
+        self.context.try_shutdown()
+
+
+def _has_reader(pub: Any) -> bool:
+    """Whether an rclpy publisher has a matched reader (DDS discovery: no event needed)."""
+    return bool(pub.get_subscription_count())
+
+
 def main(argv: list[str] | None = None) -> int:
     plan: dict[str, Any] = json.loads((argv or sys.argv[1:])[0])
     robots: list[str] = plan["robots"]
-
-    class SensorLink:
-        """One robot's sensors on its own domain (see the module docstring)."""
-
-        def __init__(self, node: NodeHandle, *, robot: str, domain_id: int) -> None:
-            self.context = Context()
-            rclpy.init(context=self.context, domain_id=domain_id)
-            self.rnode = rclpy.create_node(f"{robot}_sensors", namespace=f"/{robot}",
-                                           context=self.context)
-            self._truth_every = max(1, round(plan["step_hz"] / 10.0))
-            self._truth_count = 0
-            pairs: list[tuple[type, str, str, Any]] = [
-                (Image, f"/{robot}/camera/image_raw", "camera/image_raw", 2),
-                (CameraInfo, f"/{robot}/camera/camera_info", "camera/camera_info",
-                 latched_qos()),
-                (Imu, f"/{robot}/imu/data", "imu/data", IMU_DEPTH),
-                (GameState, "/game_state", "game_state", latched_qos()),
-            ]
-            self.device_pubs: list[Any] = []  # what a lockstep step flushes
-            #: IMU messages sent while the robot's reader was matched: what it should hear.
-            self.imu_sent = 0
-            for msg_type, source, target, qos in pairs:
-                pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
-                relay = self._imu(pub) if msg_type is Imu else pub.publish
-                node.create_subscription(msg_type, source, relay, qos=qos)
-                self.device_pubs.append(pub)
-            pose_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/pose", 10)
-            ball_pub = self.rnode.create_publisher(PoseStamped, f"{DEVICE}/ground_truth/ball", 10)
-            self.device_pubs += [pose_pub, ball_pub]
-            node.create_subscription(PoseStamped, f"/ground_truth/{robot}/pose",
-                                     lambda m: self._truth(pose_pub, m), qos=10)
-            node.create_subscription(PoseStamped, "/ground_truth/ball",
-                                     lambda m: self._truth(ball_pub, m, count=False), qos=10)
-
-        def _imu(self, pub: Any) -> Any:
-            def relay(msg: Imu) -> None:
-                pub.publish(msg)
-                if pub.get_subscription_count():
-                    self.imu_sent += 1
-            return relay
-
-        def _truth(self, pub: Any, msg: PoseStamped, *, count: bool = True) -> None:
-            if count:
-                self._truth_count += 1
-            if self._truth_count % self._truth_every == 0:
-                pub.publish(msg)
-
-        def flush(self, timeout_s: float) -> None:
-            """Wait until the robot's readers have what this link wrote (lockstep: what the
-            robot takes at the next intake is then exactly this step's)."""
-            for pub in self.device_pubs:
-                if not pub.wait_for_all_acked(Duration(nanoseconds=round(timeout_s * 1e9))):
-                    raise LockstepError(f"lockstep: the robot's readers of {pub.topic_name} "
-                                        f"did not acknowledge within {timeout_s:g} s")
-
-        def close(self) -> None:
-            self.rnode.destroy_node()
-            self.context.try_shutdown()
 
     stop_on_sigterm()
     lockstep = bool(plan.get("lockstep"))
@@ -162,8 +179,9 @@ def main(argv: list[str] | None = None) -> int:
         referee: TeamReferee = container.add(TeamReferee, name="team_referee",
                                              parameters=plan["referee"])
         links: dict[str, SensorLink] = {
-            robot: container.add(functools.partial(SensorLink, robot=robot,
-                                                   domain_id=plan["domains"][robot]),
+            robot: container.add(functools.partial(
+                SensorLink, robot=robot, domain_id=plan["domains"][robot],
+                truth_every=round(plan["step_hz"] / 10.0), world=world),
                                  name=f"{robot}_link")
             for robot in robots}
         truth = GroundTruthLog(robots)
@@ -232,29 +250,31 @@ def main(argv: list[str] | None = None) -> int:
     return 0 if ok else 1
 
 
-#: Fast DDS profile for the world's writers in lockstep: a heartbeat every 10 ms.
+#: Fast DDS profile for the world's writers in lockstep: a heartbeat every 1 ms.
 _WRITER_PROFILE = """<?xml version="1.0" encoding="UTF-8"?>
 <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
   <data_writer profile_name="match_world_writer" is_default_profile="true">
-    <times><heartbeatPeriod><sec>0</sec><nanosec>10000000</nanosec></heartbeatPeriod></times>
+    <times><heartbeatPeriod><sec>0</sec><nanosec>1000000</nanosec></heartbeatPeriod></times>
   </data_writer>
 </profiles>
 """
 
 
 def prompt_heartbeats() -> None:
-    """Make the world's DDS writers send a heartbeat every 10 ms instead of Fast DDS's 3 s.
+    """Make the world's DDS writers send a heartbeat every 1 ms instead of Fast DDS's 3 s.
 
     Every lockstep step waits until each robot's readers acknowledged its sensors; a
     reader acknowledges (or asks again for what it missed) when a heartbeat comes, and
-    with the default period a step waited up to 3 s for one (the IMU's writer, seen). Set
+    with the default period a step waited up to 3 s for one (the IMU's writer, seen);
+    with 10 ms, up to a whole step of 10 ms. A writer whose samples are all acknowledged
+    sends no periodic heartbeat, so the short period costs only while a step waits. Set
     before the process's first participant (Fast DDS reads the profile once); a profile
     of the user's own (``FASTRTPS_DEFAULT_PROFILES_FILE``) is kept as it is.
     """
     if os.environ.get(PROFILES_ENV):
         return
     # One file for every world process (its content never changes): nothing to clean up.
-    path = os.path.join(tempfile.gettempdir(), f"match_world_writer-{os.getuid()}.xml")
+    path = os.path.join(tempfile.gettempdir(), f"match_world_writer_1ms-{os.getuid()}.xml")
     if not os.path.exists(path):
         fd, staging = tempfile.mkstemp(prefix="match_world_", suffix=".tmp",
                                        dir=os.path.dirname(path))

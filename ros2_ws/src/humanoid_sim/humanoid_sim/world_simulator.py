@@ -38,8 +38,9 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -96,6 +97,11 @@ class ServedRobot:
     image_pub: ThrottledPublisher
     imu_pub: Publisher
     truth_pub: ThrottledPublisher
+    #: Consumers of the camera outside this process's bus (:meth:`WorldSimulator.
+    #: add_camera_demand`), each asked whether it wants a frame now.
+    demands: list[Callable[[], bool]] = field(default_factory=list)
+    #: Frames rendered for this robot.
+    frames: int = 0
 
 
 class WorldSimulator:
@@ -187,6 +193,17 @@ class WorldSimulator:
         """Each robot's servo port: what its driver opens (the link if ``port_dir``)."""
         return {name: robot.port for name, robot in self.robots.items()}
 
+    def add_camera_demand(self, robot: str, wants: Callable[[], bool]) -> None:
+        """Render ``robot``'s camera also while ``wants()`` says so.
+
+        The world renders a camera only for a consumer: a subscriber of its image topic
+        (or a throttled one whose rate is due), or one of these. A relay that forwards the
+        image elsewhere (the match's sensor link, onto the robot's own DDS domain) observes
+        the topic without counting as a subscriber and tells the world here whether anyone
+        at the far end reads it: an unread camera costs no rendering.
+        """
+        self.robots[robot].demands.append(wants)
+
     # -- placements -----------------------------------------------------------------------
 
     def place_robot(self, robot: str, pose: Pose2D) -> None:
@@ -256,7 +273,7 @@ class WorldSimulator:
         """Render the cameras someone wants a frame of, each robot's from the same GL context."""
         assert self.renderer is not None
         for name, robot in self.robots.items():
-            if not robot.image_pub.wants():
+            if not (robot.image_pub.wants() or any(wants() for wants in robot.demands)):
                 robot.image_pub.skip()  # so every_nth keeps counting the camera's frames
                 self.frames_skipped += 1
                 continue
@@ -267,6 +284,7 @@ class WorldSimulator:
             self.render_cpu_ns += time.thread_time_ns() - cpu
             self.render_ns += time.perf_counter_ns() - started
             self.frames += 1
+            robot.frames += 1
             robot.image_pub.publish(image)
 
     def status(self) -> dict[str, Any]:
@@ -275,6 +293,7 @@ class WorldSimulator:
             "real_time_factor": self.real_time_factor,
             "skipped_s": self._pacer.skipped_s,
             "frames": self.frames,
+            "frames_by_robot": {n: r.frames for n, r in self.robots.items()},
             "frames_skipped": self.frames_skipped,
             "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
             "physics_ms_mean": self.physics_ns / self.ticks / 1e6 if self.ticks else 0.0,
