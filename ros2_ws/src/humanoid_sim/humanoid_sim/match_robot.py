@@ -36,7 +36,6 @@ from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
-from dynamixel_sdk import PortHandler
 from geometry_msgs.msg import PointStamped, PoseStamped
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import String
@@ -54,7 +53,7 @@ from efficient_comm import (
 from efficient_comm.handle import NodeHandle
 from soccer_interfaces.msg import GameState
 
-from .driver import ServoDriver
+from .driver import ServoDriver, WaitingPortHandler
 from .match_recording import add_robot_recording
 from .match_world import DEVICE, IMU_DEPTH
 from .mujoco_plant import JOINTS
@@ -83,8 +82,11 @@ DEVICE_TOPICS: tuple[tuple[type, str, Any], ...] = (
     (PoseStamped, "ground_truth/pose", 10), (PoseStamped, "ground_truth/ball", 10))
 
 
-class LockstepPort(PortHandler):  # type: ignore[misc]  # the SDK is untyped
-    """dynamixel-sdk's PortHandler waiting up to :data:`LOCKSTEP_REPLY_MS` for a reply.
+class LockstepPort(WaitingPortHandler):
+    """dynamixel-sdk's PortHandler waiting up to :data:`LOCKSTEP_REPLY_MS` for a reply, on
+    the line (``select``, :class:`~.driver.WaitingPortHandler`), not in the SDK's loop of
+    empty reads: in lockstep that loop took most of a robot's step, about 150 reads a step
+    while the world's bus thread in another process, which it starved, prepared the reply.
 
     In lockstep every servo of the world answers every request (no line noise in the
     match); a reply takes as long as the world's bus thread needs to get the CPU. The SDK's
