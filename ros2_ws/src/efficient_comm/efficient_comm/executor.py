@@ -517,7 +517,7 @@ class ConsecutiveExecutor:
                     raise exc
                 ran += 1
                 if isinstance(entity, Subscription):
-                    ran += _take_more(entity)
+                    ran += take_samples(entity, limit=MAX_TAKES)
         except (StopIteration, TimeoutException, ShutdownException):
             pass
         return ran
@@ -699,14 +699,17 @@ class ConsecutiveExecutor:
         return _Owner(self)
 
 
-def _take_more(sub: Any) -> int:
-    """Run ``sub``'s callback on each further sample its reader holds (rclpy's handler
-    takes one): at most :data:`MAX_TAKES`. ``sub`` is an ``rclpy`` Subscription."""
+def take_samples(sub: Any, *, limit: int | None = None) -> int:
+    """Run ``sub``'s callback on each sample its reader holds now (at most ``limit``);
+    returns how many (rclpy's handler takes one a wait). ``sub`` is an ``rclpy``
+    Subscription; 0 once it is destroyed. Also the lockstep barrier's intake
+    (:mod:`.simtime`), which takes a step's whole inbox."""
     from rclpy.exceptions import InvalidHandle
     from rclpy.subscription import Subscription
 
     whole = sub._callback_type is not Subscription.CallbackType.MessageOnly
-    for taken in range(MAX_TAKES):
+    taken = 0
+    while limit is None or taken < limit:
         try:
             with sub.handle:
                 info = sub.handle.take_message(sub.msg_type, sub.raw)
@@ -714,11 +717,12 @@ def _take_more(sub: Any) -> int:
             return taken
         if info is None:
             return taken
+        taken += 1
         if whole:
             sub.callback(*info)
         else:
             sub.callback(info[0])
-    return MAX_TAKES
+    return taken
 
 
 class _Owner:

@@ -91,6 +91,7 @@ from ._closing import Closing
 from ._qos import latched_qos
 from .dds import prepare_process
 from .errors import ConfigError, LockstepError
+from .executor import take_samples
 
 if TYPE_CHECKING:
     from .container import Container
@@ -233,7 +234,7 @@ class LockstepParticipant:
         """
         taken = 0
         for reader in self._container.bus.dds_readers():
-            taken += take_all(reader)
+            taken += take_samples(reader)
         return taken
 
     def done_intake(self, t_ns: int) -> None:
@@ -256,28 +257,6 @@ class LockstepParticipant:
     def close(self) -> None:
         self._executor.shutdown()
         self._node.destroy_node()
-
-
-def take_all(reader: Any) -> int:
-    """Run an rclpy subscription's callback on every sample its reader holds now; returns
-    how many (0 once the subscription is destroyed)."""
-    from rclpy.exceptions import InvalidHandle
-
-    whole = reader._callback_type is not reader.CallbackType.MessageOnly
-    taken = 0
-    while True:
-        try:
-            with reader.handle:
-                info = reader.handle.take_message(reader.msg_type, reader.raw)
-        except InvalidHandle:  # destroyed meanwhile
-            return taken
-        if info is None:
-            return taken
-        taken += 1
-        if whole:
-            reader.callback(*info)
-        else:
-            reader.callback(info[0])
 
 
 class StepCoordinator(Closing):
