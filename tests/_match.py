@@ -64,6 +64,7 @@ class MatchProcess:
             with self._changed:
                 self.lines.append(line)
                 self._changed.notify_all()
+        self.proc.stdout.close()  # read to its end (left open, the pipe warns when collected)
         with self._changed:
             self._eof = True
             self._changed.notify_all()
