@@ -69,7 +69,7 @@ def play(seed: int) -> Run:
                    kicks=robot.monitor.kicks, falls=robot.fall_detector.falls)
 
 
-@pytest.mark.timeout(1500)  # three runs of up to 90 simulated seconds, the whole robot
+@pytest.mark.timeout(2400)  # three runs of up to 90 simulated s; 21 min at load 12 to 31
 def test_a_striker_alone_scores_within_a_bounded_time_from_kick_off_in_most_seeds() -> None:
     runs = [play(seed) for seed in SEEDS]
     scored = [run for run in runs if run.goal_s <= BOUND_S]
