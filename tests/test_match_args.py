@@ -15,6 +15,8 @@ from efficient_comm.testing import isolated_domain_id, ros_env
     (["--robots", "4v1"], "--robots: '4v1': need 1, 2, 3"),
     (["--robots", "3v3", "--duration", "-1"], "--duration: '-1': need seconds >= 0"),
     (["--robots", "2", "--camera-hz", "100"], "--camera-hz: '100': need 0 to 60 Hz"),
+    (["--robots", "2", "--team-link-cut-at", "-3"],
+     "--team-link-cut-at: '-3': need seconds >= 0"),
     (["--robots", "1", "--ball", "9,0"], "off the field"),  # the demo's own parser
 ])
 def test_a_bad_argument_is_one_line_and_exit_status_2(args: list[str], says: str) -> None:

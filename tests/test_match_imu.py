@@ -11,15 +11,12 @@ it; the match is ended with Ctrl-C after the robot has played for 20 live lines.
 from __future__ import annotations
 
 import re
-import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
-from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
+from ._match import MatchProcess
 
 #: Share of the IMU messages the world sent while the robot's reader was matched that the
 #: robot must have heard (both counts are their last status lines before the stop).
@@ -29,30 +26,15 @@ HEARD_SHARE = 0.85
 @pytest.mark.timeout(200)
 def test_a_robot_hears_its_imu_at_the_worlds_rate(tmp_path: Path) -> None:
     report = tmp_path / "report.md"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "humanoid_sim.match", "--robots", "1v0", "--duration", "0",
-         "--camera-hz", "10", "--stats-period", "1",
-         "--out-dir", str(tmp_path / "out"), "--report", str(report)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=ros_env(isolated_domain_id()), start_new_session=True, cwd=tmp_path)
-    assert proc.stdout is not None
-    lines: list[str] = []
-    try:
+    with MatchProcess(["--robots", "1v0", "--duration", "0", "--camera-hz", "10",
+                       "--stats-period", "1", "--out-dir", str(tmp_path / "out"),
+                       "--report", str(report)], cwd=tmp_path) as match:
+        # 20 live lines since the robot reported (it runs its software).
         deadline = time.monotonic() + 150
-        playing = 0  # live lines since the robot reported (it runs its software)
-        while playing < 20 and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            if not line:
-                break
-            lines.append(line)
-            if re.match(r"^  blue1 +(?!starting)\S", line):
-                playing += 1
-        assert playing == 20, "".join(lines[-40:])
-        proc.send_signal(signal.SIGINT)
-        rest, _ = proc.communicate(timeout=60)
-        lines.append(rest)
-    finally:
-        stop_process_group(proc, timeout_s=30)
+        for _ in range(20):
+            match.until(r"^  blue1 +(?!starting)\S", deadline - time.monotonic())
+        match.interrupt()
+        match.wait(60)
     text = report.read_text()
     m = re.search(r"matched: blue1 (\d+) of (\d+)\.", text)
     assert m, text

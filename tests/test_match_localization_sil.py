@@ -18,6 +18,8 @@ import pytest
 
 from efficient_comm.testing import isolated_domain_id, ros_env
 
+from ._match import MatchProcess
+
 
 def test_a_localization_for_a_robot_not_in_the_match_is_one_line_and_status_2() -> None:
     done = subprocess.run([sys.executable, "-m", "humanoid_sim.match", "--robots", "2",
@@ -33,15 +35,14 @@ def test_a_localization_for_a_robot_not_in_the_match_is_one_line_and_status_2() 
 def test_each_robot_runs_the_localization_chosen_for_it_and_the_report_measures_it(
         tmp_path: Path) -> None:
     report = tmp_path / "report.md"
-    done = subprocess.run(
-        [sys.executable, "-m", "humanoid_sim.match", "--robots", "2", "--duration", "45",
-         "--ready-s", "4", "--camera-hz", "5", "--stats-period", "1",
-         "--localization", "blue1=pf,blue2=noisy",
-         "--out-dir", str(tmp_path / "out"), "--report", str(report)],
-        capture_output=True, text=True, timeout=200, env=ros_env(isolated_domain_id()),
-        cwd=tmp_path)
-    assert "localization: blue1 particle_filter, blue2 noisy_ground_truth" in done.stdout, (
-        done.stdout[-3000:])
+    with MatchProcess(["--robots", "2", "--duration", "45", "--ready-s", "4",
+                       "--camera-hz", "5", "--stats-period", "1",
+                       "--localization", "blue1=pf,blue2=noisy",
+                       "--out-dir", str(tmp_path / "out"), "--report", str(report)],
+                      cwd=tmp_path) as match:
+        match.wait(200)
+    assert "localization: blue1 particle_filter, blue2 noisy_ground_truth" in (
+        match.output()), match.tail()
     text = report.read_text()
     rows = {m["robot"]: m for m in re.finditer(
         r"^- (?P<robot>blue[12]): (?P<source>\w+), (?P<estimates>\d+) estimates; "

@@ -17,20 +17,17 @@ from __future__ import annotations
 
 import json
 import re
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import deserialize_message
 
 from efficient_comm import from_msg
-from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
 from rosbag2_layout import BagReader
 from team_clock import OffsetModel, SkewedClock
 from team_clock_interfaces.msg import ClockOffset
+
+from ._match import MatchProcess
 
 MS = 1_000_000
 ROBOTS = ("blue1", "blue2")
@@ -46,38 +43,18 @@ class _Never:
 def test_the_merged_log_holds_every_robots_topics_within_1_ms_of_ground_truth(
         tmp_path: Path) -> None:
     out, report = tmp_path / "out", tmp_path / "report.md"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "humanoid_sim.match", "--robots", "2", "--duration", "0",
-         "--ready-s", "4", "--camera-hz", "5", "--video-fps", "2", "--stats-period", "1",
-         "--out-dir", str(out), "--report", str(report)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=ros_env(isolated_domain_id()), start_new_session=True, cwd=tmp_path)
-    lines: list[str] = []
-    assert proc.stdout is not None
-
-    def until(pattern: str, timeout_s: float) -> re.Match[str]:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            line = proc.stdout.readline()  # type: ignore[union-attr]
-            if not line:
-                break
-            lines.append(line)
-            if m := re.search(pattern, line):
-                return m
-        raise AssertionError(f"no {pattern!r} in:\n" + "".join(lines[-60:]))
-
-    try:
+    with MatchProcess(["--robots", "2", "--duration", "0", "--ready-s", "4",
+                       "--camera-hz", "5", "--video-fps", "2", "--stats-period", "1",
+                       "--out-dir", str(out), "--report", str(report)],
+                      cwd=tmp_path) as match:
         # Both robots play (they received the referee's game); then 15 more live lines of
         # the game, so that each robot's clock sync has exchanges in its bag.
         for robot in ROBOTS:
-            until(rf"^  {robot} +\w+ +\w+ +game playing", 150)
+            match.until(rf"^  {robot} +\w+ +\w+ +game playing", 150)
         for _ in range(15):
-            until(r"^ *[\d.]+ s wall, +[\d.]+ s simulated", 20)
-        proc.send_signal(signal.SIGINT)
-        rest, _ = proc.communicate(timeout=120)
-        lines.append(rest)
-    finally:
-        stop_process_group(proc, timeout_s=30)
+            match.until(r"^ *[\d.]+ s wall, +[\d.]+ s simulated", 20)
+        match.interrupt()
+        match.wait(120)
     text = report.read_text()
     merged_line = re.search(r"^merged log (\S+): (\d+) messages", text, re.MULTILINE)
     assert merged_line, text

@@ -13,14 +13,11 @@ from __future__ import annotations
 import os
 import re
 import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
 
-from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
+from ._match import MatchProcess, report_rows
 
 BUDGET = 2048
 
@@ -56,57 +53,40 @@ def _alive(pid: int) -> bool:
 def test_two_teammates_play_in_their_own_processes_and_a_killed_one_is_named(
         tmp_path: Path) -> None:
     report = tmp_path / "report.md"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "humanoid_sim.match", "--robots", "2", "--duration", "0",
-         "--ready-s", "4", "--camera-hz", "5", "--stats-period", "1",
-         "--out-dir", str(tmp_path / "out"), "--report", str(report)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=ros_env(isolated_domain_id()), start_new_session=True, cwd=tmp_path)
-    lines: list[str] = []
-    assert proc.stdout is not None
-
-    def until(pattern: str, timeout_s: float) -> re.Match[str]:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            line = proc.stdout.readline()  # type: ignore[union-attr]
-            if not line:
-                break
-            lines.append(line)
-            if m := re.search(pattern, line):
-                return m
-        raise AssertionError(f"no {pattern!r} in:\n" + "".join(lines[-60:]))
-
     children: dict[str, int] = {}
-    try:
-        until(r"^soccer match: blue1, blue2", 60)
-        children = _children(proc.pid)
-        assert set(children) == {"world", "blue1", "blue2"}, children
-        # Both robots see the referee's game; the team link carries their messages.
-        for robot in ("blue1", "blue2"):
-            until(rf"^  {robot} +\w+ +\w+ +game playing .* link +[1-9]\d* B/s", 90)
-        states = [line.split()[2] for line in lines if line.startswith("game state ")]
-        assert states[:4] == ["initial", "ready", "set", "playing"], states
-        # Killed: named, and the world goes on stepping.
-        os.killpg(children["blue2"], signal.SIGKILL)
-        until(r"^blue2: its process ended \(killed by signal 9", 10)
-        before = float(until(r"^ *[\d.]+ s wall, +([\d.]+) s simulated", 10)[1])
-        after = float(until(r"^ *[\d.]+ s wall, +([\d.]+) s simulated", 10)[1])
-        assert after > before
-        until(r"^  blue2 +ENDED \(killed by signal 9", 5)
-        # Ctrl-C: the report, every process ended.
-        os.killpg(proc.pid, signal.SIGINT)
-        rest, _ = proc.communicate(timeout=60)
-        lines.append(rest)
-    finally:
-        stop_process_group(proc, timeout_s=30)
-        for pid in children.values():
-            if _alive(pid):
-                os.kill(pid, signal.SIGKILL)
-    assert proc.returncode == 1, "".join(lines[-40:])  # a robot ended early
+    with MatchProcess(["--robots", "2", "--duration", "0", "--ready-s", "4",
+                       "--camera-hz", "5", "--stats-period", "1",
+                       "--out-dir", str(tmp_path / "out"), "--report", str(report)],
+                      cwd=tmp_path) as match:
+        try:
+            match.until(r"^soccer match: blue1, blue2", 60)
+            children = _children(match.proc.pid)
+            assert set(children) == {"world", "blue1", "blue2"}, children
+            # Both robots see the referee's game; the team link carries their messages.
+            for robot in ("blue1", "blue2"):
+                match.until(rf"^  {robot} +\w+ +\w+ +game playing .* link +[1-9]\d* B/s", 90)
+            states = [line.split()[2] for line in match.lines
+                      if line.startswith("game state ")]
+            assert states[:4] == ["initial", "ready", "set", "playing"], states
+            # Killed: named, and the world goes on stepping.
+            os.killpg(children["blue2"], signal.SIGKILL)
+            match.until(r"^blue2: its process ended \(killed by signal 9", 10)
+            before = float(match.until(r"^ *[\d.]+ s wall, +([\d.]+) s simulated", 10)[1])
+            after = float(match.until(r"^ *[\d.]+ s wall, +([\d.]+) s simulated", 10)[1])
+            assert after > before
+            match.until(r"^  blue2 +ENDED \(killed by signal 9", 5)
+            # Ctrl-C: the report, every process ended.
+            match.interrupt()
+            code = match.wait(60)
+        finally:
+            match.stop()
+            for pid in children.values():
+                if _alive(pid):
+                    os.kill(pid, signal.SIGKILL)
+    assert code == 1, match.tail(40)  # a robot ended early
     assert not [name for name, pid in children.items() if _alive(pid)]
     text = report.read_text()
-    rows = {row.split("|")[1].strip(): [c.strip() for c in row.split("|")[2:-1]]
-            for row in text.splitlines() if row.startswith("| blue")}
+    rows = report_rows(text)
     assert set(rows) == {"blue1", "blue2"}, text
     assert rows["blue1"][0] == "ran to the end" and "killed by signal 9" in rows["blue2"][0]
     for name, row in rows.items():

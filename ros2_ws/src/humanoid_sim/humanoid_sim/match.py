@@ -39,7 +39,9 @@ camera clock of its own.
 than real time, never late; ``--duration`` then counts simulated seconds, and a seed plays
 the same game on every run as far as the team link (Zenoh, outside the barrier) does not
 decide it (docs/HUMANOID_SIM.md, "In lockstep"). ``--team-link off``: no robot connects to a
-teammate, as a cut link.
+teammate, as a cut link. ``--team-link-cut-at SECONDS``: the link fails mid-game, once the
+world's (simulated) time reaches SECONDS: every robot is told to close its end
+(:func:`cut_team_link`) and plays on alone.
 
 A bad argument is refused with one line and exit status 2. Exit status 0: every process
 ran to the end; 1: one ended early (named in the report).
@@ -271,6 +273,10 @@ def _parser() -> DemoArguments:
     parser.add_argument("--team-link", choices=["on", "off"], default="on",
                         help="off: no robot connects to a teammate (a cut link: each "
                         "plays alone); default on")
+    parser.add_argument("--team-link-cut-at", type=_number(low=0, what="seconds >= 0"),
+                        default=None, metavar="SECONDS",
+                        help="the team link fails once the world's (simulated) time reaches "
+                        "SECONDS: every robot's end is closed mid-game (default never)")
     parser.add_argument("--lockstep", action="store_true",
                         help="the world steps every robot's process as one barrier on "
                         "simulated time: slower than real time, never late, and a seed "
@@ -350,6 +356,27 @@ def _link_figures(status: dict[str, Any]) -> tuple[float, float, float, float]:
             link.get("sent_bytes_per_s", 0.0), link.get("peak_bytes_per_s", 0.0))
 
 
+def cut_team_link(children: dict[str, Child], sim_s: float) -> float:
+    """The team link fails: SIGUSR1 to every robot still running, which closes its end
+    (:class:`.match_robot.TeamLinkCut`; sent once every robot is ready, so that each has
+    its handler); the world's time it happened at, also printed."""
+    for child in children.values():
+        if child.ended is None and child.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                child.proc.send_signal(signal.SIGUSR1)
+    print(f"team link cut at {sim_s:.1f} s simulated: each robot plays alone", flush=True)
+    return sim_s
+
+
+def _cut_text(args: argparse.Namespace) -> str:
+    cut = getattr(args, "link_cut_s", None)
+    if cut is not None:
+        return f"team link cut at {cut:.1f} s; "
+    if getattr(args, "team_link_cut_at", None) is not None:
+        return f"team link never cut (--team-link-cut-at {args.team_link_cut_at:g}); "
+    return ""
+
+
 def game_line(world: Child, wall_s: float) -> str:
     s = world.status
     score = s.get("score", {})
@@ -367,7 +394,7 @@ def robot_line(child: Child) -> str:
     ball = "-" if s.get("ball_m") is None else f"{s['ball_m']:.2f} m"
     return (f"  {child.name:<6} {s.get('role', '-'):<9} {s.get('behaviour', '-'):<8} "
             f"game {s.get('game_state', '-'):<8} falls {s.get('falls', 0)} ball {ball:<7} "
-            f"link {_link_figures(s)[2]:5.0f} B/s")
+            + ("link   cut" if s.get("link_cut") else f"link {_link_figures(s)[2]:5.0f} B/s"))
 
 
 def _figure(figures: dict[str, Any], key: str, spec: str) -> str:
@@ -403,6 +430,7 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
         f"Robots {', '.join(robots)}; seed {args.seed}; "
         f"{'lockstep' if args.lockstep else 'real time'}; "
         f"{'' if args.team_link == 'on' else 'team link cut; '}"
+        f"{_cut_text(args)}"
         f"{wall_s:.1f} s wall, {s.get('sim_time_s', 0.0):.1f} s simulated, real-time factor "
         f"{s.get('real_time_factor', 0.0):.2f} (world physics "
         f"{s.get('physics_ms', 0.0):.2f} ms a step, render {s.get('render_ms', 0.0):.1f} ms a "
@@ -484,6 +512,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(given)
     robots: list[str] = args.robots
     default_source, own_sources = args.localization
+    args.link_cut_s = None  # the world's time the link was cut at (--team-link-cut-at)
     if unknown := sorted(set(own_sources) - set(robots)):
         parser.error(f"--localization names {', '.join(unknown)}, not in this match "
                      f"({', '.join(robots)})")
@@ -587,6 +616,10 @@ def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
     next_line = time.monotonic()
     told = 0  # game state changes printed
     while (now := time.monotonic()) < end:
+        if (args.team_link_cut_at is not None and args.link_cut_s is None
+                and world.status.get("sim_time_s", 0.0) >= args.team_link_cut_at
+                and all(c.ready.is_set() or c.ended for c in children.values())):
+            args.link_cut_s = cut_team_link(children, world.status["sim_time_s"])
         for state, sim_s in world.status.get("states", [])[told:]:
             print(f"game state {state} at {sim_s:.1f} s simulated", flush=True)
             told += 1

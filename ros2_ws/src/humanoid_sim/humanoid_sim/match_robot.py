@@ -21,7 +21,12 @@ against ground truth for the status line and the report.
 Every ``status_period_s`` it prints ``status {json}`` on stdout: role, role switches, the
 striker's state, game state, falls, the distance to the ball it believes in, camera frames
 and IMU messages received, and the team link's usage as rf_bridge reports it on
-``/diagnostics``.
+``/diagnostics`` (``link_cut`` once the link failed).
+
+SIGUSR1 (what the match sends at ``--team-link-cut-at``): the team link fails. The robot
+unloads its rf_bridge, whose Zenoh session closes, so nothing more is sent to or heard from
+its teammates; its team layer then finds them gone after its timeout and the robot plays
+alone (:class:`TeamLinkCut`).
 """
 
 from __future__ import annotations
@@ -30,7 +35,9 @@ import contextlib
 import functools
 import json
 import math
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -151,6 +158,24 @@ def main(argv: list[str] | None = None) -> int:
             msg.header.stamp = to_msg(local(from_msg(msg.header.stamp)))
             publish(msg)
 
+    class TeamLinkCut:
+        """The team link failing on SIGUSR1: the handler only sets a flag (it runs between
+        any two bytecodes of the main thread, perhaps inside the executor); a timer, on the
+        executor, unloads rf_bridge (the component manager's unload service does the same
+        from a callback), and the status says ``link_cut`` from then on."""
+
+        def __init__(self, node: NodeHandle) -> None:
+            self.asked = threading.Event()
+            self.cut = False
+            signal.signal(signal.SIGUSR1, lambda *_: self.asked.set())
+            self.timer = node.create_timer(0.1, self._check)
+
+        def _check(self) -> None:
+            if self.asked.is_set() and not self.cut:
+                self.cut = True
+                container.unload(bridge.unique_id)
+                self.timer.cancel()
+
     class Status:
         """What the match prints about this robot (see the module docstring)."""
 
@@ -215,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
                 "cpu_pct": round(100 * (time.process_time() - self.ready[1])
                                  / max(1e-9, time.monotonic() - self.ready[0]), 1),
                 "joint_states": len(driver.present),
-                "link": self.link,
+                "link": self.link, "link_cut": link_cut.cut,
                 "localization": {"source": pose_error.errors.source,
                                  "errors": pose_error.errors.summary()},
             }), flush=True)
@@ -250,15 +275,17 @@ def main(argv: list[str] | None = None) -> int:
             PoseErrorMonitor, name="pose_error", namespace=ns,
             parameters={"truth_topic": "ground_truth/pose"})
         container.add(TeamComm, name="team_comm", namespace=ns, parameters=plan["team"])
-        container.load(ComponentSpec(class_path="BridgeNode", name="rf_bridge", namespace=ns,
-                                     parameters={"config": plan["bridge_file"]},
-                                     source=f"the match's plan for {name}"))
+        bridge = container.load(ComponentSpec(
+            class_path="BridgeNode", name="rf_bridge", namespace=ns,
+            parameters={"config": plan["bridge_file"]}, source=f"the match's plan for {name}"))
         _, clock_sync = add_robot_recording(container, ns, robot=name,
                                             bag_dir=Path(plan["bag_dir"]),
                                             clock_sync=not lockstep)
         # Last but the status: its readers match the world's writers only now, so the
         # samples sent while the robot was still being built do not overflow their history.
         container.add(DeviceInput, name="devices", namespace=ns)
+        link_cut: TeamLinkCut = container.add(TeamLinkCut, name="team_link_cut",
+                                              namespace=ns)
         container.add(Status, name="match_status", namespace=ns)
         print("ready", flush=True)
         with contextlib.suppress(KeyboardInterrupt):

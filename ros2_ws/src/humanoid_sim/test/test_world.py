@@ -289,3 +289,23 @@ def test_a_robot_camera_without_multisampling_finds_the_ball_straight_ahead() ->
     u, v, r = plain
     assert abs(u - 160) < 2 and v > 120 and r > 3  # straight ahead, on the ground
     assert plain == pytest.approx(sampled, abs=1.0)
+
+
+def test_the_ground_truth_fingerprint_is_the_poses_equal_for_equal_starts() -> None:
+    """The fingerprint the seeded match tests compare (``GroundTruthLog``): equal for two
+    worlds started alike, different when one robot starts elsewhere (a fingerprint that
+    ignored the poses would make every run "the same game")."""
+    from humanoid_sim.match_world import GroundTruthLog
+
+    def fingerprint(red1: list[float]) -> str:
+        sim = WorldSimulator(TestHandle("world", parameters={
+            "robots": ["blue1", "red1"], "camera_hz": 0.0, "red1.pose": red1}))
+        try:
+            log = GroundTruthLog(["blue1", "red1"])
+            log.sample(sim, 0)
+            return log.digest()
+        finally:
+            sim.close()
+
+    assert fingerprint([1.0, 0.0, math.pi]) == fingerprint([1.0, 0.0, math.pi])
+    assert fingerprint([1.0, 0.0, math.pi]) != fingerprint([0.3, 0.2, math.pi])
