@@ -94,7 +94,11 @@ def test_two_teammates_play_in_their_own_processes_and_a_killed_one_is_named(
         frames, imus = (int(v) for v in row[3].split(" / "))
         assert frames > 0 and imus > 0, (name, text)
         sent, received = (float(v) for v in row[6].split(" / "))
-        assert sent > 0 and received > 0, (name, text)
+        assert sent > 0, (name, text)
+        # blue2's row is its last status, from before the kill: on a loaded machine its
+        # teammate's first messages may not have reached it by then (seen once); blue1,
+        # which ran to the end, has received what blue2 sent.
+        assert received > 0 or name == "blue2", (name, text)
         rate, peak = (float(v) for v in re.findall(r"[\d.]+", row[7])[:2])
         assert 0 < rate <= BUDGET and peak <= BUDGET, (name, text)
     assert "seed 0" in text

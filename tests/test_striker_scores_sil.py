@@ -22,7 +22,8 @@ with six kicks, walking from its half's far side to the centre mark first, no fa
 30 Hz, 1 % line noise); a kick cycle (walk behind the ball, line up, kick) takes about
 12 s, so :data:`BOUND_S` allows one more cycle than the slowest took. Slow for a test
 (about 150 s of CPU for the three seeds) because scoring from the centre mark takes six
-kicks; there is no shorter span that still shows it.
+kicks; there is no shorter span that still shows it. The third seed runs only when the
+first two disagree.
 """
 
 from __future__ import annotations
@@ -71,8 +72,12 @@ def play(seed: int) -> Run:
 
 @pytest.mark.timeout(2400)  # three runs of up to 90 simulated s; 21 min at load 12 to 31
 def test_a_striker_alone_scores_within_a_bounded_time_from_kick_off_in_most_seeds() -> None:
-    runs = [play(seed) for seed in SEEDS]
-    scored = [run for run in runs if run.goal_s <= BOUND_S]
+    runs: list[Run] = []
+    for seed in SEEDS:  # until the outcome is decided: the third seed only if it decides
+        runs.append(play(seed))
+        scored = [run for run in runs if run.goal_s <= BOUND_S]
+        if len(scored) >= MOST or len(runs) - len(scored) > len(SEEDS) - MOST:
+            break
     assert len(scored) >= MOST, runs
     # Scored by walking to the ball and kicking it into the opponent's goal: kicks, and no
     # own goal on the way.
