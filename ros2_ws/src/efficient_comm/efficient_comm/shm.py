@@ -19,10 +19,11 @@ handle's API is the same.
 tools. So a subscriber in a process with the transport has both a DDS reader and a
 shared-memory subscriber, and must not get a message over both. The publisher writes the
 DDS copy only while DDS has matched more readers than shared memory serves (a plain peer
-listens); when it writes it, it notes the DDS sequence number and the wall-clock window of
-the write in the chunk's header. A subscriber drops the DDS sample with that sequence
-number and a source timestamp inside that window (or, if the DDS copy came first, the
-chunk). Messages below the threshold go over DDS alone, and are delivered from there.
+listens); then it announces the copy in the chunk's header (its DDS sequence number and a
+wall-clock window for its source timestamp), sends the chunk and only then writes the
+copy, so a subscriber, which drains shared memory before it takes a DDS sample, has the
+announcement first and drops the copy (should a copy still come first, the chunk is the
+one dropped). Messages below the threshold go over DDS alone, and are delivered from there.
 
 **Loss.** Every chunk carries its publisher's sequence number; a gap (a slow reader whose
 queue overflowed: the publisher never waits for one) is counted in the subscription's
@@ -84,6 +85,10 @@ _ALIGN = 16
 # How long a subscriber remembers DDS copies it may still have to drop (or did deliver).
 _REMEMBER = 64
 _WAKE_MS = 500
+#: How long after a chunk's send its announced DDS copy may carry as its source timestamp
+#: (the copy is written right after the send; together with the DDS sequence number, the
+#: window tells the copy from any other sample).
+_DDS_WINDOW_NS = 5_000_000_000
 
 # rosidl's basic types -> numpy dtypes (the array field's element type).
 _DTYPES = {
@@ -351,15 +356,15 @@ class ShmPublisher:
         header.publisher, header.pid, header.seq = self._id, self._pid, next(self._seq)
         header.meta_len, header.array_offset = len(meta), offset
         header.dds_seq = header.dds_t0 = header.dds_t1 = 0
-        if write_dds:
-            dds = self._pub.dds
+        if write_dds:  # announced before it is written, so no reader can get it first
+            header.dds_seq = self._dds_seq + 1
             header.dds_t0 = time.time_ns()
-            dds.publish(msg)
-            header.dds_t1 = time.time_ns()
-            self._dds_seq += 1
-            header.dds_seq = self._dds_seq
+            header.dds_t1 = header.dds_t0 + _DDS_WINDOW_NS
         sample.assume_init().send()
         self._notifier.notify()
+        if write_dds:
+            self._pub.dds.publish(msg)
+            self._dds_seq += 1
 
     def _meta(self, msg: Any) -> bytes:
         """The message without its array, in CDR (its fields shared, not copied)."""
