@@ -128,7 +128,7 @@ def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
 
 
 def _print_stuck_tests(terminalreporter: Any) -> None:
-    if os.environ.get("PYTEST_XDIST_WORKER"):  # a replaced worker's files are the controller's
+    if hasattr(terminalreporter.config, "workerinput"):  # an xdist worker: the controller's
         return
     folder = Path(os.environ.get(BACKSTOP_DIR, "/nonexistent"))
     for dump in sorted(folder.glob("*.txt")):

@@ -32,7 +32,9 @@ def test_a_test_that_outlives_its_timeout_unreachably_is_dumped_and_ended(
         tmp_path: Path) -> None:
     (tmp_path / "test_stuck.py").write_text(STUCK)
     # A folder of its own: the outer run's workers keep their live files in the inherited one.
-    env = {key: value for key, value in os.environ.items() if key != BACKSTOP_DIR}
+    # Nor is it an xdist worker, as the outer run's may be (PYTEST_XDIST_WORKER).
+    env = {key: value for key, value in os.environ.items()
+           if key != BACKSTOP_DIR and not key.startswith("PYTEST_XDIST")}
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"
     start = time.monotonic()
     run = subprocess.run(
