@@ -161,12 +161,18 @@ class _Participant:
         self.acks.append(("step", t_ns))
 
 
-def test_lockstep_holds_remote_messages_until_an_intake_and_delivers_them_in_order() -> None:
+def _lockstep_bus() -> tuple[SimClock, ConsecutiveExecutor, _Participant, Bus]:
+    """An executor on simulated time attached to a recording lockstep participant, and a
+    bus on it: what a container in lockstep has, without DDS."""
     clock = SimClock()
     executor = ConsecutiveExecutor(clock=clock)
     participant = _Participant()
     executor.attach_lockstep(participant)  # type: ignore[arg-type]
-    bus = Bus(executor)
+    return clock, executor, participant, Bus(executor)
+
+
+def test_lockstep_holds_remote_messages_until_an_intake_and_delivers_them_in_order() -> None:
+    clock, executor, participant, bus = _lockstep_bus()
     heard: list[str] = []
     logger = TestHandle().logger
     subs = {
@@ -199,11 +205,7 @@ def test_lockstep_holds_remote_messages_until_an_intake_and_delivers_them_in_ord
 def test_a_step_without_an_intake_round_takes_its_inbox_first() -> None:
     """One round (a coordinator's only participant): /clock implies the intake, so what
     was held before it is delivered in this step, and only the step is acknowledged."""
-    clock = SimClock()
-    executor = ConsecutiveExecutor(clock=clock)
-    participant = _Participant()
-    executor.attach_lockstep(participant)  # type: ignore[arg-type]
-    bus = Bus(executor)
+    clock, executor, participant, bus = _lockstep_bus()
     heard: list[str] = []
     sub = bus.add_subscription(
         "/a", String, lambda m: heard.append(m.data), QoSProfile(depth=5),
