@@ -91,7 +91,10 @@ BACKSTOP_DIR = "EFFICIENT_COMM_TEST_BACKSTOP_DIR"
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    if not os.environ.get(BACKSTOP_DIR):
+    # Every controlling run makes its own directory, even when it inherited one: a pytest
+    # that a test starts (a nested --collect-only) would otherwise print, and delete, the
+    # outer run's dumps of tests still in progress.
+    if not hasattr(config, "workerinput"):
         os.environ[BACKSTOP_DIR] = tempfile.mkdtemp(prefix="pytest-backstop-")
 
 

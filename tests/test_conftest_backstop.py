@@ -31,10 +31,9 @@ def test_stuck_where_no_alarm_reaches() -> None:
 def test_a_test_that_outlives_its_timeout_unreachably_is_dumped_and_ended(
         tmp_path: Path) -> None:
     (tmp_path / "test_stuck.py").write_text(STUCK)
-    # A folder of its own: the outer run's workers keep their live files in the inherited one.
-    # Nor is it an xdist worker, as the outer run's may be (PYTEST_XDIST_WORKER).
+    # Not an xdist worker, as the outer run's may be (PYTEST_XDIST_WORKER).
     env = {key: value for key, value in os.environ.items()
-           if key != BACKSTOP_DIR and not key.startswith("PYTEST_XDIST")}
+           if not key.startswith("PYTEST_XDIST")}
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"
     start = time.monotonic()
     run = subprocess.run(
@@ -52,3 +51,26 @@ def test_a_test_that_outlives_its_timeout_unreachably_is_dumped_and_ended(
     summary = run.stdout[run.stdout.index("stuck test (conftest.py's backstop)"):]
     assert "test_stuck.py::test_stuck_where_no_alarm_reaches still ran 12 s" in summary
     assert 'test_stuck.py", line 12 in test_stuck_where_no_alarm_reaches' in summary, summary
+
+
+def test_a_nested_run_leaves_the_outer_runs_live_files_alone(tmp_path: Path) -> None:
+    """A test that starts pytest (test_test_kinds.py's --collect-only) inherits the outer
+    run's folder, where every test in progress keeps its file: the nested run once printed
+    them as stuck tests (failing that test in CI) and deleted them."""
+    outer = tmp_path / "outer"
+    outer.mkdir()
+    live = outer / "4242.txt"
+    live.write_text("tests/test_x.py::test_in_progress still ran 250 s after it began\n")
+    (tmp_path / "test_quick.py").write_text("def test_quick() -> None:\n    assert True\n")
+    env = {key: value for key, value in os.environ.items()
+           if not key.startswith("PYTEST_XDIST")}
+    env[BACKSTOP_DIR] = str(outer)
+    env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"
+    run = subprocess.run(
+        [sys.executable, "-m", "pytest", "-p", "conftest", "-p", "no:cacheprovider",
+         "-c", os.devnull, "--rootdir", str(tmp_path), str(tmp_path / "test_quick.py")],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=90, check=False)
+    assert run.returncode == 0, run.stdout[-3000:]
+    assert "1 passed" in run.stdout
+    assert "test_in_progress" not in run.stdout
+    assert live.exists()
