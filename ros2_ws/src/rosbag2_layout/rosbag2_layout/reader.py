@@ -10,6 +10,10 @@ A file with a summary is read in log-time order, one chunk in memory at a time. 
 without one (its writer was killed, or the disk filled) is read sequentially up to its last
 complete record and noted in :attr:`BagReader.truncated` and :attr:`BagReader.problems`.
 A file that is not MCAP at all raises :class:`BagFormatError`.
+
+A time window (``start_ns``, ``end_ns``: log times, start inclusive, end exclusive) seeks as
+mcap's and rosbags' readers do: only the chunks whose time range meets the window are read
+and decompressed, so a minute out of an hour's log costs a minute's reading.
 """
 
 from __future__ import annotations
@@ -121,15 +125,21 @@ class BagReader:
         self.path = Path(self.path)
         self.files = mcap_files(self.path)
 
-    def records(self, *, topics: list[str] | None = None) -> Iterator[Record]:
-        """``(schema, channel, message)`` of every readable message, file by file."""
+    def records(self, *, topics: list[str] | None = None, start_ns: int | None = None,
+                end_ns: int | None = None) -> Iterator[Record]:
+        """``(schema, channel, message)`` of every readable message, file by file; only
+        those logged in ``[start_ns, end_ns)`` when given."""
+        window = _Window(start_ns, end_ns)
         for file in self.files:
             with open(file, "rb") as stream:
-                yield from self._file_records(file, stream, topics)
+                yield from self._file_records(file, stream, topics, window)
 
-    def messages(self, *, topics: list[str] | None = None) -> Iterator[BagMessage]:
-        """Every readable message as a :class:`BagMessage`."""
-        for schema, channel, message in self.records(topics=topics):
+    def messages(self, *, topics: list[str] | None = None, start_ns: int | None = None,
+                 end_ns: int | None = None) -> Iterator[BagMessage]:
+        """Every readable message (in ``[start_ns, end_ns)`` when given) as a
+        :class:`BagMessage`."""
+        for schema, channel, message in self.records(topics=topics, start_ns=start_ns,
+                                                     end_ns=end_ns):
             yield BagMessage(channel.topic, schema.name if schema else "", message.data,
                              message.log_time, message.publish_time, message.sequence)
 
@@ -206,10 +216,12 @@ class BagReader:
         """MCAP metadata records by name (later files win), e.g. ``"team_clock"``."""
         return dict(self.metadata())
 
-    def _file_records(self, file: Path, stream: IO[bytes], topics: list[str] | None
-                      ) -> Iterator[Record]:
+    def _file_records(self, file: Path, stream: IO[bytes], topics: list[str] | None,
+                      window: _Window | None = None) -> Iterator[Record]:
+        window = window or _Window()
         if file.suffix == SQLITE_SUFFIX:
-            yield from sqlite_records(file, topics)
+            yield from (item for item in sqlite_records(file, topics)
+                        if window.holds(item[2].log_time))
             return
         _check_magic(file, stream)
         try:
@@ -226,9 +238,11 @@ class BagReader:
         if summary is not None:
             try:
                 if summary.chunk_indexes:
-                    yield from _in_time_order(stream, summary, topics)
+                    yield from _in_time_order(stream, summary, topics, window)
                 else:
-                    yield from reader.iter_messages(topics=topics, log_time_order=True)
+                    yield from (item for item in reader.iter_messages(
+                        topics=topics, log_time_order=True, start_time=window.start_ns)
+                        if window.holds(item[2].log_time))
             except _DAMAGED as exc:
                 raise BagFormatError(f"{file} is damaged: {exc}") from exc
             return
@@ -243,9 +257,27 @@ class BagReader:
                 channels[record.id] = record
             elif isinstance(record, Message):
                 channel = channels.get(record.channel_id)
-                if channel is None or (wanted is not None and channel.topic not in wanted):
+                if channel is None or (wanted is not None and channel.topic not in wanted) \
+                        or not window.holds(record.log_time):
                     continue
                 yield schemas.get(channel.schema_id), channel, record
+
+
+@dataclass(frozen=True, slots=True)
+class _Window:
+    """Log times ``[start_ns, end_ns)``; ``None`` leaves that side open."""
+
+    start_ns: int | None = None
+    end_ns: int | None = None
+
+    def holds(self, log_time: int) -> bool:
+        return ((self.start_ns is None or log_time >= self.start_ns)
+                and (self.end_ns is None or log_time < self.end_ns))
+
+    def meets(self, first: int, last: int) -> bool:
+        """Whether times ``first`` to ``last`` (inclusive) meet the window."""
+        return ((self.start_ns is None or last >= self.start_ns)
+                and (self.end_ns is None or first < self.end_ns))
 
 
 def _check_magic(file: Path, stream: IO[bytes]) -> None:
@@ -279,8 +311,8 @@ def _scan(file: Path, reader: BagReader | None) -> Iterator[object]:
                                        f"{type(exc).__name__}: {reason}")
 
 
-def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None
-                   ) -> Iterator[Record]:
+def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None,
+                   window: _Window) -> Iterator[Record]:
     """Messages in log-time order, one chunk in memory at a time.
 
     Chunks are read by their start time; a message is released once no later chunk can
@@ -294,7 +326,8 @@ def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None
         ids = {cid for cid, ch in summary.channels.items() if ch.topic in wanted}
         chunks = [c for c in chunks if not c.message_index_offsets
                   or ids.intersection(c.message_index_offsets)]
-    chunks = sorted(chunks, key=lambda c: (c.message_start_time, c.chunk_start_offset))
+    chunks = sorted((c for c in chunks if window.meets(c.message_start_time, c.message_end_time)),
+                    key=lambda c: (c.message_start_time, c.chunk_start_offset))
     heap: list[tuple[int, int, Schema | None, Channel, Message]] = []
     order = 0
     for i, index in enumerate(chunks):
@@ -304,7 +337,8 @@ def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None
             if not isinstance(record, Message):
                 continue
             channel = summary.channels[record.channel_id]
-            if wanted is not None and channel.topic not in wanted:
+            if (wanted is not None and channel.topic not in wanted) \
+                    or not window.holds(record.log_time):
                 continue
             order += 1
             heapq.heappush(heap, (record.log_time, order, summary.schemas.get(channel.schema_id),

@@ -202,3 +202,54 @@ def test_service_definitions_decode_what_rclpy_serializes() -> None:
         service_definitions("rcl_interfaces/msg/Parameter")
     with pytest.raises(UnknownTypeError):
         import_service("no_such_pkg/srv/Nothing")
+
+
+def _timed_bag(tmp_path: Path, **options: Any) -> Path:
+    """200 messages, one per 10 ms on two topics, in small chunks and (with
+    ``max_file_bytes``) several files."""
+    bag = tmp_path / "timed"
+    with BagWriter(bag, min_free_bytes=0, chunk_bytes=512, **options) as writer:
+        for i in range(200):
+            writer.write("/a" if i % 2 else "/b", STRING, _data(f"m{i}"),
+                         1_000_000_000 + i * 10_000_000)
+    return bag
+
+
+@pytest.mark.parametrize("options", [{}, {"max_file_bytes": 2048}])
+def test_a_time_window_reads_the_messages_logged_in_it_and_only_its_chunks(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, options: dict[str, Any]) -> None:
+    from mcap.records import Chunk
+
+    bag = _timed_bag(tmp_path, **options)
+    everything = list(BagReader(bag).messages())
+    reads: list[int] = []
+    real_read = Chunk.read
+
+    def counted(stream: Any) -> Any:
+        reads.append(1)
+        return real_read(stream)
+
+    monkeypatch.setattr(Chunk, "read", counted)
+    start, end = 1_500_000_000, 1_600_000_000
+    window = list(BagReader(bag).messages(start_ns=start, end_ns=end))
+    assert [m.log_time_ns for m in window] == [
+        m.log_time_ns for m in everything if start <= m.log_time_ns < end]
+    assert len(window) == 10
+    chunks_in_window = len(reads)
+    reads.clear()
+    assert len(list(BagReader(bag).messages())) == 200
+    # A tenth of the log reads far fewer chunks than the whole.
+    assert 0 < chunks_in_window < len(reads) / 3, (chunks_in_window, len(reads))
+    # Open sides, and topics with a window.
+    assert len(list(BagReader(bag).messages(end_ns=start))) == 50
+    assert len(list(BagReader(bag).messages(start_ns=end))) == 140
+    assert {m.topic for m in BagReader(bag).messages(topics=["/a"], start_ns=start,
+                                                     end_ns=end)} == {"/a"}
+
+
+def test_a_time_window_applies_to_a_file_cut_short(tmp_path: Path) -> None:
+    bag = _cut_bag(tmp_path)
+    every = [m.log_time_ns for m in BagReader(bag).messages()]
+    middle = every[len(every) // 2]
+    assert [m.log_time_ns for m in BagReader(bag).messages(start_ns=middle)] == [
+        t for t in every if t >= middle]
