@@ -194,6 +194,7 @@ LAYERS: dict[str, frozenset[str]] = {
                                "soccer_field", "soccer_interfaces"}),
     "ros2_pip_cli": frozenset({"efficient_comm", "efficient_comm_interfaces",
                                "robot_recorder"}),
+    "log_analysis": frozenset({"rosbag2_layout"}),
     "debug_gui": frozenset({"efficient_comm", "efficient_comm_interfaces",
                             "throttle_publisher", "debug_probes", "rosbag2_layout",
                             "robot_recorder", "robot_recorder_interfaces", "soccer_field",

@@ -179,7 +179,14 @@ class BagReader:
                 if file.suffix != SQLITE_SUFFIX and _summary(file) is None]
 
     def file_stats(self, file: Path) -> tuple[int, int, int]:
-        """``(start_ns, end_ns, messages)`` of one of the bag's files, read from its records."""
+        """``(start_ns, end_ns, messages)`` of one of the bag's files: from its summary's
+        statistics where it has them, else read from its records."""
+        summary = None if file.suffix == SQLITE_SUFFIX else _summary(file)
+        if summary is not None and summary.statistics is not None:
+            stats = summary.statistics
+            if not stats.message_count:
+                return 0, 0, 0
+            return stats.message_start_time, stats.message_end_time, stats.message_count
         start, end, count = 0, 0, 0
         with open(file, "rb") as stream:
             for _, _, message in self._file_records(file, stream, None):

@@ -1,0 +1,33 @@
+"""log_analysis: offline analysis of team logs, with no GUI dependency.
+
+A match leaves a merged log of every robot's recording on one time base (humanoid_sim's
+match, team_clock's merge). This package reads it and finds what a person would look for:
+
+* ``source``     :class:`TeamLog`: a log's messages by robot and topic, read by time window,
+  decoded only when used (:class:`LogMessage`);
+* ``events``     :class:`Event`, the :class:`EventGenerator` protocol,
+  :func:`event_generator` (one of a function) and :func:`detect` (all generators in one
+  pass; one that raises is reported and the others go on);
+* ``generators`` the built-in generators (falls, ball lost, role oscillation, overrunning
+  callbacks, ball disagreement, localization jumps, a silent team link, goals);
+* ``registry``   generators by entry point (``log_analysis.event_generators``) or file;
+* ``sidecar``    events in an MCAP beside the log with Foxglove's Event fields;
+* ``cli``        the ``events`` command (``ros2 run log_analysis events LOG``).
+"""
+
+from .errors import GeneratorError as GeneratorError
+from .errors import LogAnalysisError as LogAnalysisError
+from .errors import LogSourceError as LogSourceError
+from .events import Detection as Detection
+from .events import Event as Event
+from .events import EventGenerator as EventGenerator
+from .events import detect as detect
+from .events import event_generator as event_generator
+from .registry import available_generators as available_generators
+from .registry import generators_from_file as generators_from_file
+from .registry import load_generators as load_generators
+from .sidecar import read_events as read_events
+from .sidecar import sidecar_path as sidecar_path
+from .sidecar import write_events as write_events
+from .source import LogMessage as LogMessage
+from .source import TeamLog as TeamLog

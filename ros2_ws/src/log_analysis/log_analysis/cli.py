@@ -1,0 +1,131 @@
+"""``events``: find the events of a team log and write them beside it.
+
+    ros2 run log_analysis events merged_20261126_120000/
+    ros2 run log_analysis events blue1_bag/ --robot blue1 --only falls ball_lost
+    ros2 run log_analysis events LOG --generators my_generators.py -o LOG.events.mcap
+
+Prints one line per event (seconds from the log's start, robot, what, details), writes
+them to a sidecar MCAP (``<log>.events.mcap`` unless ``-o``) as Foxglove events, and shows
+its progress on standard error. A generator that raises is named with what it raised and
+the others finish; the exit status is then 1. A log or generator file that cannot be read
+is one line and exit 1; wrong arguments exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TextIO
+
+from .errors import LogAnalysisError
+from .events import detect
+from .registry import available_generators, load_generators
+from .sidecar import sidecar_path, write_events
+from .source import TeamLog
+
+__all__ = ["events_main"]
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seconds from the log's start, >= 0: {text!r}")
+    return value
+
+
+def progress_printer(total_ns: int, start_ns: int, *, stream: TextIO = sys.stderr,
+                     label: str = "events") -> Callable[[int], None]:
+    """A progress line for ``[start_ns, start_ns + total_ns]`` of log time: redrawn in place
+    on a terminal, a line per tenth elsewhere (a CI log)."""
+    tty = stream.isatty()
+    shown = [-1]
+    began = time.monotonic()
+
+    def show(reached_ns: int) -> None:
+        done = min(1.0, max(0.0, (reached_ns - start_ns) / total_ns)) if total_ns > 0 else 1.0
+        step = int(done * 100 if tty else done * 10)
+        if step == shown[0]:
+            return
+        shown[0] = step
+        bar = "#" * int(done * 30)
+        line = (f"{label}: [{bar:<30}] {done:4.0%} of {total_ns / 1e9:.1f} s of log "
+                f"in {time.monotonic() - began:.1f} s")
+        stream.write(f"\r{line}" if tty else f"{line}\n")
+        stream.flush()
+
+    return show
+
+
+def events_main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="events", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("log", type=Path, nargs="?", help="a merged team log or one "
+                        "robot's bag (rosbag2 directory or .mcap file)")
+    parser.add_argument("--generators", type=Path, action="append", default=[],
+                        metavar="FILE", help="a Python file whose GENERATORS list more "
+                        "event generators (may repeat)")
+    parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these built-in "
+                        "or registered generators (none: all); --list names them")
+    parser.add_argument("--list", action="store_true", help="list the registered "
+                        "generators and exit")
+    parser.add_argument("--robot", help="the robot whose own bag LOG is (its topics are "
+                        "not under /ROBOT)")
+    parser.add_argument("--start", type=_seconds, help="from this many seconds after the "
+                        "log's start")
+    parser.add_argument("--end", type=_seconds, help="up to this many seconds after the "
+                        "log's start")
+    parser.add_argument("-o", "--output", type=Path, help="the sidecar MCAP to write "
+                        "(default: LOG.events.mcap beside the log)")
+    parser.add_argument("--quiet", action="store_true", help="no progress line")
+    args = parser.parse_args(argv)
+    try:
+        if args.list:
+            for name, factory in sorted(available_generators().items()):
+                doc = (factory.__doc__ or "").strip().splitlines()
+                print(f"{name:20} {doc[0] if doc else ''}")
+            return 0
+        if args.log is None:
+            parser.error("give the LOG to analyse (or --list)")
+        if args.start is not None and args.end is not None and args.end <= args.start:
+            parser.error(f"--end {args.end} is not after --start {args.start}")
+        generators = load_generators(names=args.only, files=args.generators)
+        log = TeamLog(args.log, robot=args.robot)
+        first, last = log.time_range()
+        start_ns = None if args.start is None else first + int(args.start * 1e9)
+        end_ns = None if args.end is None else first + int(args.end * 1e9)
+        lo, hi = start_ns or first, min(end_ns or last, last)
+        progress = None if args.quiet else progress_printer(hi - lo, lo)
+        found = detect(log, generators, start_ns=start_ns, end_ns=end_ns, progress=progress)
+        if progress is not None:
+            progress(hi)
+            if sys.stderr.isatty():
+                sys.stderr.write("\n")
+        output = args.output or sidecar_path(args.log)
+        write_events(output, found.events)
+    except LogAnalysisError as exc:
+        print(f"events: error: {exc}", file=sys.stderr)
+        return 1
+    for problem in found.problems:
+        print(f"events: warning: {problem}", file=sys.stderr)
+    sys.stderr.flush()
+    print(f"{'start':>11}  {'length':>8}  {'robot':8} {'event':20} details")
+    for event in found.events:
+        span = (event.end_ns - event.start_ns) / 1e9
+        print(f"{(event.start_ns - first) / 1e9:9.2f} s  {span:6.2f} s  "
+              f"{event.robot or 'team':8} {event.name:20} {event.description}")
+    print(f"{len(found.events)} events from {len(generators)} generators over "
+          f"{found.messages} messages; written to {output}")
+    for name, failure in found.failures.items():
+        print(f"events: error: generator {name} failed and was left out: {failure}",
+              file=sys.stderr)
+    return 1 if found.failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(events_main())

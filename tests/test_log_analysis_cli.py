@@ -1,0 +1,101 @@
+"""``ros2 run log_analysis events`` as a user types it: events of a team log printed and
+written beside it, a user's generator file taken, and bad input told in one line."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+from std_msgs.msg import String
+
+from log_analysis import read_events
+from log_analysis.testing import LogBuilder
+
+
+def _events(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["ros2", "run", "log_analysis", "events", *map(str, args)],
+                          cwd=cwd, capture_output=True, text=True, timeout=60, check=False)
+
+
+def _log(path: Path) -> LogBuilder:
+    with LogBuilder(path) as log:
+        for robot, falls in (("blue1", ((0, "standing"), (4, "fallen"), (6, "standing"))),
+                             ("red1", ((0, "standing"), (8, "falling")))):
+            for t, state in falls:
+                log.add(robot, "fall/state", String(data=state), t=t)
+        for t in range(11):
+            log.add("blue1", "behaviour/state", String(data="kick" if t in (3, 7) else "search"),
+                    t=t)
+    return log
+
+
+KICKS = """
+from log_analysis import Event, event_generator
+
+@event_generator(topics=["behaviour/state"])
+def kicks(m):
+    if m.message.data == "kick":
+        return [Event("kick", m.log_time_ns, m.log_time_ns, robot=m.robot,
+                      description="a kick")]
+
+@event_generator(topics=["behaviour/state"])
+def grumpy(m):
+    raise RuntimeError("nothing suits me")
+
+GENERATORS = [kicks, grumpy]
+"""
+
+
+def test_events_are_printed_written_beside_the_log_and_a_failing_generator_named(
+        tmp_path: Path) -> None:
+    built = _log(tmp_path / "match")
+    log = tmp_path / "match"
+    run = _events(log, "--only", "falls", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    lines = [line.split() for line in run.stdout.splitlines()]
+    assert lines[1][:6] == ["4.00", "s", "2.00", "s", "blue1", "fell"]
+    assert lines[2][:7] == ["6.00", "s", "0.00", "s", "blue1", "got", "up"]
+    assert lines[3][:6] == ["8.00", "s", "2.00", "s", "red1", "fell"]  # to the log's end
+    assert "3 events from 1 generators" in run.stdout
+    assert "100%" in run.stderr  # the progress line
+    sidecar = tmp_path / "match.events.mcap"
+    assert [e.name for e in read_events(sidecar)] == ["fell", "got up", "fell"]
+
+    generators = tmp_path / "mine.py"
+    generators.write_text(KICKS)
+    out = tmp_path / "out.events.mcap"
+    run = _events(log, "--only", "falls", "--generators", generators, "-o", out,
+                  "--start", "2", "--end", "7.5", "--quiet", cwd=tmp_path)
+    # The failing generator is named with what it raised; the others' events are all there.
+    assert run.returncode == 1
+    assert "generator grumpy failed and was left out: RuntimeError: nothing suits me" \
+        in run.stderr
+    assert "Traceback" not in run.stderr
+    assert [(e.name, (e.start_ns - built.ns(0)) / 1e9) for e in read_events(out)] == [
+        ("kick", 3.0), ("fell", 4.0), ("got up", 6.0), ("kick", 7.0)]
+
+
+def test_bad_input_is_one_line_and_a_clear_status(tmp_path: Path) -> None:
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"\x00" * 100)
+    broken = tmp_path / "broken.py"
+    broken.write_text("GENERATORS = [\n")
+    _log(tmp_path / "match")
+    log = tmp_path / "match"
+    for args, status, says in (
+            ((tmp_path / "nothing",), 1, "no bag at"),
+            ((junk,), 1, "junk.mcap"),
+            ((log, "--generators", broken), 1, "broken.py does not run: SyntaxError"),
+            ((log, "--only", "nonsense"), 1, "unknown event generator(s) nonsense; known:"),
+            ((log, "--start", "abc"), 2, "not a number of seconds"),
+            ((log, "--start", "5", "--end", "3"), 2, "is not after --start"),
+            ((), 2, "give the LOG")):
+        run = _events(*args, cwd=tmp_path)
+        assert run.returncode == status, (args, run.stderr)
+        assert says in run.stderr, (args, run.stderr)
+        assert "Traceback" not in run.stderr
+    listed = _events("--list", cwd=tmp_path)
+    assert listed.returncode == 0
+    assert {line.split()[0] for line in listed.stdout.splitlines()} >= {
+        "falls", "ball_lost", "role_oscillation", "long_callbacks", "ball_disagreement",
+        "localization_jump", "team_link_silent", "goals"}
