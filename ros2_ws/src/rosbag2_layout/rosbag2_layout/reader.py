@@ -28,9 +28,10 @@ from typing import IO
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader, get_chunk_data_stream
 from mcap.summary import Summary
 from zstandard import ZstdError
 
@@ -318,6 +319,37 @@ def _scan(file: Path, reader: BagReader | None) -> Iterator[object]:
                                        f"{type(exc).__name__}: {reason}")
 
 
+#: A message record's fields before its data: channel id, sequence, log and publish time.
+_MESSAGE_HEAD = struct.Struct("<HIQQ")
+_RECORD_HEAD = struct.Struct("<BQ")
+
+
+def _chunk_messages(chunk: Chunk, ids: set[int] | None, window: _Window) -> Iterator[Message]:
+    """The messages of one chunk on channels ``ids`` (all when ``None``) in ``window``.
+
+    Records are parsed with one ``struct`` call each and only wanted messages become
+    objects (mcap's ``breakup_chunk`` builds every record through a stream wrapper, about
+    three quarters of the time of reading a few topics out of a full log).
+    """
+    stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    data = stream.read(size) if size else b""
+    view = memoryview(data)
+    pos, message_op = 0, Opcode.MESSAGE
+    while pos < size:
+        opcode, length = _RECORD_HEAD.unpack_from(data, pos)
+        body = pos + _RECORD_HEAD.size
+        pos = body + length
+        if pos > size:
+            raise BagFormatError(f"a record of {length} bytes overruns its chunk ({size} bytes)")
+        if opcode != message_op:
+            continue  # channels and schemas: the summary has them
+        channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(data, body)
+        if (ids is None or channel_id in ids) and window.holds(log_time):
+            yield Message(channel_id=channel_id, sequence=sequence, log_time=log_time,
+                          publish_time=publish_time,
+                          data=bytes(view[body + _MESSAGE_HEAD.size:pos]))
+
+
 def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None,
                    window: _Window) -> Iterator[Record]:
     """Messages in log-time order, one chunk in memory at a time.
@@ -329,6 +361,7 @@ def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None
     """
     wanted = None if topics is None else set(topics)
     chunks = summary.chunk_indexes
+    ids = None
     if wanted is not None:  # skip chunks without the wanted channels (their index says)
         ids = {cid for cid, ch in summary.channels.items() if ch.topic in wanted}
         chunks = [c for c in chunks if not c.message_index_offsets
@@ -340,13 +373,8 @@ def _in_time_order(stream: IO[bytes], summary: Summary, topics: list[str] | None
     for i, index in enumerate(chunks):
         stream.seek(index.chunk_start_offset + 1 + 8)  # opcode, record length
         chunk = Chunk.read(ReadDataStream(stream))
-        for record in breakup_chunk(chunk, validate_crc=True):
-            if not isinstance(record, Message):
-                continue
+        for record in _chunk_messages(chunk, ids, window):
             channel = summary.channels[record.channel_id]
-            if (wanted is not None and channel.topic not in wanted) \
-                    or not window.holds(record.log_time):
-                continue
             order += 1
             heapq.heappush(heap, (record.log_time, order, summary.schemas.get(channel.schema_id),
                                   channel, record))
