@@ -3,13 +3,14 @@ written beside it, a user's generator file taken, and bad input told in one line
 
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
 from std_msgs.msg import String
 
 from log_analysis import read_events
-from log_analysis.testing import LogBuilder
+from log_analysis.testing import LogBuilder, film_ball
 
 
 def _events(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -99,3 +100,38 @@ def test_bad_input_is_one_line_and_a_clear_status(tmp_path: Path) -> None:
     assert {line.split()[0] for line in listed.stdout.splitlines()} >= {
         "falls", "ball_lost", "role_oscillation", "long_callbacks", "ball_disagreement",
         "localization_jump", "team_link_silent", "goals"}
+
+
+def _sync(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["ros2", "run", "log_analysis", "sync-video", *map(str, args)],
+                          cwd=cwd, capture_output=True, text=True, timeout=90, check=False)
+
+
+def _kicked(t: float) -> tuple[float, float]:
+    """At rest, then rolled 2 m in 2 s, every 10 s."""
+    s = t % 10.0
+    along = min(max(s - 4.0, 0.0), 2.0)
+    return -1.0 + 2.0 * along - 0.5 * along * along, 0.5
+
+
+def test_sync_video_finds_the_cameras_clock_and_writes_it_beside_the_video(
+        tmp_path: Path) -> None:
+    log, video = film_ball(tmp_path, _kicked, seconds=30, offset_s=-2.35, drift_ppm=0)
+    run = _sync(log, video, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "from the ball track" in run.stdout
+    fit = json.loads(Path(f"{video}.sync.json").read_text())
+    assert abs(fit["offset_ns"] + 2.35e9) < 50e6  # a quarter of a frame at 5 fps
+    # Picked by hand: the first kick seen at 4.0 s of video, 4.0 s into the log.
+    run = _sync(log, video, "--anchor", "4.0=4.0", "-o", tmp_path / "hand.json", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert json.loads((tmp_path / "hand.json").read_text())["offset_ns"] == -2_350_000_000
+    for args, says in (
+            ((log, tmp_path / "none.mp4"), "no video at"),
+            ((tmp_path / "nolog", video), "no bag at"),
+            ((log, video, "--ball-topic", "/nowhere"), "no ball track on /nowhere"),
+            ((log, video, "--anchor", "4.0"), "an anchor is CAMERA=LOG")):
+        run = _sync(*args, cwd=tmp_path)
+        assert run.returncode in (1, 2), (args, run.stderr)
+        assert says in run.stderr, (args, run.stderr)
+        assert "Traceback" not in run.stderr

@@ -191,6 +191,7 @@ LAYERS: dict[str, frozenset[str]] = {
                                "throttle_publisher"}),
     "humanoid_sim": frozenset({"efficient_comm", "throttle_publisher", "debug_probes",
                                "robot_recorder", "team_clock", "team_clock_interfaces",
+                               "log_analysis",
                                "soccer_field", "soccer_interfaces"}),
     "ros2_pip_cli": frozenset({"efficient_comm", "efficient_comm_interfaces",
                                "robot_recorder"}),

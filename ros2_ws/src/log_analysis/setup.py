@@ -21,6 +21,7 @@ setup(
     entry_points={
         "console_scripts": [
             "events = log_analysis.cli:events_main",
+            "sync-video = log_analysis.cli:sync_video_main",
         ],
         "log_analysis.event_generators": [
             "falls = log_analysis.generators:Falls",

@@ -39,7 +39,7 @@ from contextlib import AbstractContextManager, ExitStack, nullcontext
 from dataclasses import asdict, dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import Any
 
 import av
 import mujoco
@@ -47,6 +47,14 @@ import numpy as np
 import numpy.typing as npt
 
 from efficient_comm.handle import NodeHandle
+from log_analysis import LogSourceError
+from log_analysis.video import (
+    SIDECAR_FORMAT,
+    Calibration,
+    VideoSidecar,
+    read_video_sidecar,
+    video_sidecar_path,
+)
 from soccer_field import KIDSIZE, FieldDimensions
 from team_clock import SkewedClock
 
@@ -56,8 +64,6 @@ from .render import OffscreenRenderer
 __all__ = ["SIDECAR_FORMAT", "Calibration", "MatchCamera", "MatchVideo", "OverheadView",
            "VideoSidecar", "read_sidecar", "sidecar_path"]
 
-#: The sidecar's ``format`` field; a reader refuses other versions.
-SIDECAR_FORMAT = "humanoid_sim.match_video/1"
 #: Frame times in the MP4 are kept to 1/90000 s (MPEG's usual clock), not to the frame grid,
 #: so a frame rendered late says when it was taken.
 TIME_BASE = Fraction(1, 90_000)
@@ -99,79 +105,17 @@ class OverheadView:
         return cam
 
 
-@dataclass(frozen=True, slots=True)
-class Calibration:
-    """The overhead camera's pinhole model: field frame (metres) -> pixels.
-
-    ``position`` is the optical centre, ``forward`` and ``up`` the unit view direction and
-    the image's up direction, all in the field frame; ``fx = fy`` and ``(cx, cy)`` the
-    intrinsics of the ``width`` x ``height`` frame (row 0 at the top, as decoded).
-    """
-
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    position: tuple[float, float, float]
-    forward: tuple[float, float, float]
-    up: tuple[float, float, float]
-
-    def project(self, points: npt.ArrayLike) -> npt.NDArray[np.float64]:
-        """Pixels ``(u, v)`` of field points (N x 3); NaN for points behind the camera."""
-        p = np.atleast_2d(np.asarray(points, dtype=float)) - np.asarray(self.position)
-        forward, up = np.asarray(self.forward), np.asarray(self.up)
-        right = np.cross(forward, up)
-        depth = p @ forward
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = self.cx + self.fx * (p @ right) / depth
-            v = self.cy - self.fy * (p @ up) / depth
-        out = np.stack([u, v], axis=1)
-        out[depth <= 0] = np.nan
-        return out
-
-
-class VideoSidecar(TypedDict):
-    """``<video>.json``: how to read the video's frames on the camera's clock."""
-
-    format: str
-    video: str
-    #: Camera-clock time (ns) of presentation time 0, i.e. of the first frame.
-    start_ns: int
-    #: ``[num, den]`` seconds per unit of the frames' presentation times.
-    time_base: list[int]
-    fps: float
-    frames: int
-    width: int
-    height: int
-    view: dict[str, Any]
-    calibration: dict[str, Any]
-
-
 def sidecar_path(video: str | os.PathLike[str]) -> Path:
-    """``match.mp4`` -> ``match.mp4.json``."""
-    return Path(f"{os.fspath(video)}.json")
+    """``match.mp4`` -> ``match.mp4.json`` (log_analysis owns the sidecar's format)."""
+    return video_sidecar_path(video)
 
 
 def read_sidecar(video: str | os.PathLike[str]) -> tuple[VideoSidecar, Calibration]:
     """The sidecar of ``video`` and its calibration; a missing or foreign one is a VideoError."""
-    path = sidecar_path(video)
     try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise VideoError(f"cannot read the video's sidecar {path}: {exc}") from exc
-    if not isinstance(data, dict) or data.get("format") != SIDECAR_FORMAT:
-        raise VideoError(f"{path} is not a {SIDECAR_FORMAT} sidecar")
-    try:
-        cal: dict[str, Any] = data["calibration"]
-        calibration = Calibration(
-            width=int(cal["width"]), height=int(cal["height"]), fx=float(cal["fx"]),
-            fy=float(cal["fy"]), cx=float(cal["cx"]), cy=float(cal["cy"]),
-            position=_vec(cal["position"]), forward=_vec(cal["forward"]), up=_vec(cal["up"]))
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
-        raise VideoError(f"{path}: the camera's calibration is incomplete ({exc!r})") from exc
-    return data, calibration  # type: ignore[return-value]
+        return read_video_sidecar(video)
+    except LogSourceError as exc:
+        raise VideoError(str(exc)) from exc
 
 
 class _OverheadRenderer:

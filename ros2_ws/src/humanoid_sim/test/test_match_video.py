@@ -160,7 +160,7 @@ def test_bad_settings_and_paths_are_told_in_one_line(tmp_path: Path) -> None:
     sidecar_path(tmp_path / "x.mp4").write_text('{"format": "other"}')
     sidecar_path(tmp_path / "y.mp4").write_text(
         '{"format": "humanoid_sim.match_video/1", "calibration": {"width": 2}}')
-    with pytest.raises(VideoError, match="calibration is incomplete"):
+    with pytest.raises(VideoError, match="calibration or clock is incomplete"):
         read_sidecar(tmp_path / "y.mp4")
     with pytest.raises(VideoError, match=r"not a humanoid_sim\.match_video/1 sidecar"):
         read_sidecar(tmp_path / "x.mp4")

@@ -12,12 +12,18 @@ match, team_clock's merge). This package reads it and finds what a person would 
   callbacks, ball disagreement, localization jumps, a silent team link, goals);
 * ``registry``   generators by entry point (``log_analysis.event_generators``) or file;
 * ``sidecar``    events in an MCAP beside the log with Foxglove's Event fields;
-* ``cli``        the ``events`` command (``ros2 run log_analysis events LOG``).
+* ``video``      an external video: frames on the camera's clock, its calibration
+  (:class:`~.video.Calibration`, the sidecar format humanoid_sim's match camera writes);
+* ``sync``       the video's clock against the log's, fitted from the ball's motion or from
+  anchors picked by hand (:class:`~.sync.VideoFit`);
+* ``cli``        the commands: ``ros2 run log_analysis events LOG``, ``sync-video LOG VIDEO``;
+* ``testing``    test doubles: a log from plain messages, a filmed ball on a known clock.
 """
 
 from .errors import GeneratorError as GeneratorError
 from .errors import LogAnalysisError as LogAnalysisError
 from .errors import LogSourceError as LogSourceError
+from .errors import SyncError as SyncError
 from .events import Detection as Detection
 from .events import Event as Event
 from .events import EventGenerator as EventGenerator

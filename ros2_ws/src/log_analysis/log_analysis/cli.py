@@ -1,4 +1,6 @@
-"""``events``: find the events of a team log and write them beside it.
+"""The command line: ``events`` and ``sync-video`` (``ros2 run log_analysis <command>``).
+
+``events``: find the events of a team log and write them beside it.
 
     ros2 run log_analysis events merged_20261126_120000/
     ros2 run log_analysis events blue1_bag/ --robot blue1 --only falls ball_lost
@@ -9,6 +11,16 @@ them to a sidecar MCAP (``<log>.events.mcap`` unless ``-o``) as Foxglove events,
 its progress on standard error. A generator that raises is named with what it raised and
 the others finish; the exit status is then 1. A log or generator file that cannot be read
 is one line and exit 1; wrong arguments exit 2.
+
+``sync-video``: fit an external video's clock to a log's and write the fit beside the video.
+
+    ros2 run log_analysis sync-video match/merged_20261126_120000/ match/video_20261126_120000.mp4
+    ros2 run log_analysis sync-video LOG VIDEO --anchor 12.4=10.0 --anchor 95.1=92.6
+
+From the ball's motion (log_analysis.sync explains how) or, with ``--anchor``, from moments
+picked by hand (``CAMERA=LOG``: seconds since the video's first frame and since the log's
+start). Prints offset, drift and residual (also in frames) and writes ``<video>.sync.json``
+(``-o`` to choose), which the offline tools read to put the video on the log's time.
 """
 
 from __future__ import annotations
@@ -25,8 +37,10 @@ from .events import detect
 from .registry import available_generators, load_generators
 from .sidecar import sidecar_path, write_events
 from .source import TeamLog
+from .sync import fit_anchors, fit_video_clock
+from .video import ExternalVideo
 
-__all__ = ["events_main"]
+__all__ = ["events_main", "sync_video_main"]
 
 
 def _seconds(text: str) -> float:
@@ -127,5 +141,54 @@ def events_main(argv: Sequence[str] | None = None) -> int:
     return 1 if found.failures else 0
 
 
-if __name__ == "__main__":
-    sys.exit(events_main())
+def _anchor(text: str) -> tuple[float, float]:
+    camera, sep, log = text.partition("=")
+    try:
+        if not sep:
+            raise ValueError
+        return float(camera), float(log)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"an anchor is CAMERA=LOG in seconds (since the video's first frame and the "
+            f"log's start), not {text!r}") from None
+
+
+def sync_video_main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="sync-video", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
+    parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
+    parser.add_argument("--ball-topic", default="/world/ground_truth/ball",
+                        help="where the log has the ball (PoseStamped or PointStamped in "
+                        "the field frame; default: the world's ground truth)")
+    parser.add_argument("--max-offset", type=_seconds, default=30.0, metavar="S",
+                        help="search the offset within ±S seconds of lining up the starts")
+    parser.add_argument("--anchor", type=_anchor, action="append", default=[],
+                        metavar="CAMERA=LOG", help="a moment picked by hand (may repeat); "
+                        "fits on these instead of the ball")
+    parser.add_argument("-o", "--output", type=Path, help="where to write the fit (default: "
+                        "VIDEO.sync.json)")
+    args = parser.parse_args(argv)
+    try:
+        video = ExternalVideo(args.video)
+        log = TeamLog(args.log)
+        if args.anchor:
+            first = log.time_range()[0]
+            fit = fit_anchors([(video.start_ns + round(c * 1e9), first + round(t * 1e9))
+                               for c, t in args.anchor], start_ns=video.start_ns,
+                              frame_period_ns=video.frame_period_ns)
+        else:
+            fit = fit_video_clock(log, video, ball_topic=args.ball_topic,
+                                  max_offset_s=args.max_offset)
+        output = fit.save(args.output or Path(f"{args.video}.sync.json"))
+    except LogAnalysisError as exc:
+        print(f"sync-video: error: {exc}", file=sys.stderr)
+        return 1
+    frames = f" ({fit.residual_frames:.2f} frames)" if fit.frame_period_ns else ""
+    print(f"offset {fit.offset_ns / 1e9:+.3f} s  drift {fit.drift_ppm:+.1f} ppm  residual "
+          f"{fit.residual_ns / 1e6:.1f} ms{frames}  from the {fit.method}"
+          + (f" ({len(fit.stretches)} stretches, {fit.frames_used} frames, "
+             f"{fit.pixel_error_px:.1f} px)" if fit.method == "ball track" else
+             f" ({len(args.anchor)} anchors)"))
+    print(f"written to {output}")
+    return 0

@@ -1,8 +1,10 @@
 """Every error log_analysis raises, under one root::
 
     LogAnalysisError
-    ├── LogSourceError        a log that cannot be read (missing, not a bag, damaged) (OSError)
-    └── GeneratorError        an event generator that cannot be loaded or set up (ValueError)
+    ├── LogSourceError        a log or video that cannot be read (missing, not a bag or
+    │                         video, damaged) (OSError)
+    ├── GeneratorError        an event generator that cannot be loaded or set up (ValueError)
+    └── SyncError             nothing to fit a video's clock on (ValueError)
 
 A generator that raises while it runs is not an error of the analysis: :func:`detect`
 reports it and goes on with the others (``Detection.failures``).
@@ -22,3 +24,8 @@ class LogSourceError(LogAnalysisError, OSError):
 class GeneratorError(LogAnalysisError, ValueError):
     """An event generator that cannot be loaded (a file that does not import, no
     ``GENERATORS`` in it, an entry point that fails) or is not a generator."""
+
+
+class SyncError(LogAnalysisError, ValueError):
+    """Nothing to fit a video's clock on: no ball track, no frame showing the ball, a ball
+    that never moved, no anchors."""

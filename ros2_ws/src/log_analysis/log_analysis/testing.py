@@ -1,4 +1,6 @@
-"""A team log written from plain messages, for testing event generators (ours and users').
+"""Test doubles: a team log written from plain messages (for testing event generators,
+ours and users'), and a filmed ball: a log of a ball's track with a video of it on a camera
+clock of known offset and drift (for testing what puts a video on a log's time).
 
     with LogBuilder(tmp_path / "log") as log:
         log.add("blue1", "fall/state", String(data="fallen"), t=3.0)
@@ -12,16 +14,31 @@ generator tested on it reads a recorded match the same way.
 
 from __future__ import annotations
 
+import json
 import os
+from collections.abc import Callable
+from dataclasses import asdict
+from fractions import Fraction
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+import av
+import numpy as np
+from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import serialize_message
 
 from rosbag2_layout import BagWriter, type_name
 
-__all__ = ["LogBuilder"]
+from .video import SIDECAR_FORMAT, Calibration, video_sidecar_path
+
+__all__ = ["OVERHEAD", "LogBuilder", "film_ball"]
+
+#: A camera above a KidSize field's long side, as humanoid_sim's match films (480 x 270).
+OVERHEAD = Calibration(width=480, height=270, fx=325.9, fy=325.9, cx=240.0, cy=135.0,
+                       position=(0.0, -4.0685, 8.725), forward=(0.0, 0.4226, -0.9063),
+                       up=(0.0, 0.9063, 0.4226))
+_TURF, _BALL, _RED = (70, 228, 70), (232, 150, 45), (200, 30, 30)
 
 
 class LogBuilder:
@@ -51,3 +68,55 @@ class LogBuilder:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         self.close()
+
+
+def film_ball(
+    folder: str | os.PathLike[str],
+    track: Callable[[float], tuple[float, float]],
+    *,
+    seconds: float,
+    offset_s: float,
+    drift_ppm: float,
+    fps: int = 5,
+    camera: Calibration = OVERHEAD,
+) -> tuple[Path, Path]:
+    """``folder/log`` with the ball's ground truth at 100 Hz on ``/world/ground_truth/ball``
+    (log time = world time, from 0) and ``folder/match.mp4`` (H.264, with its sidecar)
+    filming it on a camera clock ``offset_s`` ahead of the world's and ``drift_ppm`` fast:
+    the ball (``track(t)`` -> field x, y) as a few orange pixels on turf, and beside it a
+    red robot whose edge against the turf comes close to the ball's colour."""
+    out_dir = Path(folder)
+    log_path = out_dir / "log"
+    with LogBuilder(log_path, epoch_s=0.0) as log:
+        for i in range(int(seconds * 100) + 1):
+            msg = PoseStamped()
+            msg.pose.position.x, msg.pose.position.y = map(float, track(i / 100))
+            msg.pose.position.z = 0.07
+            log.add("world", "ground_truth/ball", msg, t=i / 100)
+    video = out_dir / "match.mp4"
+    time_base = Fraction(1, 90_000)
+    frames = int(seconds * fps)
+    with av.open(str(video), "w") as container:
+        stream: Any = container.add_stream("libx264", rate=fps)
+        stream.width, stream.height, stream.pix_fmt = camera.width, camera.height, "yuv420p"
+        stream.codec_context.time_base = stream.time_base = time_base
+        for k in range(frames):
+            world = k / fps
+            img = np.empty((camera.height, camera.width, 3), np.uint8)
+            img[:] = _TURF
+            u, v = camera.project([(*track(world), 0.07)])[0]
+            # The pixel that holds (u, v) (pixel k spans [k, k + 1]) and its neighbours.
+            img[int(v) - 1:int(v) + 2, int(u) - 1:int(u) + 2] = _BALL
+            img[60:80, 300:306] = _RED
+            img[60:80, 306:307] = (150, 140, 55)
+            camera_s = world + offset_s + drift_ppm * 1e-6 * world
+            frame = av.VideoFrame.from_ndarray(img, format="rgb24")
+            frame.pts = round((camera_s - offset_s) / time_base)
+            frame.time_base = time_base
+            container.mux(stream.encode(frame))
+        container.mux(stream.encode())
+    sidecar = {"format": SIDECAR_FORMAT, "video": video.name, "start_ns": round(offset_s * 1e9),
+               "time_base": [1, 90_000], "fps": fps, "frames": frames, "width": camera.width,
+               "height": camera.height, "view": {}, "calibration": asdict(camera)}
+    video_sidecar_path(video).write_text(json.dumps(sidecar))
+    return log_path, video

@@ -37,9 +37,10 @@ class LogReader(BagReader):
         with log_errors():
             super().__post_init__()
 
-    def records(self, *, topics: list[str] | None = None) -> Iterator[Record]:
+    def records(self, *, topics: list[str] | None = None, start_ns: int | None = None,
+                end_ns: int | None = None) -> Iterator[Record]:
         with log_errors():
-            yield from super().records(topics=topics)
+            yield from super().records(topics=topics, start_ns=start_ns, end_ns=end_ns)
 
     def topics(self) -> set[str]:
         with log_errors():
