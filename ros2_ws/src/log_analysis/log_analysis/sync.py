@@ -176,18 +176,26 @@ class _Cost:
 
 
 def _plateau(f: Callable[[float], float], centre: float, frame: float, step: float
-              ) -> tuple[float, float]:
-    """The middle and half-width of the offsets within two frames of ``centre`` (``step``
-    apart) that fit about as well as the best: within a tenth of the way from the best to
-    one frame off it. A ball placed from one spot to another fits every offset that keeps
-    the same frames on each side of the jump about equally well; a rolling ball few."""
-    grid = np.arange(centre - 2 * frame, centre + 2 * frame + step / 2, step)
+             ) -> tuple[float, float]:
+    """The middle and half-width of the offsets within two frames of ``centre`` that fit
+    about as well as the best: within a tenth of the way from the best to one frame off
+    it. A ball placed from one spot to another fits every offset that keeps the same
+    frames on each side of the jump about equally well; a rolling ball few. Searched at
+    ten steps, then each edge at one step."""
+    coarse = step * 10
+    grid = np.arange(centre - 2 * frame, centre + 2 * frame + coarse / 2, coarse)
     values = np.asarray([f(o) for o in grid])
     at = int(np.argmin(values))
-    near = [f(grid[at] - frame), f(grid[at] + frame)]
-    rise = float(np.mean([v for v in near if np.isfinite(v)] or [values[at]])) - values[at]
-    best = grid[values <= values[at] + 0.1 * max(rise, 0.0)]
-    return float((best[0] + best[-1]) / 2), float((best[-1] - best[0]) / 2)
+    near = [v for v in (f(grid[at] - frame), f(grid[at] + frame)) if np.isfinite(v)]
+    limit = values[at] + 0.1 * max(float(np.mean(near or [values[at]])) - values[at], 0.0)
+    good = np.flatnonzero(values <= limit)
+    lo, hi = float(grid[good[0]]), float(grid[good[-1]])
+    for edge, direction in ((lo, -1), (hi, 1)):
+        for k in range(1, 10):  # the edge to a step: how far beyond it still fits
+            if f(edge + direction * k * step) > limit:
+                break
+            lo, hi = min(lo, edge - k * step), max(hi, edge + k * step)
+    return (lo + hi) / 2, (hi - lo) / 2
 
 
 def _line(x: FloatArray, y: FloatArray) -> tuple[float, float, float]:
