@@ -7,6 +7,7 @@ import json
 import subprocess
 from pathlib import Path
 
+import av
 from std_msgs.msg import String
 
 from log_analysis import read_events
@@ -135,3 +136,25 @@ def test_sync_video_finds_the_cameras_clock_and_writes_it_beside_the_video(
         assert run.returncode in (1, 2), (args, run.stderr)
         assert says in run.stderr, (args, run.stderr)
         assert "Traceback" not in run.stderr
+
+
+def test_augment_fits_the_clock_when_needed_and_writes_the_augmented_video(
+        tmp_path: Path) -> None:
+    log, video = film_ball(tmp_path, _kicked, seconds=12, offset_s=0.8, drift_ppm=0,
+                           robots={"blue1": lambda t: (-2.0 + 0.1 * t, 0.0, 0.3)})
+    run = _augment(log, video, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "fitting the video's clock first" in run.stderr
+    assert "60 frames of 480x294 with blue1" in run.stdout
+    out = tmp_path / "match.augmented.mp4"
+    with av.open(str(out)) as container:
+        assert sum(1 for _ in container.decode(video=0)) == 60
+    assert Path(f"{video}.sync.json").exists()
+    again = _augment(log, video, cwd=tmp_path)  # the output exists: refused, kept
+    assert again.returncode == 1 and "exists already" in again.stderr
+    assert "Traceback" not in again.stderr
+
+
+def _augment(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["ros2", "run", "log_analysis", "augment", *map(str, args)],
+                          cwd=cwd, capture_output=True, text=True, timeout=90, check=False)

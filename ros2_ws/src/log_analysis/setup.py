@@ -22,6 +22,7 @@ setup(
         "console_scripts": [
             "events = log_analysis.cli:events_main",
             "sync-video = log_analysis.cli:sync_video_main",
+            "augment = log_analysis.cli:augment_main",
         ],
         "log_analysis.event_generators": [
             "falls = log_analysis.generators:Falls",

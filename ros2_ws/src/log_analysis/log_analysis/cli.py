@@ -21,6 +21,14 @@ From the ball's motion (log_analysis.sync explains how) or, with ``--anchor``, f
 picked by hand (``CAMERA=LOG``: seconds since the video's first frame and since the log's
 start). Prints offset, drift and residual (also in frames) and writes ``<video>.sync.json``
 (``-o`` to choose), which the offline tools read to put the video on the log's time.
+
+``augment``: the video with every robot's beliefs drawn in, event captions and a timeline.
+
+    ros2 run log_analysis augment match/merged_20261126_120000/ match/video_20261126_120000.mp4
+
+Reads the fit of ``sync-video`` (``VIDEO.sync.json``; fits it first when there is none)
+and the events of ``events`` (``LOG.events.mcap``, when there), and writes
+``VIDEO.augmented.mp4`` (``-o`` to choose).
 """
 
 from __future__ import annotations
@@ -32,15 +40,16 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
+from .augment import augment_video
 from .errors import LogAnalysisError
 from .events import detect
 from .registry import available_generators, load_generators
-from .sidecar import sidecar_path, write_events
+from .sidecar import read_events, sidecar_path, write_events
 from .source import TeamLog
-from .sync import fit_anchors, fit_video_clock
+from .sync import VideoFit, fit_anchors, fit_video_clock
 from .video import ExternalVideo
 
-__all__ = ["events_main", "sync_video_main"]
+__all__ = ["augment_main", "events_main", "sync_video_main"]
 
 
 def _seconds(text: str) -> float:
@@ -53,23 +62,25 @@ def _seconds(text: str) -> float:
     return value
 
 
-def progress_printer(total_ns: int, start_ns: int, *, stream: TextIO = sys.stderr,
-                     label: str = "events") -> Callable[[int], None]:
-    """A progress line for ``[start_ns, start_ns + total_ns]`` of log time: redrawn in place
-    on a terminal, a line per tenth elsewhere (a CI log)."""
+def progress_printer(total: int, start: int, *, stream: TextIO = sys.stderr,
+                     label: str = "events", unit: str = "s of log", scale: float = 1e-9
+                     ) -> Callable[[int], None]:
+    """A progress line for ``[start, start + total]`` (log time in ns, or frames with
+    ``unit="frames", scale=1``): redrawn in place on a terminal, a line per tenth elsewhere
+    (a CI log)."""
     tty = stream.isatty()
     shown = [-1]
     began = time.monotonic()
 
-    def show(reached_ns: int) -> None:
-        done = min(1.0, max(0.0, (reached_ns - start_ns) / total_ns)) if total_ns > 0 else 1.0
+    def show(reached: int) -> None:
+        done = min(1.0, max(0.0, (reached - start) / total)) if total > 0 else 1.0
         step = int(done * 100 if tty else done * 10)
         if step == shown[0]:
             return
         shown[0] = step
         bar = "#" * int(done * 30)
-        line = (f"{label}: [{bar:<30}] {done:4.0%} of {total_ns / 1e9:.1f} s of log "
-                f"in {time.monotonic() - began:.1f} s")
+        line = (f"{label}: [{bar:<30}] {done:4.0%} of {total * scale:.{1 if scale < 1 else 0}f} "
+                f"{unit} in {time.monotonic() - began:.1f} s")
         stream.write(f"\r{line}" if tty else f"{line}\n")
         stream.flush()
 
@@ -191,4 +202,49 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
              f"{fit.pixel_error_px:.1f} px)" if fit.method == "ball track" else
              f" ({len(args.anchor)} anchors)"))
     print(f"written to {output}")
+    return 0
+
+
+def augment_main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="augment", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
+    parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
+    parser.add_argument("--fit", type=Path, help="the video's clock (default: "
+                        "VIDEO.sync.json; fitted from the ball when there is none)")
+    parser.add_argument("--events", type=Path, help="events to caption (default: "
+                        "LOG.events.mcap when it exists)")
+    parser.add_argument("-o", "--output", type=Path,
+                        help="the MP4 to write (default: VIDEO.augmented.mp4)")
+    parser.add_argument("--quiet", action="store_true", help="no progress line")
+    args = parser.parse_args(argv)
+    try:
+        video = ExternalVideo(args.video)
+        log = TeamLog(args.log)
+        fit_path = args.fit or Path(f"{args.video}.sync.json")
+        if args.fit is None and not fit_path.exists():
+            print(f"augment: no {fit_path}: fitting the video's clock first", file=sys.stderr)
+            fit = fit_video_clock(log, video)
+            fit.save(fit_path)
+        else:
+            fit = VideoFit.load(fit_path)
+        events_path = args.events or sidecar_path(args.log)
+        events = read_events(events_path) if args.events or events_path.exists() else []
+        output = args.output or args.video.with_name(
+            f"{args.video.name.removesuffix('.mp4')}.augmented.mp4")
+        total = int(video.sidecar.get("frames") or 0)
+        show = None if args.quiet else progress_printer(total, 0, label="augment",
+                                                        unit="frames", scale=1)
+        report = augment_video(log, video, fit, output, events=events, progress=show)
+        if show is not None:
+            show(total)
+            if sys.stderr.isatty():
+                sys.stderr.write("\n")
+    except LogAnalysisError as exc:
+        print(f"augment: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"{report.frames} frames of {report.width}x{report.height} with "
+          f"{', '.join(report.robots) or 'no robot'} and {len(events)} events in "
+          f"{report.seconds:.1f} s ({report.frames_per_s / report.video_fps:.1f}x real time); "
+          f"written to {report.path}")
     return 0

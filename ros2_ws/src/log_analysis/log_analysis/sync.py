@@ -90,6 +90,16 @@ class VideoFit:
         target.write_text(json.dumps(asdict(self), indent=1) + "\n")
         return target
 
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> VideoFit:
+        """A fit :meth:`save` wrote (``sync-video``'s ``<video>.sync.json``)."""
+        try:
+            data = json.loads(Path(path).read_text())
+            data["stretches"] = [tuple(s) for s in data.get("stretches", [])]
+            return cls(**data)
+        except (OSError, ValueError, TypeError) as exc:
+            raise SyncError(f"cannot read a video fit from {path}: {exc}") from exc
+
 
 #: Candidates kept per frame, and the blob sizes (px) a ball may have in a frame.
 MAX_CANDIDATES = 4

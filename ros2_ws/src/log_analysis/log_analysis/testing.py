@@ -15,8 +15,9 @@ generator tested on it reads a recorded match the same way.
 from __future__ import annotations
 
 import json
+import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict
 from fractions import Fraction
 from pathlib import Path
@@ -25,8 +26,9 @@ from typing import Any
 
 import av
 import numpy as np
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
 from rclpy.serialization import serialize_message
+from std_msgs.msg import String
 
 from rosbag2_layout import BagWriter, type_name
 
@@ -79,12 +81,17 @@ def film_ball(
     drift_ppm: float,
     fps: int = 5,
     camera: Calibration = OVERHEAD,
+    robots: Mapping[str, Callable[[float], tuple[float, float, float]]] | None = None,
 ) -> tuple[Path, Path]:
     """``folder/log`` with the ball's ground truth at 100 Hz on ``/world/ground_truth/ball``
     (log time = world time, from 0) and ``folder/match.mp4`` (H.264, with its sidecar)
     filming it on a camera clock ``offset_s`` ahead of the world's and ``drift_ppm`` fast:
     the ball (``track(t)`` -> field x, y) as a few orange pixels on turf, and beside it a
-    red robot whose edge against the turf comes close to the ball's colour."""
+    red robot whose edge against the turf comes close to the ball's colour.
+
+    ``robots`` (name -> ``t`` -> field x, y, yaw) adds what each believes at 10 Hz: its
+    ``localization/pose`` (that pose) and ``ball/position`` (the true ball, as seen from
+    that pose), and its ``role`` (``striker``) once."""
     out_dir = Path(folder)
     log_path = out_dir / "log"
     with LogBuilder(log_path, epoch_s=0.0) as log:
@@ -93,6 +100,11 @@ def film_ball(
             msg.pose.position.x, msg.pose.position.y = map(float, track(i / 100))
             msg.pose.position.z = 0.07
             log.add("world", "ground_truth/ball", msg, t=i / 100)
+            if i % 10 == 0:
+                for name, where in (robots or {}).items():
+                    _believe(log, name, where(i / 100), track(i / 100), t=i / 100)
+        for name in robots or {}:
+            log.add(name, "role", String(data="striker"), t=0.0)
     video = out_dir / "match.mp4"
     time_base = Fraction(1, 90_000)
     frames = int(seconds * fps)
@@ -120,3 +132,18 @@ def film_ball(
                "height": camera.height, "view": {}, "calibration": asdict(camera)}
     video_sidecar_path(video).write_text(json.dumps(sidecar))
     return log_path, video
+
+
+def _believe(log: LogBuilder, robot: str, pose: tuple[float, float, float],
+             ball: tuple[float, float], *, t: float) -> None:
+    x, y, yaw = map(float, pose)
+    estimate = PoseWithCovarianceStamped()
+    estimate.pose.pose.position.x, estimate.pose.pose.position.y = x, y
+    estimate.pose.pose.orientation.z = math.sin(yaw / 2)
+    estimate.pose.pose.orientation.w = math.cos(yaw / 2)
+    log.add(robot, "localization/pose", estimate, t=t)
+    dx, dy = ball[0] - x, ball[1] - y
+    seen = PointStamped()
+    seen.point.x = math.cos(yaw) * dx + math.sin(yaw) * dy
+    seen.point.y = -math.sin(yaw) * dx + math.cos(yaw) * dy
+    log.add(robot, "ball/position", seen, t=t)
