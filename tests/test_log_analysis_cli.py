@@ -11,7 +11,7 @@ import av
 from std_msgs.msg import String
 
 from log_analysis import read_events
-from log_analysis.testing import LogBuilder, film_ball
+from log_analysis.testing import LogBuilder, film_ball, seen_ball
 
 
 def _events(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -158,3 +158,24 @@ def test_augment_fits_the_clock_when_needed_and_writes_the_augmented_video(
 def _augment(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(["ros2", "run", "log_analysis", "augment", *map(str, args)],
                           cwd=cwd, capture_output=True, text=True, timeout=90, check=False)
+
+
+def test_compare_two_ball_detectors_on_one_log_as_a_user_types_it(tmp_path: Path) -> None:
+    frames = [(1.0 + k / 2, -10.0 + k, 4 <= k < 8) for k in range(16)]
+    log = seen_ball(tmp_path / "log", robot="blue1", frames=frames)
+    run = subprocess.run(
+        ["ros2", "run", "log_analysis", "compare", str(log), "--robot", "blue1",
+         "--a", "colour=humanoid_sim::BallDetector", "--b", "blob=humanoid_sim::BlobBallDetector",
+         "--set", "b.min_fill=0.4", "-o", str(tmp_path / "report")],
+        cwd=tmp_path, capture_output=True, text=True, timeout=90, check=False)
+    assert run.returncode == 0, run.stderr
+    assert "| hits (ball in view) | 100% | 100% |" in run.stdout
+    assert "They agree (both nothing, or within 2°) on 75% of the images" in run.stdout
+    assert (tmp_path / "report" / "report.md").exists()
+    disagreements = read_events(tmp_path / "report" / "disagreements.events.mcap")
+    assert len(disagreements) == 4
+    bad = subprocess.run(
+        ["ros2", "run", "log_analysis", "compare", str(log), "--robot", "blue1",
+         "--a", "colour=humanoid_sim::BallDetector", "--b", "blob", "-o", str(tmp_path / "x")],
+        cwd=tmp_path, capture_output=True, text=True, timeout=90, check=False)
+    assert bad.returncode == 2 and "a variant is LABEL=COMPONENT" in bad.stderr

@@ -195,7 +195,7 @@ LAYERS: dict[str, frozenset[str]] = {
                                "soccer_field", "soccer_interfaces"}),
     "ros2_pip_cli": frozenset({"efficient_comm", "efficient_comm_interfaces",
                                "robot_recorder"}),
-    "log_analysis": frozenset({"rosbag2_layout"}),
+    "log_analysis": frozenset({"efficient_comm", "rosbag2_layout"}),
     "debug_gui": frozenset({"efficient_comm", "efficient_comm_interfaces",
                             "throttle_publisher", "debug_probes", "rosbag2_layout",
                             "robot_recorder", "robot_recorder_interfaces", "soccer_field",
@@ -206,7 +206,8 @@ OURS = frozenset(p.parent.name for p in SRC.glob("*/package.xml"))
 
 #: Python modules whose rosdep key is not their import name.
 ROSDEP_KEYS = {"yaml": "python3-yaml", "numpy": "python3-numpy", "cv2": "python3-opencv",
-               "serial": "python3-serial", "av": "python3-av"}
+               "serial": "python3-serial", "av": "python3-av",
+               "matplotlib": "python3-matplotlib"}
 #: Python modules from PyPI with no rosdep key (tools/requirements.txt installs them); a
 #: package.xml cannot name them, so they are the only imports it may leave out.
 PIP_ONLY = frozenset({"mujoco", "nicegui", "fastapi", "foxglove", "websockets", "zenoh",

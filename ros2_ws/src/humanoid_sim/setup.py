@@ -30,6 +30,7 @@ setup(
             "humanoid_sim::WorldSimulator = humanoid_sim.world_simulator:WorldSimulator",
             "humanoid_sim::ServoDriver = humanoid_sim.driver:ServoDriver",
             "humanoid_sim::BallDetector = humanoid_sim.soccer.vision:BallDetector",
+            "humanoid_sim::BlobBallDetector = humanoid_sim.soccer.vision:BlobBallDetector",
             "humanoid_sim::BallModel = humanoid_sim.soccer.world_model:BallModel",
             "humanoid_sim::HeadBehaviour = humanoid_sim.soccer.behaviour:HeadBehaviour",
             "humanoid_sim::MotionArbiter = humanoid_sim.soccer.arbiter:MotionArbiter",

@@ -23,6 +23,7 @@ setup(
             "events = log_analysis.cli:events_main",
             "sync-video = log_analysis.cli:sync_video_main",
             "augment = log_analysis.cli:augment_main",
+            "compare = log_analysis.cli:compare_main",
         ],
         "log_analysis.event_generators": [
             "falls = log_analysis.generators:Falls",

@@ -39,6 +39,7 @@ from ._signals import stop_on_sigterm as stop_on_sigterm
 from .binding import BoundParameters as BoundParameters
 from .binding import bind_parameters as bind_parameters
 from .config import ComponentSpec as ComponentSpec
+from .config import resolve_factory as resolve_factory
 from .container import Container as Container
 from .container import LoadedComponent as LoadedComponent
 from .container import LoadReport as LoadReport

@@ -16,10 +16,13 @@ match, team_clock's merge). This package reads it and finds what a person would 
   (:class:`~.video.Calibration`, the sidecar format humanoid_sim's match camera writes);
 * ``sync``       the video's clock against the log's, fitted from the ball's motion or from
   anchors picked by hand (:class:`~.sync.VideoFit`);
-* ``cli``        the commands: ``ros2 run log_analysis events LOG``, ``sync-video LOG VIDEO``;
+* ``augment``    the video with every robot's beliefs drawn in, captions and a timeline;
+* ``compare``    two variants of a component replayed on one log (A/B), with a report;
+* ``cli``        the commands: ``events``, ``sync-video``, ``augment``, ``compare``;
 * ``testing``    test doubles: a log from plain messages, a filmed ball on a known clock.
 """
 
+from .errors import CompareError as CompareError
 from .errors import GeneratorError as GeneratorError
 from .errors import LogAnalysisError as LogAnalysisError
 from .errors import LogSourceError as LogSourceError

@@ -29,6 +29,15 @@ start). Prints offset, drift and residual (also in frames) and writes ``<video>.
 Reads the fit of ``sync-video`` (``VIDEO.sync.json``; fits it first when there is none)
 and the events of ``events`` (``LOG.events.mcap``, when there), and writes
 ``VIDEO.augmented.mp4`` (``-o`` to choose).
+
+``compare``: two variants of a component replayed on one robot's images of a log (A/B).
+
+    ros2 run log_analysis compare LOG --robot blue1 \
+        --a colour=humanoid_sim::BallDetector --b blob=humanoid_sim::BlobBallDetector \
+        --set b.min_fill=0.5 -o report/
+
+Writes ``report/report.md`` (figures, plots, the worst disagreements) and
+``report/disagreements.events.mcap`` (those frames as events), and prints the table.
 """
 
 from __future__ import annotations
@@ -38,9 +47,12 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
+
+import yaml
 
 from .augment import augment_video
+from .compare import Variant, compare_components, write_report
 from .errors import LogAnalysisError
 from .events import detect
 from .registry import available_generators, load_generators
@@ -49,7 +61,7 @@ from .source import TeamLog
 from .sync import VideoFit, fit_anchors, fit_video_clock
 from .video import ExternalVideo
 
-__all__ = ["augment_main", "events_main", "sync_video_main"]
+__all__ = ["augment_main", "compare_main", "events_main", "sync_video_main"]
 
 
 def _seconds(text: str) -> float:
@@ -247,4 +259,58 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
           f"{', '.join(report.robots) or 'no robot'} and {len(events)} events in "
           f"{report.seconds:.1f} s ({report.frames_per_s / report.video_fps:.1f}x real time); "
           f"written to {report.path}")
+    return 0
+
+
+def _variant(text: str) -> tuple[str, str]:
+    label, sep, component = text.partition("=")
+    if not sep or not label or not component:
+        raise argparse.ArgumentTypeError(
+            f"a variant is LABEL=COMPONENT (an entry point such as humanoid_sim::BallDetector, "
+            f"or module:Class), not {text!r}")
+    return label, component
+
+
+def _setting(text: str) -> tuple[str, str, Any]:
+    key, sep, value = text.partition("=")
+    side, dot, name = key.partition(".")
+    if not sep or not dot or side not in ("a", "b") or not name:
+        raise argparse.ArgumentTypeError(f"a setting is a.NAME=VALUE or b.NAME=VALUE, not "
+                                         f"{text!r}")
+    return side, name, yaml.safe_load(value)
+
+
+def compare_main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="compare", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("log", type=Path, help="the (merged) log with the robot's images")
+    parser.add_argument("--robot", required=True, help="whose images (its namespace)")
+    parser.add_argument("--a", type=_variant, required=True, metavar="LABEL=COMPONENT")
+    parser.add_argument("--b", type=_variant, required=True, metavar="LABEL=COMPONENT")
+    parser.add_argument("--set", type=_setting, action="append", default=[],
+                        metavar="a.NAME=VALUE", help="a parameter of variant a or b "
+                        "(YAML value; may repeat)")
+    parser.add_argument("--images", default="camera/image_raw/compressed",
+                        help="the robot's logged image topic (Image or CompressedImage)")
+    parser.add_argument("--agree-deg", type=float, default=2.0,
+                        help="two detections within this many degrees agree")
+    parser.add_argument("-o", "--output", type=Path, default=Path("comparison"),
+                        help="the folder for report.md and its plots")
+    args = parser.parse_args(argv)
+    params: dict[str, dict[str, Any]] = {"a": {}, "b": {}}
+    for side, name, value in args.set:
+        params[side][name] = value
+    try:
+        variants = [Variant(label, component, params[side])
+                    for side, (label, component) in (("a", args.a), ("b", args.b))]
+        log = TeamLog(args.log)
+        comparison = compare_components(log, *variants, robot=args.robot,
+                                        image_topic=args.images, agree_deg=args.agree_deg)
+        report = write_report(comparison, args.output)
+        write_events(args.output / "disagreements.events.mcap", comparison.disagreements())
+    except LogAnalysisError as exc:
+        print(f"compare: error: {exc}", file=sys.stderr)
+        return 1
+    print(report.read_text().split("![", 1)[0].rstrip())
+    print(f"\nwritten to {report}")
     return 0

@@ -4,7 +4,9 @@
     ├── LogSourceError        a log or video that cannot be read (missing, not a bag or
     │                         video, damaged) (OSError)
     ├── GeneratorError        an event generator that cannot be loaded or set up (ValueError)
-    └── SyncError             nothing to fit a video's clock on (ValueError)
+    ├── SyncError             nothing to fit a video's clock on (ValueError)
+    └── CompareError          an A/B comparison that cannot run: a variant that does not
+                              load or start, no images of the robot (ValueError)
 
 A generator that raises while it runs is not an error of the analysis: :func:`detect`
 reports it and goes on with the others (``Detection.failures``).
@@ -29,3 +31,8 @@ class GeneratorError(LogAnalysisError, ValueError):
 class SyncError(LogAnalysisError, ValueError):
     """Nothing to fit a video's clock on: no ball track, no frame showing the ball, a ball
     that never moved, no anchors."""
+
+
+class CompareError(LogAnalysisError, ValueError):
+    """An A/B comparison that cannot run: a variant whose component does not load or start,
+    two variants with one label, a log without the robot's images."""

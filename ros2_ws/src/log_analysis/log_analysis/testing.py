@@ -1,6 +1,8 @@
 """Test doubles: a team log written from plain messages (for testing event generators,
-ours and users'), and a filmed ball: a log of a ball's track with a video of it on a camera
-clock of known offset and drift (for testing what puts a video on a log's time).
+ours and users'); a filmed ball: a log of a ball's track with a video of it on a camera
+clock of known offset and drift (for testing what puts a video on a log's time); and a
+seen ball: a robot's camera images of a ball at known bearings with the ground truth (for
+comparing detectors).
 
     with LogBuilder(tmp_path / "log") as log:
         log.add("blue1", "fall/state", String(data="fallen"), t=3.0)
@@ -17,7 +19,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from fractions import Fraction
 from pathlib import Path
@@ -25,16 +27,18 @@ from types import TracebackType
 from typing import Any
 
 import av
+import cv2
 import numpy as np
 from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
 from rclpy.serialization import serialize_message
+from sensor_msgs.msg import CompressedImage, JointState
 from std_msgs.msg import String
 
 from rosbag2_layout import BagWriter, type_name
 
 from .video import SIDECAR_FORMAT, Calibration, video_sidecar_path
 
-__all__ = ["OVERHEAD", "LogBuilder", "film_ball"]
+__all__ = ["OVERHEAD", "LogBuilder", "film_ball", "seen_ball"]
 
 #: A camera above a KidSize field's long side, as humanoid_sim's match films (480 x 270).
 OVERHEAD = Calibration(width=480, height=270, fx=325.9, fy=325.9, cx=240.0, cy=135.0,
@@ -147,3 +151,43 @@ def _believe(log: LogBuilder, robot: str, pose: tuple[float, float, float],
     seen.point.x = math.cos(yaw) * dx + math.sin(yaw) * dy
     seen.point.y = -math.sin(yaw) * dx + math.cos(yaw) * dy
     log.add(robot, "ball/position", seen, t=t)
+
+
+def seen_ball(path: str | os.PathLike[str], *, robot: str,
+              frames: Sequence[tuple[float, float | None, bool]], width: int = 320,
+              height: int = 240, vfov_deg: float = 70.0, distance_m: float = 2.0) -> Path:
+    """A log of ``robot``'s camera (JPEG on ``camera/image_raw/compressed``) and its ground
+    truth: per frame ``(t, yaw_deg, bar)``, the ball ``distance_m`` ahead at ``yaw_deg``
+    from the camera's axis (left positive; ``None``: behind the robot, not in the image),
+    drawn as an orange disc on turf, and with ``bar`` an orange bar bigger than the ball
+    elsewhere in the image (what the largest-blob rule mistakes for it). The robot stands
+    at the origin facing +x, its neck straight (``joint_states``)."""
+    f = (height / 2) / math.tan(math.radians(vfov_deg) / 2)
+    with LogBuilder(path, epoch_s=0.0) as log:
+        truth = PoseStamped()
+        truth.pose.orientation.w = 1.0
+        for t, yaw_deg, bar in frames:
+            img = np.empty((height, width, 3), np.uint8)
+            img[:] = (70, 160, 70)
+            ball = PoseStamped()
+            if yaw_deg is None:
+                ball.pose.position.x = -distance_m
+            else:
+                yaw = math.radians(yaw_deg)
+                ball.pose.position.x = distance_m * math.cos(yaw)
+                ball.pose.position.y = distance_m * math.sin(yaw)
+                u = width / 2 - f * math.tan(yaw)
+                cv2.circle(img, (round(u), round(height * 0.7)), 6, (230, 110, 20), -1)
+            if bar:
+                cv2.rectangle(img, (20, 30), (90, 38), (230, 110, 20), -1)
+            ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR),
+                                    [cv2.IMWRITE_JPEG_QUALITY, 90])
+            assert ok
+            image = CompressedImage(format="jpeg", data=jpeg.tobytes())
+            image.header.stamp.sec, image.header.stamp.nanosec = int(t), int(t % 1 * 1e9)
+            log.add(robot, "camera/image_raw/compressed", image, t=t)
+            log.add(robot, "ground_truth/pose", truth, t=t - 0.01)
+            log.add(robot, "ground_truth/ball", ball, t=t - 0.01)
+            log.add(robot, "joint_states", JointState(name=["neck_yaw", "neck_pitch"],
+                                                      position=[0.0, 0.6]), t=t - 0.01)
+    return Path(path)

@@ -148,3 +148,41 @@ class BallDetector:
 def _check_hue(hue: Any) -> None:
     if len(hue) != 2 or not 0 <= hue[0] <= hue[1] <= 180:
         raise SimConfigError(f"hue_range must be [low, high] within 0..180, got {hue}")
+
+
+class BlobBallDetector(BallDetector):
+    """The ball as the roundest ball-coloured blob rather than the largest.
+
+    A second algorithm beside :class:`BallDetector`, for comparing the two on the same
+    log (``ros2 run log_analysis compare``): the colour detector takes the largest orange
+    blob, so an orange thing bigger than the ball (a red robot's edge against the turf, a
+    shirt) wins over the ball; this one scores each blob by how well it fills its
+    enclosing circle (1 for a disc, little for a bar) times the square root of its area,
+    and takes none that fills less than ``min_fill``. Same thresholds, topics and
+    drawing as the colour detector.
+    """
+
+    def __init__(self, node: NodeHandle) -> None:
+        super().__init__(node)
+        self.min_fill = node.declare_parameter("min_fill", 0.35, range=(0.0, 1.0))
+
+    def _on_parameters(self, changes: Mapping[str, ParameterValue]) -> None:
+        super()._on_parameters(changes)
+        if "min_fill" in changes:
+            value = changes["min_fill"]
+            assert isinstance(value, (int, float))  # the declared range vetoed the rest
+            self.min_fill = float(value)
+
+    def _choose(self, contours: Sequence[Any]) -> tuple[float, float, float] | None:
+        best, score = None, 0.0
+        for contour in contours:
+            (u, v), r = cv2.minEnclosingCircle(contour)
+            if r < self.min_radius_px:
+                continue
+            # A blob of a few pixels: its pixel count, not its outline's area (which is 0
+            # for a one-pixel-wide blob).
+            area = max(cv2.contourArea(contour), float(len(contour)))
+            fill = min(area / (math.pi * r * r), 1.0)
+            if fill >= self.min_fill and fill * math.sqrt(area) > score:
+                best, score = (float(u), float(v), float(r)), fill * math.sqrt(area)
+        return best
