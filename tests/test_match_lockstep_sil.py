@@ -29,12 +29,15 @@ the load they were measured at.
 
 from __future__ import annotations
 
+import json
 import math
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
 
+from log_analysis import read_events, sidecar_path
 from soccer_field import KIDSIZE
 
 from ._match import MatchProcess, report_rows
@@ -223,3 +226,30 @@ def test_teammates_share_the_ball_over_the_link_and_each_plays_alone_once_it_is_
         assert float(row[5]) > 0.2, (robot, text)  # walked: played for the ball
         sent, received = (float(v) for v in row[6].split(" / "))
         assert sent > 0 and received > 0, (robot, text)  # linked before the cut
+
+    _offline_tools_find_the_cut_and_the_cameras_clock(tmp_path / "out", cut_at)
+
+
+def _offline_tools_find_the_cut_and_the_cameras_clock(out: Path, cut_at: float) -> None:
+    """log_analysis on this match's merged log and overhead video, as a user runs it: the
+    cut is found as each robot's ``team link silent`` where the match says it was (from
+    the last teammate message heard, at most one 2 Hz period before), and the video's
+    clock, deliberately off the world's, within a frame of its true offset."""
+    merged = next(out.glob("merged_*"))
+    video = next(out.glob("video_*.mp4"))
+    run = subprocess.run(["ros2", "run", "log_analysis", "events", str(merged), "--only",
+                          "team_link_silent", "--quiet"], capture_output=True, text=True,
+                         timeout=120, check=False)
+    assert run.returncode == 0, run.stdout + run.stderr
+    silent = {e.robot: e for e in read_events(sidecar_path(merged))}
+    assert set(silent) == {"blue1", "blue2"}, run.stdout
+    for robot, event in silent.items():
+        assert cut_at - 0.6 <= event.start_ns / 1e9 <= cut_at + 0.05, (robot, run.stdout)
+        assert event.metadata["heard_again"] == "false", (robot, run.stdout)
+    run = subprocess.run(["ros2", "run", "log_analysis", "sync-video", str(merged),
+                          str(video)], capture_output=True, text=True, timeout=120,
+                         check=False)
+    assert run.returncode == 0, run.stdout + run.stderr
+    fit = json.loads(Path(f"{video}.sync.json").read_text())
+    truth = json.loads(next(out.glob("video_*.truth.json")).read_text())
+    assert abs(fit["offset_ns"] - truth["offset_ns"]) <= fit["frame_period_ns"], (fit, truth)
