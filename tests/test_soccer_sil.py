@@ -32,6 +32,7 @@ from humanoid_sim.mujoco_plant import JOINTS
 from humanoid_sim.soccer.compose import SoccerRobot, compose
 from humanoid_sim.soccer.fall import LATCHED
 from humanoid_sim.soccer.motion import STANCE
+from log_analysis import TeamLog, read_events, sidecar_path
 
 #: The promise: with the ball rolling, the head keeps it this close to the image centre
 #: in 95 % of frames, and never lets it out of this cone (the image is 86° x 70°).
@@ -252,7 +253,8 @@ def test_the_demo_says_when_the_robot_fell_in_its_report_and_exit_status(tmp_pat
     report = tmp_path / "report.md"
     result = subprocess.run(
         [sys.executable, "-m", "humanoid_sim.demo", "--lockstep", "--no-dds", "--duration", "4",
-         "--push-at", "2", "--report", str(report)],
+         "--push-at", "2", "--report", str(report), "--record", "--bag-dir",
+         str(tmp_path / "bags")],
         capture_output=True, text=True, timeout=90, check=False,
     )
     assert result.returncode == 3, result.stdout + result.stderr  # fell, and no bug
@@ -261,6 +263,16 @@ def test_the_demo_says_when_the_robot_fell_in_its_report_and_exit_status(tmp_pat
     assert "| posture (fall detector) | **FELL** 1 time (at 2." in text
     assert "now fallen" in text and "pushed 1 time" in text
     assert "| head behaviour | fallen" in text
+    # Offline, the recorded bag's fall is found where the push was (log_analysis).
+    (bag,) = (tmp_path / "bags").iterdir()
+    events = subprocess.run(["ros2", "run", "log_analysis", "events", str(bag), "--only",
+                             "falls", "--quiet"], capture_output=True, text=True, timeout=60,
+                            check=False)
+    assert events.returncode == 0, events.stdout + events.stderr
+    (fell,) = read_events(sidecar_path(bag))
+    first = TeamLog(bag).time_range()[0]
+    assert (fell.name, fell.robot, fell.metadata["got_up"]) == ("fell", "robot", "false")
+    assert 2.0 <= (fell.start_ns - first) / 1e9 <= 3.0, events.stdout
 
 
 def test_real_time_demo_with_dds_stops_cleanly_on_ctrl_c(tmp_path: Path) -> None:

@@ -287,11 +287,14 @@ def namespace_arg(text: str) -> str:
     return namespace
 
 
-def add_recorder(container: Container, namespace: str, bag_dir: Path) -> Recorder:
-    """The robot's recorder, ``<namespace>/recorder``: idle until told to start."""
+def add_recorder(container: Container, namespace: str, bag_dir: Path, *,
+                 autostart: bool = False) -> Recorder:
+    """The robot's recorder, ``<namespace>/recorder``: idle until told to start (recording
+    from the start with ``autostart``)."""
     recorder: Recorder = container.add(
         Recorder, name="recorder", namespace=namespace,
-        parameters={"topics": RECORDED_TOPICS, "output_dir": str(bag_dir)},
+        parameters={"topics": RECORDED_TOPICS, "output_dir": str(bag_dir),
+                    "autostart": autostart},
     )
     return recorder
 
@@ -329,6 +332,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--bag-dir", type=Path, default=None,
                         help="where the robot's recorder writes bags "
                         "(default recordings/<namespace>)")
+    parser.add_argument("--record", action="store_true",
+                        help="record from the start (into --bag-dir), not only when a viewer "
+                        "starts the recorder; log_analysis reads the bag afterwards")
     parser.add_argument("--report", type=Path, default=Path("soccer_report.md"))
     parser.add_argument("--video", type=Path, default=None, metavar="MP4",
                         help="also film the field from above into this MP4 (a sidecar "
@@ -366,7 +372,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not isinstance(exc.__cause__, HumanoidSimError):
                 raise
             parser.error(str(exc.__cause__))
-        add_recorder(container, args.namespace, bag_dir)
+        add_recorder(container, args.namespace, bag_dir, autostart=args.record)
         if args.video is not None:
             try:
                 sim = robot.simulator
