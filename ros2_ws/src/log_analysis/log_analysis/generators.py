@@ -89,40 +89,57 @@ class Falls:
                       {"got_up": "false"}) for robot, since in sorted(self._down_since.items())]
 
 
-class BallLost:
+class _Silence:
+    """Per robot, the last time something awaited came (or the robot's first sign of life)
+    and its last sign of life: a gap longer than ``after_s`` between two is an event, and
+    at the end of the log the gap up to the last sign of life."""
+
+    event = ""
+
+    def __init__(self, *, after_s: float = 3.0) -> None:
+        _positive(after_s=after_s)
+        self._after = _ns(after_s)
+        self._since: dict[str, int] = {}
+        self._alive: dict[str, int] = {}
+
+    def _describe(self, robot: str, gap_s: float, ended: bool) -> tuple[str, dict[str, str]]:
+        raise NotImplementedError
+
+    def _lived(self, m: LogMessage) -> None:
+        self._alive[m.robot] = m.log_time_ns
+        self._since.setdefault(m.robot, m.log_time_ns)
+
+    def _came(self, m: LogMessage) -> Iterable[Event]:
+        since, self._since[m.robot] = self._since[m.robot], m.log_time_ns
+        return self._gap(m.robot, since, m.log_time_ns, ended=True)
+
+    def _gap(self, robot: str, since: int, until: int, *, ended: bool) -> Iterable[Event]:
+        if until - since <= self._after:
+            return ()
+        description, metadata = self._describe(robot, (until - since) / _NS, ended)
+        return (Event(self.event, since, until, robot, description, metadata),)
+
+    def finish(self, end_ns: int) -> Iterable[Event]:
+        return [e for robot, since in sorted(self._since.items())
+                for e in self._gap(robot, since, self._alive[robot], ended=False)]
+
+
+class BallLost(_Silence):
     """``ball lost`` while a robot's ball detector found nothing for more than ``after_s``:
     from its last detection (or the robot's first estimate of its pose, the sign that it
     runs) to its next (or its last pose at the end of the log)."""
 
     topics = ("ball/detection", "localization/pose")
     name = "ball_lost"
-
-    def __init__(self, *, after_s: float = 3.0) -> None:
-        _positive(after_s=after_s)
-        self._after = _ns(after_s)
-        self._seen: dict[str, int] = {}  # last detection (or first sign of life)
-        self._alive: dict[str, int] = {}  # last message of any kind
+    event = "ball lost"
 
     def __call__(self, m: LogMessage) -> Iterable[Event]:
-        self._alive[m.robot] = m.log_time_ns
-        if m.topic != "ball/detection":
-            self._seen.setdefault(m.robot, m.log_time_ns)
-            return ()
-        since = self._seen.get(m.robot, m.log_time_ns)
-        self._seen[m.robot] = m.log_time_ns
-        return self._lost(m.robot, since, m.log_time_ns, found=True)
+        self._lived(m)
+        return self._came(m) if m.topic == "ball/detection" else ()
 
-    def _lost(self, robot: str, since: int, until: int, *, found: bool) -> Iterable[Event]:
-        if until - since <= self._after:
-            return ()
-        gap = (until - since) / _NS
-        return (Event("ball lost", since, until, robot,
-                      f"{robot} did not see the ball for {gap:.1f} s",
-                      {"lost_s": f"{gap:.2f}", "found_again": str(found).lower()}),)
-
-    def finish(self, end_ns: int) -> Iterable[Event]:
-        return [e for robot, since in sorted(self._seen.items())
-                for e in self._lost(robot, since, self._alive.get(robot, since), found=False)]
+    def _describe(self, robot: str, gap_s: float, ended: bool) -> tuple[str, dict[str, str]]:
+        return (f"{robot} did not see the ball for {gap_s:.1f} s",
+                {"lost_s": f"{gap_s:.2f}", "found_again": str(ended).lower()})
 
 
 class RoleOscillation:
@@ -314,7 +331,7 @@ class LocalizationJump:
         return ()
 
 
-class TeamLinkSilent:
+class TeamLinkSilent(_Silence):
     """``team link silent``: a robot heard no teammate for more than ``after_s``, from the
     last message it heard to the next (or its last own message at the end of the log).
 
@@ -325,34 +342,17 @@ class TeamLinkSilent:
 
     topics = ("team/messages",)
     name = "team_link_silent"
-
-    def __init__(self, *, after_s: float = 3.0) -> None:
-        _positive(after_s=after_s)
-        self._after = _ns(after_s)
-        self._heard: dict[str, int] = {}
-        self._alive: dict[str, int] = {}
+    event = "team link silent"
 
     def __call__(self, m: LogMessage) -> Iterable[Event]:
         number = re.search(r"(\d+)$", m.robot)
         own = number is not None and m.message.player_number == int(number.group(1))
-        self._alive[m.robot] = m.log_time_ns
-        since = self._heard.setdefault(m.robot, m.log_time_ns)
-        if own:
-            return ()
-        self._heard[m.robot] = m.log_time_ns
-        return self._silent(m.robot, since, m.log_time_ns, ended=True)
+        self._lived(m)
+        return () if own else self._came(m)
 
-    def _silent(self, robot: str, since: int, until: int, *, ended: bool) -> Iterable[Event]:
-        if until - since <= self._after:
-            return ()
-        gap = (until - since) / _NS
-        return (Event("team link silent", since, until, robot,
-                      f"{robot} heard no teammate for {gap:.1f} s",
-                      {"silent_s": f"{gap:.2f}", "heard_again": str(ended).lower()}),)
-
-    def finish(self, end_ns: int) -> Iterable[Event]:
-        return [e for robot, since in sorted(self._heard.items())
-                for e in self._silent(robot, since, self._alive[robot], ended=False)]
+    def _describe(self, robot: str, gap_s: float, ended: bool) -> tuple[str, dict[str, str]]:
+        return (f"{robot} heard no teammate for {gap_s:.1f} s",
+                {"silent_s": f"{gap_s:.2f}", "heard_again": str(ended).lower()})
 
 
 class Goals:
