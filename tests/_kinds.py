@@ -56,6 +56,12 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("tests/test_*.py", "process"),
     ("tests/test_*_sil.py", "sil"),
     ("tests/test_demo*.py", "sil"),
+    # The demo's argument checks start no simulation (it refuses before), so they wait on a
+    # program like any process test, beside the others; the three that play are sil.
+    ("tests/test_demo_args.py", "process"),
+    ("tests/test_demo_args.py::test_negative_coordinates_*", "sil"),
+    ("tests/test_demo_args.py::test_the_seed_draws_the_start*", "sil"),
+    ("tests/test_demo_args.py::test_the_demo_films_the_match_*", "sil"),
     ("tests/test_gui_*_browser.py", "browser"),
     ("tests/test_*bench_smoke.py", "bench"),
     ("tests/test_docs_commands.py", "docs"),
