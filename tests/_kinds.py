@@ -76,6 +76,10 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("tests/test_rf_bridge_team.py::test_team_link_over_lossy_limited_link*", "root"),
     ("tests/test_recorder_robustness.py::test_real_small_file_system*", "root"),
     ("tests/test_throttle_bench_smoke.py::*", "root"),
+    # A benchmark of waits (discovery, the graph daemon's settling, ``ros2 topic hz`` and
+    # ``echo`` listening): 126 s wall for 32 s of CPU, a quarter of a core. It waits beside
+    # the other process tests instead of holding the cpu lane (see serial_group).
+    ("tests/test_cli_bench_smoke.py::*", "process"),
     ("tests/test_lockstep_netns.py::*", "root"),
 )
 
@@ -116,6 +120,13 @@ SERIAL_GROUPS = {"sil": "cpu", "bench": "cpu", "docs": "docs"}
 
 
 def serial_group(kinds: Iterable[str]) -> str | None:
-    """The xdist group of a test of these kinds (None: it may run beside any other)."""
+    """The xdist group of a test of these kinds (None: it may run beside any other).
+
+    A benchmark that a row also makes a ``process`` test mostly waits on other programs
+    (it keeps no core busy), so it waits beside the others like one; a simulation does not.
+    """
+    kinds = set(kinds)
+    if "process" in kinds:
+        kinds.discard("bench")
     groups = sorted({SERIAL_GROUPS[k] for k in kinds if k in SERIAL_GROUPS})
     return groups[0] if groups else None

@@ -48,6 +48,7 @@ def test_every_test_file_has_a_kind() -> None:
     ("tests/test_walk_bench_smoke.py", "test_a", (), {"bench"}),
     ("tests/test_docs_commands.py", "test_a[README.md:12]", (), {"docs"}),
     ("tests/test_throttle_bench_smoke.py", "test_a", (), {"bench", "root"}),
+    ("tests/test_cli_bench_smoke.py", "test_a", (), {"bench", "process"}),
     ("tests/test_recorder_robustness.py", "test_real_small_file_system[0]", (),
      {"process", "root"}),
     ("tests/test_recorder_robustness.py", "test_snapshot_when_off_is_an_error", (),
@@ -101,6 +102,12 @@ def test_busy_kinds_take_turns_in_one_worker() -> None:
         "tests/test_walk_bench_smoke.py": "cpu", "tests/test_throttle_bench_smoke.py": "cpu",
         "tests/test_docs_commands.py": "docs", "tests/test_gui_world_views.py": None,
         "ros2_ws/src/efficient_comm/test/test_bus.py": None}
+    # A benchmark that mostly waits (a row makes it a process test too) waits beside the
+    # others; a simulation that starts programs still takes its turn.
+    assert serial_group(kinds_of("tests/test_cli_bench_smoke.py", "test_a")) is None
+    assert serial_group({"bench", "process"}) is None
+    assert serial_group({"sil", "process"}) == "cpu"
+    assert serial_group({"bench", "root"}) == "cpu"
     # The demo's argument checks wait beside anything; its runs take their turn.
     demo_args = "tests/test_demo_args.py"
     assert serial_group(kinds_of(demo_args, "test_the_demo_films_the_match_and_x")) == "cpu"
