@@ -80,6 +80,9 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     # ``echo`` listening): 126 s wall for 32 s of CPU, a quarter of a core. It waits beside
     # the other process tests instead of holding the cpu lane (see serial_group).
     ("tests/test_cli_bench_smoke.py::*", "process"),
+    # Round trips to ROS 1 through the bridge: 20 s wall for 6.5 s of CPU, every queue as
+    # deep as its burst (so load delays messages but loses none).
+    ("tests/test_bridge_bench_smoke.py::*", "process"),
     ("tests/test_lockstep_netns.py::*", "root"),
 )
 

@@ -105,6 +105,7 @@ def test_busy_kinds_take_turns_in_one_worker() -> None:
     # A benchmark that mostly waits (a row makes it a process test too) waits beside the
     # others; a simulation that starts programs still takes its turn.
     assert serial_group(kinds_of("tests/test_cli_bench_smoke.py", "test_a")) is None
+    assert serial_group(kinds_of("tests/test_bridge_bench_smoke.py", "test_a")) is None
     assert serial_group({"bench", "process"}) is None
     assert serial_group({"sil", "process"}) == "cpu"
     assert serial_group({"bench", "root"}) == "cpu"
