@@ -62,6 +62,11 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("tests/test_demo_args.py::test_negative_coordinates_*", "sil"),
     ("tests/test_demo_args.py::test_the_seed_draws_the_start*", "sil"),
     ("tests/test_demo_args.py::test_the_demo_films_the_match_*", "sil"),
+    # Likewise a refused namespace (the demo) and a refused --localization (the match).
+    ("tests/test_demo_watchable.py", "process"),
+    ("tests/test_demo_watchable.py::test_demo_robot_publishes_*", "sil"),
+    ("tests/test_match_localization_sil.py", "process"),
+    ("tests/test_match_localization_sil.py::test_each_robot_runs_the_localization_*", "sil"),
     ("tests/test_gui_*_browser.py", "browser"),
     ("tests/test_*bench_smoke.py", "bench"),
     ("tests/test_docs_commands.py", "docs"),

@@ -41,6 +41,12 @@ def test_every_test_file_has_a_kind() -> None:
      (), {"process"}),
     ("tests/test_demo_args.py", "test_the_seed_draws_the_start", (), {"process", "sil"}),
     ("tests/test_demo.py", "test_a", (), {"sil"}),
+    ("tests/test_demo_watchable.py", "test_a_bad_namespace_is_refused_in_one_line", (),
+     {"process"}),
+    ("tests/test_match_localization_sil.py", "test_a_localization_for_a_robot_not_in_x", (),
+     {"process"}),
+    ("tests/test_match_localization_sil.py", "test_each_robot_runs_the_localization_x", (),
+     {"process", "sil"}),
     ("tests/test_gui_shell_browser.py", "test_a", ("browser",), {"browser"}),
     # A browser test in a data-side file is a browser test all the same.
     ("tests/test_gui_world_views.py", "test_b", ("tmp_path", "browser"), {"process", "browser"}),
