@@ -56,6 +56,17 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("tests/test_*.py", "process"),
     ("tests/test_*_sil.py", "sil"),
     ("tests/test_demo*.py", "sil"),
+    # The demo's argument checks start no simulation (it refuses before), so they wait on a
+    # program like any process test, beside the others; the three that play are sil.
+    ("tests/test_demo_args.py", "process"),
+    ("tests/test_demo_args.py::test_negative_coordinates_*", "sil"),
+    ("tests/test_demo_args.py::test_the_seed_draws_the_start*", "sil"),
+    ("tests/test_demo_args.py::test_the_demo_films_the_match_*", "sil"),
+    # Likewise a refused namespace (the demo) and a refused --localization (the match).
+    ("tests/test_demo_watchable.py", "process"),
+    ("tests/test_demo_watchable.py::test_demo_robot_publishes_*", "sil"),
+    ("tests/test_match_localization_sil.py", "process"),
+    ("tests/test_match_localization_sil.py::test_each_robot_runs_the_localization_*", "sil"),
     ("tests/test_gui_*_browser.py", "browser"),
     ("tests/test_*bench_smoke.py", "bench"),
     ("tests/test_docs_commands.py", "docs"),
@@ -70,6 +81,13 @@ KIND_PATTERNS: tuple[tuple[str, str], ...] = (
     ("tests/test_rf_bridge_team.py::test_team_link_over_lossy_limited_link*", "root"),
     ("tests/test_recorder_robustness.py::test_real_small_file_system*", "root"),
     ("tests/test_throttle_bench_smoke.py::*", "root"),
+    # A benchmark of waits (discovery, the graph daemon's settling, ``ros2 topic hz`` and
+    # ``echo`` listening): 126 s wall for 32 s of CPU, a quarter of a core. It waits beside
+    # the other process tests instead of holding the cpu lane (see serial_group).
+    ("tests/test_cli_bench_smoke.py::*", "process"),
+    # Round trips to ROS 1 through the bridge: 20 s wall for 6.5 s of CPU, every queue as
+    # deep as its burst (so load delays messages but loses none).
+    ("tests/test_bridge_bench_smoke.py::*", "process"),
     ("tests/test_lockstep_netns.py::*", "root"),
 )
 
@@ -110,6 +128,13 @@ SERIAL_GROUPS = {"sil": "cpu", "bench": "cpu", "docs": "docs"}
 
 
 def serial_group(kinds: Iterable[str]) -> str | None:
-    """The xdist group of a test of these kinds (None: it may run beside any other)."""
+    """The xdist group of a test of these kinds (None: it may run beside any other).
+
+    A benchmark that a row also makes a ``process`` test mostly waits on other programs
+    (it keeps no core busy), so it waits beside the others like one; a simulation does not.
+    """
+    kinds = set(kinds)
+    if "process" in kinds:
+        kinds.discard("bench")
     groups = sorted({SERIAL_GROUPS[k] for k in kinds if k in SERIAL_GROUPS})
     return groups[0] if groups else None

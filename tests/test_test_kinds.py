@@ -36,6 +36,17 @@ def test_every_test_file_has_a_kind() -> None:
     ("ros2_ws/src/efficient_comm/test/test_bus.py", "test_a", (), {"fast"}),
     ("ros2_ws/src/humanoid_sim/test/test_render.py", "test_a", (), {"process"}),
     ("tests/test_kick_sil.py", "test_a", (), {"sil"}),
+    # The demo's argument checks start no simulation; the tests of that file that play do.
+    ("tests/test_demo_args.py", "test_a_bad_argument_is_one_line_and_exit_status_2[args0-x]",
+     (), {"process"}),
+    ("tests/test_demo_args.py", "test_the_seed_draws_the_start", (), {"process", "sil"}),
+    ("tests/test_demo.py", "test_a", (), {"sil"}),
+    ("tests/test_demo_watchable.py", "test_a_bad_namespace_is_refused_in_one_line", (),
+     {"process"}),
+    ("tests/test_match_localization_sil.py", "test_a_localization_for_a_robot_not_in_x", (),
+     {"process"}),
+    ("tests/test_match_localization_sil.py", "test_each_robot_runs_the_localization_x", (),
+     {"process", "sil"}),
     ("tests/test_gui_shell_browser.py", "test_a", ("browser",), {"browser"}),
     # A browser test in a data-side file is a browser test all the same.
     ("tests/test_gui_world_views.py", "test_b", ("tmp_path", "browser"), {"process", "browser"}),
@@ -43,6 +54,7 @@ def test_every_test_file_has_a_kind() -> None:
     ("tests/test_walk_bench_smoke.py", "test_a", (), {"bench"}),
     ("tests/test_docs_commands.py", "test_a[README.md:12]", (), {"docs"}),
     ("tests/test_throttle_bench_smoke.py", "test_a", (), {"bench", "root"}),
+    ("tests/test_cli_bench_smoke.py", "test_a", (), {"bench", "process"}),
     ("tests/test_recorder_robustness.py", "test_real_small_file_system[0]", (),
      {"process", "root"}),
     ("tests/test_recorder_robustness.py", "test_snapshot_when_off_is_an_error", (),
@@ -92,7 +104,18 @@ def test_busy_kinds_take_turns_in_one_worker() -> None:
         "tests/test_throttle_bench_smoke.py", "tests/test_docs_commands.py",
         "tests/test_gui_world_views.py", "ros2_ws/src/efficient_comm/test/test_bus.py")}
     assert group == {
-        "tests/test_kick_sil.py": "cpu", "tests/test_demo_args.py": "cpu",
+        "tests/test_kick_sil.py": "cpu", "tests/test_demo_args.py": None,
         "tests/test_walk_bench_smoke.py": "cpu", "tests/test_throttle_bench_smoke.py": "cpu",
         "tests/test_docs_commands.py": "docs", "tests/test_gui_world_views.py": None,
         "ros2_ws/src/efficient_comm/test/test_bus.py": None}
+    # A benchmark that mostly waits (a row makes it a process test too) waits beside the
+    # others; a simulation that starts programs still takes its turn.
+    assert serial_group(kinds_of("tests/test_cli_bench_smoke.py", "test_a")) is None
+    assert serial_group(kinds_of("tests/test_bridge_bench_smoke.py", "test_a")) is None
+    assert serial_group({"bench", "process"}) is None
+    assert serial_group({"sil", "process"}) == "cpu"
+    assert serial_group({"bench", "root"}) == "cpu"
+    # The demo's argument checks wait beside anything; its runs take their turn.
+    demo_args = "tests/test_demo_args.py"
+    assert serial_group(kinds_of(demo_args, "test_the_demo_films_the_match_and_x")) == "cpu"
+    assert serial_group(kinds_of(demo_args, "test_negative_coordinates_as_x")) == "cpu"
