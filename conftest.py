@@ -78,9 +78,53 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     from xdist.scheduler import LoadScopeScheduling
 
     class KindScheduling(LoadScopeScheduling):  # type: ignore[misc]
+        """After a worker crash (the backstop's exit), only the crashed worker's unfinished
+        tests go back in the queue, and the crashed test itself only through
+        ``mark_test_pending``, which pytest-rerunfailures calls while ``--reruns`` allows.
+
+        xdist's LoadScopeScheduling requeued the whole workload, finished scopes included: a
+        worker with nothing left that was handed one got an empty list of tests, never
+        reported again, and so was never given the scopes queued behind it; once every
+        worker was in that state the run stalled. It also ran the crashed test again
+        whatever ``--reruns`` said, and could not requeue it for pytest-rerunfailures.
+        """
+
         def _split_scope(self, nodeid: str) -> str:
             path, _, name = nodeid.partition("::")
             return _kinds.serial_group(_kinds.kinds_of(path, name)) or nodeid
+
+        def remove_node(self, node: Any) -> str | None:
+            workload = self.assigned_work.pop(node)
+            unfinished = [(scope, nodeid) for scope, unit in workload.items()
+                          for nodeid, done in unit.items() if not done]
+            if not unfinished:
+                return None
+            # A worker runs its tests in the order they were sent: the first unfinished one
+            # is the one it crashed in.
+            crashitem: str = unfinished[0][1]
+            for scope, nodeid in unfinished[1:]:
+                self.workqueue.setdefault(scope, {})[nodeid] = False
+            if len(unfinished) > 1:
+                for other in self.nodes:
+                    self._reschedule(other)
+            return crashitem
+
+        def mark_test_pending(self, item: str) -> None:
+            scope = self._split_scope(item)
+            # A scope still in the queue, or a serial group a live worker holds, takes the
+            # test back; else it is a scope of its own again, first in the queue.
+            if scope in self.workqueue:
+                self.workqueue[scope][item] = False
+            else:
+                for node, work in self.assigned_work.items():
+                    if scope in work and not node.shutting_down:
+                        work[scope][item] = False
+                        node.send_runtest_some([self.registered_collections[node].index(item)])
+                        return
+                self.workqueue[scope] = {item: False}
+            self.workqueue.move_to_end(scope, last=False)
+            for node in self.nodes:
+                self._reschedule(node)
 
     return KindScheduling(config, log)
 
