@@ -136,6 +136,8 @@ def local_endpoints_ignored(context: Context) -> bool:
 SHM_FOLDER = Path("/dev/shm")
 #: A domain's ports (RTPS's defaults, which rmw_fastrtps keeps): 7400 + 250 x domain and the
 #: 249 after it; each port that a participant listens on has a segment ``fastrtps_port<N>``.
+#: The shared-memory transport's discovery ports lie below 7400 (fastrtps_port7000 and up),
+#: shared by the participants of every domain.
 _PORT_BASE, _DOMAIN_GAIN = 7400, 250
 #: boost.interprocess's first word of a managed segment: 0 uninitialized, 1 initializing,
 #: 2 initialized (3 corrupted).
@@ -145,8 +147,9 @@ _UNFINISHED_STATES = (0, 1)
 def remove_stale_shm_ports(
     domain_id: int, *, folder: Path = SHM_FOLDER, min_age_s: float = 10.0
 ) -> list[Path]:
-    """Delete the shared-memory port segments of ``domain_id`` that a killed process left
-    half made, so that the next participant does not hang; returns them.
+    """Delete the shared-memory port segments of ``domain_id`` (and the discovery ports all
+    domains share) that a killed process left half made, so that the next participant does
+    not hang; returns them.
 
     Fast DDS makes a port's segment in /dev/shm when a participant first opens the port,
     and boost.interprocess, opening an existing segment, waits without a timeout until it is
@@ -167,7 +170,8 @@ def remove_stale_shm_ports(
         number = entry.name.removeprefix("fastrtps_port")
         if number == entry.name or not number.isdigit():
             continue  # not a port's segment (``_el`` locks, ``_mutex``es, data segments)
-        if not first <= int(number) < first + _DOMAIN_GAIN:
+        port = int(number)
+        if not (first <= port < first + _DOMAIN_GAIN or port < _PORT_BASE):
             continue
         try:
             stat = entry.stat()

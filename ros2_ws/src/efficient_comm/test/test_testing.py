@@ -108,10 +108,13 @@ def test_a_domain_handed_out_has_no_half_made_shm_port_to_hang_a_participant_on(
     # User-traffic ports of participant indices 1 and 2 (7411 + 250 d + 2 i).
     stale = SHM_FOLDER / f"fastrtps_port{first_port + 13}"
     young = SHM_FOLDER / f"fastrtps_port{first_port + 15}"
+    # Below every domain's ports, as the discovery ports all domains share (no one uses 6999).
+    shared = SHM_FOLDER / "fastrtps_port6999"
     try:
-        stale.touch()
         long_ago = time.time() - 60
-        os.utime(stale, (long_ago, long_ago))
+        for path in (stale, shared):
+            path.touch()
+            os.utime(path, (long_ago, long_ago))
         young.touch()
         monkeypatch.setattr(testing, "_next_candidate",
                             itertools.chain([wanted - 1], testing._next_candidate))
@@ -124,7 +127,8 @@ def test_a_domain_handed_out_has_no_half_made_shm_port_to_hang_a_participant_on(
         except subprocess.TimeoutExpired:
             pytest.fail("the second participant hung on the half-made port segment")
         assert run.stdout.strip() == "both up", run.stderr[-2000:]
+        assert not shared.exists()
         assert young.exists()
     finally:
-        stale.unlink(missing_ok=True)
-        young.unlink(missing_ok=True)
+        for path in (stale, shared, young):
+            path.unlink(missing_ok=True)
