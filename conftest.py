@@ -15,6 +15,9 @@ as root, a skipped one fails the run, since CI is where they are meant to run.
 import faulthandler
 import importlib.util
 import os
+import shutil
+import subprocess
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -78,9 +81,53 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     from xdist.scheduler import LoadScopeScheduling
 
     class KindScheduling(LoadScopeScheduling):  # type: ignore[misc]
+        """After a worker crash (the backstop's exit), only the crashed worker's unfinished
+        tests go back in the queue, and the crashed test itself only through
+        ``mark_test_pending``, which pytest-rerunfailures calls while ``--reruns`` allows.
+
+        xdist's LoadScopeScheduling requeued the whole workload, finished scopes included: a
+        worker with nothing left that was handed one got an empty list of tests, never
+        reported again, and so was never given the scopes queued behind it; once every
+        worker was in that state the run stalled. It also ran the crashed test again
+        whatever ``--reruns`` said, and could not requeue it for pytest-rerunfailures.
+        """
+
         def _split_scope(self, nodeid: str) -> str:
             path, _, name = nodeid.partition("::")
             return _kinds.serial_group(_kinds.kinds_of(path, name)) or nodeid
+
+        def remove_node(self, node: Any) -> str | None:
+            workload = self.assigned_work.pop(node)
+            unfinished = [(scope, nodeid) for scope, unit in workload.items()
+                          for nodeid, done in unit.items() if not done]
+            if not unfinished:
+                return None
+            # A worker runs its tests in the order they were sent: the first unfinished one
+            # is the one it crashed in.
+            crashitem: str = unfinished[0][1]
+            for scope, nodeid in unfinished[1:]:
+                self.workqueue.setdefault(scope, {})[nodeid] = False
+            if len(unfinished) > 1:
+                for other in self.nodes:
+                    self._reschedule(other)
+            return crashitem
+
+        def mark_test_pending(self, item: str) -> None:
+            scope = self._split_scope(item)
+            # A scope still in the queue, or a serial group a live worker holds, takes the
+            # test back; else it is a scope of its own again, first in the queue.
+            if scope in self.workqueue:
+                self.workqueue[scope][item] = False
+            else:
+                for node, work in self.assigned_work.items():
+                    if scope in work and not node.shutting_down:
+                        work[scope][item] = False
+                        node.send_runtest_some([self.registered_collections[node].index(item)])
+                        return
+                self.workqueue[scope] = {item: False}
+            self.workqueue.move_to_end(scope, last=False)
+            for node in self.nodes:
+                self._reschedule(node)
 
     return KindScheduling(config, log)
 
@@ -110,6 +157,10 @@ def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
     the exit makes xdist report the test as crashed and go on with a new worker. The stacks
     go to a file (the worker's stderr is pytest's capture, lost with the process), which the
     controller prints in its summary.
+
+    faulthandler shows Python frames only, and a test stuck in ``_rclpy.Node(...)`` says
+    nothing about the lock it waits on; so, where gdb exists, a watcher process (below) adds
+    every thread's native stack to the same file shortly before the exit.
     """
     marker = item.get_closest_marker("timeout")
     timeout = float(marker.args[0]) if marker and marker.args else float(
@@ -119,15 +170,61 @@ def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
         return
     limit = 2 * timeout * (int(item.config.getoption("reruns", 0) or 0) + 1) + 10
     dump = Path(os.environ[BACKSTOP_DIR]) / f"{os.getpid()}.txt"
-    with dump.open("w") as out:
+    # Appending, as the native-stack watcher does: neither overwrites the other's lines.
+    with dump.open("a") as out:
         out.write(f"{item.nodeid} still ran {limit:.0f} s after it began; its threads:\n")
         out.flush()
         faulthandler.dump_traceback_later(limit, exit=True, file=out)
+        _native_stacks_at(limit - min(30.0, limit / 2), dump)
         try:
             yield
         finally:
+            _native_stacks_at(None, dump)
             faulthandler.cancel_dump_traceback_later()
     dump.unlink(missing_ok=True)
+
+
+#: The watcher: told "<seconds> <file>" it appends gdb's stacks of every thread of its parent
+#: (this worker) to the file when the seconds pass first; "off" disarms it; it ends with its
+#: parent (end of input).
+_WATCHER = '''
+import os, select, subprocess, sys, time
+pid = os.getppid()
+deadline, dump = None, ""
+while True:
+    wait = None if deadline is None else max(0.0, deadline - time.monotonic())
+    if select.select([sys.stdin], [], [], wait)[0]:
+        line = sys.stdin.readline()
+        if not line:
+            break
+        seconds, _, dump = line.strip().partition(" ")
+        deadline = None if seconds == "off" else time.monotonic() + float(seconds)
+    elif deadline is not None:
+        deadline = None
+        with open(dump, "a") as out:
+            out.write("native stacks (gdb):\\n")
+            out.flush()
+            subprocess.run(["gdb", "-batch", "-nx", "-iex", "set auto-load python-scripts off",
+                            "-p", str(pid), "-ex", "thread apply all bt"],
+                           stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.DEVNULL,
+                           timeout=120, check=False)
+'''
+_watcher: subprocess.Popen[str] | None = None
+
+
+def _native_stacks_at(seconds: float | None, dump: Path) -> None:
+    """Arm (``seconds``) or disarm (None) this process's native-stack watcher."""
+    global _watcher
+    if shutil.which("gdb") is None:
+        return
+    if _watcher is None or _watcher.poll() is not None:
+        if seconds is None:
+            return
+        _watcher = subprocess.Popen([sys.executable, "-c", _WATCHER], stdin=subprocess.PIPE,
+                                    text=True)
+    assert _watcher.stdin is not None
+    _watcher.stdin.write(f"{'off' if seconds is None else seconds} {dump}\n")
+    _watcher.stdin.flush()
 
 
 def _print_stuck_tests(terminalreporter: Any) -> None:

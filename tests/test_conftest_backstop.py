@@ -5,6 +5,7 @@ idling until CI's hard limit (two full runs hung so on an xdist worker)."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -51,6 +52,10 @@ def test_a_test_that_outlives_its_timeout_unreachably_is_dumped_and_ended(
     summary = run.stdout[run.stdout.index("stuck test (conftest.py's backstop)"):]
     assert "test_stuck.py::test_stuck_where_no_alarm_reaches still ran 12 s" in summary
     assert 'test_stuck.py", line 12 in test_stuck_where_no_alarm_reaches' in summary, summary
+    if shutil.which("gdb"):
+        # Where the main thread waits natively, which faulthandler's Python frames never say.
+        native = summary[summary.index("native stacks (gdb):"):]
+        assert "clock_nanosleep" in native, summary
 
 
 def test_a_nested_run_leaves_the_outer_runs_live_files_alone(tmp_path: Path) -> None:

@@ -32,7 +32,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 import tempfile
+import time
 import uuid
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -128,3 +130,60 @@ def local_endpoints_ignored(context: Context) -> bool:
         return pub.get_subscription_count() == 0
     finally:
         node.destroy_node()
+
+
+#: Where Fast DDS keeps its shared-memory transport's segments (Linux).
+SHM_FOLDER = Path("/dev/shm")
+#: A domain's ports (RTPS's defaults, which rmw_fastrtps keeps): 7400 + 250 x domain and the
+#: 249 after it; each port that a participant listens on has a segment ``fastrtps_port<N>``.
+#: The shared-memory transport's discovery ports lie below 7400 (fastrtps_port7000 and up),
+#: shared by the participants of every domain.
+_PORT_BASE, _DOMAIN_GAIN = 7400, 250
+#: boost.interprocess's first word of a managed segment: 0 uninitialized, 1 initializing,
+#: 2 initialized (3 corrupted).
+_UNFINISHED_STATES = (0, 1)
+
+
+def remove_stale_shm_ports(
+    domain_id: int, *, folder: Path = SHM_FOLDER, min_age_s: float = 10.0
+) -> list[Path]:
+    """Delete the shared-memory port segments of ``domain_id`` (and the discovery ports all
+    domains share) that a killed process left half made, so that the next participant does
+    not hang; returns them.
+
+    Fast DDS makes a port's segment in /dev/shm when a participant first opens the port,
+    and boost.interprocess, opening an existing segment, waits without a timeout until it is
+    sized and initialized. A process SIGKILLed between making the file and initializing it
+    (a test ending its peers, a crash at start-up) leaves one that never will be: every later
+    participant that gets that port (the same domain and participant index) spins in its
+    creation for ever, inside rclpy's ``Node(...)``. Only a segment still empty or not marked
+    initialized after ``min_age_s`` goes: one younger may be in the making.
+    """
+    first = _PORT_BASE + _DOMAIN_GAIN * domain_id
+    now = time.time()
+    removed: list[Path] = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        number = entry.name.removeprefix("fastrtps_port")
+        if number == entry.name or not number.isdigit():
+            continue  # not a port's segment (``_el`` locks, ``_mutex``es, data segments)
+        port = int(number)
+        if not (first <= port < first + _DOMAIN_GAIN or port < _PORT_BASE):
+            continue
+        try:
+            stat = entry.stat()
+            if now - stat.st_mtime < min_age_s:
+                continue
+            if stat.st_size >= 4:
+                with open(entry.path, "rb") as segment:
+                    state = int.from_bytes(segment.read(4), sys.byteorder)
+                if state not in _UNFINISHED_STATES:
+                    continue
+            os.unlink(entry.path)
+        except OSError:  # gone meanwhile, or another user's
+            continue
+        removed.append(Path(entry.path))
+    return removed

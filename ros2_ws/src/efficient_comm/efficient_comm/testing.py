@@ -43,7 +43,7 @@ from ._qos import latched_qos
 from .bus import LocalPublisher
 from .composed import ComposedHandle, RecordingLogger
 from .container import Container
-from .dds import _MARK, PROFILES_ENV
+from .dds import _MARK, PROFILES_ENV, remove_stale_shm_ports
 from .executor import GuardMode, Strategy
 from .handle import QoSLike
 from .stats import CallbackStats
@@ -200,7 +200,9 @@ def isolated_domain_id() -> int:
     it holds a local port per id, so every process that reserves this way (every test
     process here, running in parallel or not) gets a different id. Deriving ids from the
     pid, as this did before, let two processes collide. The reservation lasts until this
-    process has made :data:`KEEP_RESERVED` newer ones, or ends.
+    process has made :data:`KEEP_RESERVED` newer ones, or ends. The domain comes without the
+    half-made shared-memory port segments a killed process may have left in it
+    (:func:`efficient_comm.dds.remove_stale_shm_ports`), on which a participant would hang.
     """
     from domain_coordinator import domain_id  # type: ignore[import-untyped]
 
@@ -208,6 +210,9 @@ def isolated_domain_id() -> int:
     domain = int(stack.enter_context(
         domain_id(selector=lambda: next(_next_candidate) % DOMAIN_IDS + 1)
     ))
+    # A peer an earlier test killed may have left a half-made port segment of this domain,
+    # on which the next participant would hang (see remove_stale_shm_ports).
+    remove_stale_shm_ports(domain)
     _reserved.append(stack)
     while len(_reserved) > KEEP_RESERVED:
         _reserved.popleft().close()

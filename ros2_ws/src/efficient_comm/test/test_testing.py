@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import itertools
+import os
 import signal
 import subprocess
 import sys
 import time
 
-from efficient_comm.testing import isolated_domain_id, stop_process_group
+import pytest
+from domain_coordinator import domain_id  # type: ignore[import-untyped]
+
+from efficient_comm import testing
+from efficient_comm.dds import SHM_FOLDER
+from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
 
 CHILD = """
 import sys
@@ -72,3 +79,56 @@ def test_stop_process_group_gives_the_exit_status_of_a_clean_stop() -> None:
     # Python ends on Ctrl-C by SIGINT (KeyboardInterrupt, then the signal re-raised).
     assert stop_process_group(proc) == -signal.SIGINT
     assert stop_process_group(proc) == -signal.SIGINT  # already ended: nothing sent
+
+
+#: Two participants in one process, as debug_gui's Hub makes (one context a domain).
+TWO_PARTICIPANTS = """
+import rclpy
+from rclpy.context import Context
+from rclpy.node import Node
+
+nodes = []
+for index in range(2):
+    context = Context()
+    rclpy.init(context=context)
+    nodes.append(Node(f"participant_{index}", context=context, enable_rosout=False))
+print("both up")
+"""
+
+
+def test_a_domain_handed_out_has_no_half_made_shm_port_to_hang_a_participant_on(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A process SIGKILLed while Fast DDS made a port's shared-memory segment leaves it empty,
+    and the next participant to get that port spun for ever in its creation (full runs hung
+    in debug_gui's Hub so, in rclpy's Node(...)). isolated_domain_id removes such segments
+    of the domain it hands out; a young one, maybe in the making, stays."""
+    with domain_id() as wanted:  # free now: plant in it, then have isolated_domain_id take it
+        wanted = int(wanted)
+    first_port = 7400 + 250 * wanted
+    # User-traffic ports of participant indices 1 and 2 (7411 + 250 d + 2 i).
+    stale = SHM_FOLDER / f"fastrtps_port{first_port + 13}"
+    young = SHM_FOLDER / f"fastrtps_port{first_port + 15}"
+    # Below every domain's ports, as the discovery ports all domains share (no one uses 6999).
+    shared = SHM_FOLDER / "fastrtps_port6999"
+    try:
+        long_ago = time.time() - 60
+        for path in (stale, shared):
+            path.touch()
+            os.utime(path, (long_ago, long_ago))
+        young.touch()
+        monkeypatch.setattr(testing, "_next_candidate",
+                            itertools.chain([wanted - 1], testing._next_candidate))
+        domain = isolated_domain_id()
+        if domain != wanted:
+            pytest.skip(f"another process took domain {wanted} meanwhile")
+        try:
+            run = subprocess.run([sys.executable, "-c", TWO_PARTICIPANTS], env=ros_env(domain),
+                                 capture_output=True, text=True, timeout=30, check=False)
+        except subprocess.TimeoutExpired:
+            pytest.fail("the second participant hung on the half-made port segment")
+        assert run.stdout.strip() == "both up", run.stderr[-2000:]
+        assert not shared.exists()
+        assert young.exists()
+    finally:
+        for path in (stale, shared, young):
+            path.unlink(missing_ok=True)
