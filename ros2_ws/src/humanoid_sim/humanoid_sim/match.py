@@ -292,6 +292,14 @@ def _parser() -> DemoArguments:
                         help="each robot's localization/pose: pf (the particle filter), "
                         "noisy (noisy ground truth) or truth; for all robots, per robot "
                         "(blue1=pf,red1=noisy) or both (noisy,blue1=pf) (default noisy)")
+    parser.add_argument("--role-margin", type=_number(low=0, what="seconds >= 0"),
+                        default=None, metavar="S",
+                        help="how much sooner at the ball a teammate must be to take the "
+                        "striker's role from another (default 1; 0 with --role-hold 0 lets "
+                        "roles oscillate, for trying log_analysis's role_oscillation)")
+    parser.add_argument("--role-hold", type=_number(low=0, what="seconds >= 0"),
+                        default=None, metavar="S",
+                        help="the least time a robot keeps a role it took (default 2)")
     parser.add_argument("--report", type=Path, default=Path("match_report.md"))
     parser.add_argument("--out-dir", type=Path, default=Path("match"),
                         help="each process's log, the bags, the merged log and the video go "
@@ -336,7 +344,8 @@ def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict
 def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
                bridge_file: Path, bag_dir: Path, status_period_s: float, players: int,
                localization: str = DEFAULT_LOCALIZATION, seed: int = 0,
-               lockstep: bool = False) -> dict[str, Any]:
+               lockstep: bool = False, role_margin_s: float | None = None,
+               role_min_hold_s: float | None = None) -> dict[str, Any]:
     team, number = robot.rstrip("123"), int(robot[-1])
     return {
         "robot": robot, "port": port, "bridge_file": str(bridge_file), "lockstep": lockstep,
@@ -346,7 +355,10 @@ def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
         # A team of three keeps player 3 in goal (its kick-off spot is there); smaller
         # teams play without a goalie.
         "team": {"team_number": TEAM_NUMBERS[team], "player_number": number,
-                 "goalie_number": 3 if players == 3 else 0},
+                 "goalie_number": 3 if players == 3 else 0,
+                 # The roles' hysteresis (soccer.roles): TeamComm's defaults unless given.
+                 **({} if role_margin_s is None else {"role_margin_s": role_margin_s}),
+                 **({} if role_min_hold_s is None else {"role_min_hold_s": role_min_hold_s})},
     }
 
 
@@ -554,7 +566,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     robot, start=poses[robot], port=str(port_dir / robot), bridge_file=bridge_file,
                     bag_dir=paths.bag_dir(robot), status_period_s=period,
                     players=players, localization=sources[robot], seed=args.seed,
-                    lockstep=args.lockstep)
+                    lockstep=args.lockstep, role_margin_s=args.role_margin,
+                    role_min_hold_s=args.role_hold)
                 plan["clock"] = clocks[robot]
                 children[robot] = _start(robot, "humanoid_sim.match_robot", plan,
                                          domain=domains[robot], log_dir=args.out_dir)

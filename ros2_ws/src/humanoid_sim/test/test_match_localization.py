@@ -138,3 +138,15 @@ def test_the_report_gives_each_robots_source_and_errors() -> None:
     assert ("- blue1: particle_filter, 12 estimates; position error mean 0.500 m, p95 "
             "0.700 m, max 0.900 m; heading error mean 3.0°, p95 5.0°") in text
     assert "- red1: noisy_ground_truth, 0 estimates; position error mean - m" in text
+
+
+def test_the_roles_hysteresis_reaches_each_robots_team_layer_only_when_given() -> None:
+    def team(margin: float | None = None, hold: float | None = None) -> object:
+        return robot_plan("blue2", start=(0.0, 0.0, 0.0), port="/dev/null",
+                          bridge_file=Path("b.yaml"), bag_dir=Path("bags"), status_period_s=1.0,
+                          players=2, role_margin_s=margin, role_min_hold_s=hold)["team"]
+
+    assert team() == {"team_number": 1, "player_number": 2, "goalie_number": 0}
+    assert team(0.0, 0.0) == {
+        "team_number": 1, "player_number": 2, "goalie_number": 0, "role_margin_s": 0.0,
+        "role_min_hold_s": 0.0}
