@@ -96,7 +96,8 @@ def test_each_subscriber_gets_each_message_once_in_order(
 ) -> None:
     """A subscriber with the transport beside a plain rclpy one: large messages reach the
     first in place (read-only, bytes intact, a kept one untouched by later chunks), small
-    ones over DDS, each once and in order; the plain one gets every message once."""
+    ones over DDS, each once and in order, and each compares with ``==`` as a message of
+    its type does; the plain one gets every message once."""
     env, topic, started = peers
     count = 12
     sub = _start(started, env, "sub", topic)
@@ -109,9 +110,10 @@ def test_each_subscriber_gets_each_message_once_in_order(
     got = sub.until(count) and sub.messages()
     plain_got = plain.until(count) and plain.messages()
     assert [int(m[0]) for m in got] == list(range(count))
-    for i, (_, via, ro, ok, dropped, kept) in enumerate(got):
+    for i, (_, via, ro, ok, dropped, kept, equal) in enumerate(got):
         assert (via, ro) == (("shm", "ro") if i % 2 else ("dds", "rw")), got[i]
         assert (ok, dropped, kept) == ("ok", "0", "kept"), got[i]
+        assert equal == "eq", f"msg == other does not work for {via}: {got[i]}"
     assert [int(m[0]) for m in plain_got] == list(range(count))
     sub.stop()  # no duplicate that came late
     assert len(sub.messages()) == count

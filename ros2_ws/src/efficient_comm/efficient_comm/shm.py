@@ -181,10 +181,39 @@ def _bytes_type(n: int) -> type[ctypes.Array[ctypes.c_uint8]]:
     return type(f"ShmBytes{n}", (ctypes.c_uint8 * n,), {})
 
 
-def _view(chunk: _Chunk, address: int, nbytes: int, dtype: np.dtype[Any]) -> np.ndarray:
+class SharedArray(np.ndarray):
+    """A received message's array over its shared chunk: a read-only numpy array, except
+    that ``==`` and ``!=`` compare the whole sequence and give one bool, as the
+    ``array.array`` of the same field from DDS does. A generated message's ``__eq__``
+    tests ``if self.data != other.data``, which numpy's element-wise answer made raise.
+    Indexing and slicing give plain numpy arrays (element-wise comparisons), as does
+    ``np.asarray(msg.data)``."""
+
+    def __eq__(self, other: object) -> bool:
+        return _same(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        return not _same(self, other)
+
+    __hash__ = None
+
+    def __getitem__(self, key: Any) -> Any:
+        return np.ndarray.__getitem__(self.view(np.ndarray), key)
+
+
+def _same(array: np.ndarray, other: object) -> bool:
+    """Sequence equality of ``array`` and ``other`` (an ``array.array``, a numpy array)."""
+    try:
+        values = np.asarray(other)
+    except Exception:
+        return False
+    return values.shape == array.shape and bool(np.array_equal(array.view(np.ndarray), values))
+
+
+def _view(chunk: _Chunk, address: int, nbytes: int, dtype: np.dtype[Any]) -> SharedArray:
     raw = _bytes_type(nbytes).from_address(address)
     raw.chunk = chunk  # type: ignore[attr-defined]  # the array's base keeps the sample
-    array: np.ndarray = np.frombuffer(memoryview(raw), dtype=dtype)
+    array = np.frombuffer(memoryview(raw), dtype=dtype).view(SharedArray)
     array.flags.writeable = False  # the mapping is read-only: a write would crash
     return array
 
