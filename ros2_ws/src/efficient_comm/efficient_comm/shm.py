@@ -52,7 +52,7 @@ import secrets
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -238,6 +238,22 @@ class ShmTransport:
         self._services: dict[str, tuple[Any, Any]] = {}
         self._local_subs: dict[str, int] = {}  # service -> this process's shm subscribers
         self._lock = threading.Lock()
+        self._wait: ShmWait | None = None  # the executor's, from the first subscription
+
+    def listen(self, sub: ShmSubscription) -> None:
+        """Have the executor's thread wait on ``sub``'s listener (and relay DDS)."""
+        with self._lock:
+            if self._wait is None:
+                self._wait = ShmWait(self.iox2, self.executor)
+                self.executor.attach_own_wait(self._wait)
+        self._wait.add(sub)
+
+    def unlisten(self, sub: ShmSubscription, listener: Any) -> None:
+        """``sub`` is gone; its listener is deleted once the executor no longer waits on it."""
+        if self._wait is not None:
+            self._wait.remove(sub, listener)
+        else:
+            listener.delete()
 
     def service_name(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         reliability = "r" if qos.reliability == ReliabilityPolicy.RELIABLE else "b"
@@ -296,6 +312,8 @@ class ShmTransport:
             return None
 
     def close(self) -> None:
+        if self._wait is not None:
+            self._wait.stop()
         with self._lock:
             self._services.clear()
         self.node = None  # iceoryx2 removes the node when its last port is gone
@@ -426,38 +444,17 @@ class ShmSubscription:
         depth = sub.queue.maxlen or _BUFFER
         self._port = pubsub.subscriber_builder().buffer_size(min(depth, _BUFFER)).create()
         transport._count_local(self.name, 1)
-        self._listener = event.listener_builder().create()
-        self._waker = event.notifier_builder().create()  # ends the waiter on close
+        self.listener = event.listener_builder().create()
         self._last: dict[int, int] = {}  # publisher -> last sequence number
         self._expected: deque[tuple[int, int, int]] = deque(maxlen=_REMEMBER)  # DDS copies
         self._delivered: deque[tuple[int, int]] = deque(maxlen=_REMEMBER)  # from DDS
         self._pid = os.getpid()
-        self._pending = False
         self._running = True
-        self._thread = threading.Thread(target=self._wait, daemon=True,
-                                        name=f"shm {sub.topic_name}")
-        self._thread.start()
+        transport.listen(self)
         transport.executor.post(self.drain)  # a first receive connects the port
-
-    # -- the waiter thread ---------------------------------------------------------------
-
-    def _wait(self) -> None:
-        """Block on the event (the GIL released) and have the executor drain the port."""
-        timeout = self._transport.iox2.Duration.from_millis(_WAKE_MS)
-        while self._running:
-            try:
-                woken = self._listener.timed_wait(timeout)
-            except Exception:
-                return
-            if woken and self._running and not self._pending:
-                self._pending = True
-                self._transport.executor.post(self.drain)
-
-    # -- the executor thread -------------------------------------------------------------
 
     def drain(self) -> None:
         """Deliver every chunk waiting (executor thread)."""
-        self._pending = False
         while self._running:
             sample = self._port.receive()
             if sample is None:
@@ -521,10 +518,185 @@ class ShmSubscription:
 
     def close(self) -> None:
         self._running = False
-        with contextlib.suppress(Exception):  # the event service may be gone already
-            self._waker.notify()
-        self._thread.join(timeout=2 * _WAKE_MS / 1000)
+        self._transport.unlisten(self, self.listener)
         self._transport._count_local(self.name, -1)
-        self._waker.delete()
-        self._listener.delete()
         self._port.delete()
+
+
+class ShmWait:
+    """The executor's wait while its process receives through shared memory.
+
+    rclpy's wait set takes rcl entities only, and iceoryx2 gives Python no file descriptor
+    for a listener, so one of the two needs a thread. A thread per listener that woke the
+    executor out of rclpy's wait (a guard condition) made each message two thread wake-ups
+    and a round of rclpy's wait-set Python: most of a 1 MiB message's latency. Here the
+    executor's thread itself blocks in an iceoryx2 ``WaitSet`` over every subscription's
+    listener and an eventfd, and receives a chunk as it wakes; DDS is what is relayed: a
+    thread waits in rclpy's wait (:meth:`ConsecutiveExecutor.dds_ready`), hands the ready
+    handlers over through the eventfd and waits for the executor's thread to have run
+    them before it waits again, so rclpy's entities are never waited on by two threads at
+    once. The eventfd is also the executor's wake-up for another thread's publish.
+    """
+
+    def __init__(self, iox2: Any, executor: ConsecutiveExecutor) -> None:
+        self._iox2 = iox2
+        self._executor = executor
+        self._fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
+        # Subscriptions come and go in any thread (under _lock); the WaitSet is the
+        # executor thread's alone, rebuilt there before its next wait (_dirty), and a gone
+        # subscription's listener is deleted only then, once no WaitSet holds it (_retired).
+        self._lock = threading.Lock()
+        self._subs: list[ShmSubscription] = []
+        self._retired: list[Any] = []
+        self._dirty = True
+        self._waitset: Any = None
+        self._fd_guard: Any = None
+        self._guards: list[tuple[Any, ShmSubscription]] = []
+        # The relay's state, under _cond: DDS handlers it found (run by the executor's
+        # thread, then None), whether the executor's thread takes from DDS itself (paused),
+        # and whether the relay is parked (not in a DDS wait).
+        self._cond = threading.Condition()
+        self._items: list[tuple[Any, Any]] | None = None
+        self._paused = False
+        self._parked = False
+        self._running = True
+        self._relay = threading.Thread(target=self._relay_dds, daemon=True, name="dds relay")
+        self._relay.start()
+
+    # -- subscriptions (any thread) --------------------------------------------------------
+
+    def add(self, sub: ShmSubscription) -> None:
+        with self._lock:
+            self._subs.append(sub)
+            self._dirty = True
+        self.wake()
+
+    def remove(self, sub: ShmSubscription, listener: Any) -> None:
+        """``sub`` is gone; its ``listener`` is deleted once no WaitSet holds it."""
+        with self._lock:
+            if sub in self._subs:
+                self._subs.remove(sub)
+            self._retired.append(listener)
+            self._dirty = True
+        self.wake()
+
+    def _rebuild(self) -> None:
+        iox2 = self._iox2
+        with self._lock:
+            subs, retired, self._retired = list(self._subs), self._retired, []
+            self._dirty = False
+        self._guards = []
+        self._fd_guard = self._waitset = None  # the old WaitSet and its guards first
+        for listener in retired:
+            with contextlib.suppress(Exception):
+                listener.delete()
+        waitset = (iox2.WaitSetBuilder.new()
+                   .signal_handling_mode(iox2.SignalHandlingMode.Disabled)
+                   .create(iox2.ServiceType.Ipc))
+        self._fd_guard = waitset.attach_notification_fd(
+            iox2.FileDescriptor.non_owning_new(self._fd))
+        self._guards = [(waitset.attach_notification(sub.listener), sub) for sub in subs]
+        self._waitset = waitset
+
+    # -- the executor's thread -------------------------------------------------------------
+
+    def wait(self, timeout_s: float) -> None:
+        if self._dirty:
+            self._rebuild()
+        fired, _ = self._waitset.wait_and_process_with_timeout(
+            self._iox2.Duration.from_secs_f64(min(timeout_s, 3600.0)))
+        ready = [sub for guard, sub in self._guards
+                 if any(event.has_event_from(guard) for event in fired)]
+        for sub in ready:
+            sub.listener.try_wait()  # consumed, or the WaitSet wakes at once again
+        self._run(ready)
+
+    def poll(self) -> None:
+        if self._dirty:
+            self._rebuild()
+        self._run([sub for _, sub in self._guards])
+
+    def _run(self, subs: list[ShmSubscription]) -> None:
+        """Shared memory first (a publisher's chunks before its later DDS samples), then
+        what the relay found on DDS."""
+        with contextlib.suppress(BlockingIOError):
+            os.eventfd_read(self._fd)
+        for sub in subs:
+            sub.drain()
+        items = self._items
+        if items is not None:
+            try:
+                self._executor.run_dds_items(items)
+            finally:
+                with self._cond:  # the relay waits again only now: one waiter at a time
+                    self._items = None
+                    self._cond.notify_all()
+
+    @contextlib.contextmanager
+    def pause(self) -> Iterator[None]:
+        with self._cond:
+            self._paused = True
+        self._executor.wake_dds()
+        with self._cond:
+            self._cond.wait_for(lambda: self._parked, timeout=5.0)
+        self._run([])  # what the relay had found
+        try:
+            yield
+        finally:
+            with self._cond:
+                self._paused = False
+                self._cond.notify_all()
+
+    # -- any thread --------------------------------------------------------------------------
+
+    def wake(self) -> None:
+        with contextlib.suppress(OSError):  # closed
+            os.eventfd_write(self._fd, 1)
+
+    def stop(self) -> None:
+        """End the relay (the executor leaves DDS or the transport closes)."""
+        with self._cond:
+            if not self._running:
+                return
+            self._running = False
+            self._cond.notify_all()
+        self._executor.wake_dds()
+        self._relay.join(timeout=5.0)
+        self._guards = []
+        self._fd_guard = self._waitset = None
+        with self._lock:
+            retired, self._retired = self._retired, []
+        for listener in retired:
+            with contextlib.suppress(Exception):
+                listener.delete()
+
+    def __del__(self) -> None:
+        os.close(self._fd)  # not in stop(): a late wake() must not write to a reused fd
+
+    # -- the relay thread --------------------------------------------------------------------
+
+    def _relay_dds(self) -> None:
+        cond = self._cond
+        while True:
+            with cond:
+                while self._running and (self._paused or self._items is not None):
+                    self._parked = True
+                    cond.notify_all()
+                    cond.wait()
+                self._parked = False
+                if not self._running:
+                    break
+            try:
+                items = self._executor.dds_ready(_WAKE_MS / 1000, stop=self._stopping)
+            except Exception:  # DDS shut down: nothing left to relay
+                break
+            if items:
+                with cond:
+                    self._items = items
+                self.wake()
+        with cond:
+            self._parked = True
+            cond.notify_all()
+
+    def _stopping(self) -> bool:
+        return not self._running or self._paused
