@@ -18,8 +18,10 @@ Timers run on the executor's clock (real ROS time, a :class:`ManualClock` advanc
 process moves, stepped the same way: see :mod:`efficient_comm.simtime`, also for lockstep).
 DDS entities (subscriptions from other processes, services, clients, graph events) are
 waited on through an rclpy executor inside, only when the container talks DDS; a guard
-condition in that wait set lets another thread's publish wake it at once. A callback that
-raises is logged and counted; the others go on.
+condition in that wait set lets another thread's publish wake it at once. A source rclpy's
+wait set cannot hold (shared memory's listeners) brings an :class:`OwnWait` the thread
+blocks in instead, which relays DDS from a thread of its own. A callback that raises is
+logged and counted; the others go on.
 """
 
 from __future__ import annotations

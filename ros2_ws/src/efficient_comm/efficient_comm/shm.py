@@ -5,10 +5,12 @@ serialization and two full copies. This module carries the big array of such a m
 (``sensor_msgs/Image``'s ``data``, ``PointCloud2``'s, ``CompressedImage``'s, a
 ``Float32MultiArray``'s: any message with exactly one top-level sequence of numbers)
 through iceoryx2's zero-copy publish-subscribe instead. The publisher copies the array once
-into a loaned chunk, next to the rest of the message in CDR (small: header, sizes,
-encoding); each subscribing process reads the chunk in place: the message it gets holds a
-read-only numpy array over the shared chunk, and the chunk stays its until the last
-reference to that array is gone (iceoryx2 never reuses a chunk a reader holds).
+into a loaned chunk, next to the rest of the message pickled (small: header, sizes,
+encoding; see :class:`_Rest`); each subscribing process reads the chunk in place: the
+message it gets holds a read-only numpy array over the shared chunk, and the chunk stays its
+until the last reference to that array is gone (iceoryx2 never reuses a chunk a reader
+holds). The receiving executor's thread waits on iceoryx2 itself, so a chunk wakes the
+thread that runs the callback, once; DDS is relayed to it (:class:`ShmWait`).
 
 Turned on per container (``Container(shm=True)``) or for every container of a process by
 ``EFFICIENT_COMM_SHM=1``; ``shm_threshold_bytes`` (``EFFICIENT_COMM_SHM_THRESHOLD``) is the
@@ -608,6 +610,7 @@ class ShmWait:
         self._paused = False
         self._parked = False
         self._running = True
+        self._error: BaseException | None = None  # what ended the relay, raised in _run
         self._relay = threading.Thread(target=self._relay_dds, daemon=True, name="dds relay")
         self._relay.start()
 
@@ -671,6 +674,9 @@ class ShmWait:
             os.eventfd_read(self._fd)
         for sub in subs:
             sub.drain()
+        if self._error is not None:  # raised from the spin, as rclpy's own wait's would be
+            error, self._error = self._error, None
+            raise error
         items = self._items
         if items is not None:
             try:
@@ -736,7 +742,11 @@ class ShmWait:
                     break
             try:
                 items = self._executor.dds_ready(_WAKE_MS / 1000, stop=self._stopping)
-            except Exception:  # DDS shut down: nothing left to relay
+            except Exception as exc:
+                if self._running and type(exc).__name__ not in (
+                        "ShutdownException", "ExternalShutdownException"):
+                    self._error = exc  # not a shutdown: the executor's thread raises it
+                    self.wake()
                 break
             if items:
                 with cond:
