@@ -6,8 +6,11 @@ floor of the mechanism), in the same run, for sensor_msgs/Image payloads of 64 B
 6 MiB (1920x1080 rgb8), in two patterns:
 
 * ``ping``: one message in flight; the subscriber acknowledges each (a small message), the
-  publisher sends the next on the acknowledgement. Latency is publish -> callback (the
-  stamp is taken just before ``publish``, read first thing in the callback; CLOCK_MONOTONIC);
+  publisher sends the next on the acknowledgement (over shared memory, a message not
+  acknowledged within a second is sent again, counted as ``resent``: at start-up, the
+  subscriber's acknowledgement writer may not have matched the publisher's reader yet).
+  Latency is publish -> callback (the stamp is taken just before ``publish``, read first
+  thing in the callback; CLOCK_MONOTONIC);
 * ``rate``: the publisher sends back to back; throughput is what the subscriber received per
   second between its first and last message (a reader that falls behind loses messages:
   counted).
@@ -46,6 +49,8 @@ from pathlib import Path
 from typing import Any
 
 SIZES = {"64B": 64, "1MiB": 1 << 20, "6MiB": 1920 * 1080 * 3}
+#: ping over shared memory: a message unacknowledged this long is sent again (see _ros_child)
+_RESEND_S = 1.0
 BACKENDS = ("bare", "shm", "dds")
 MODES = ("ping", "rate")
 
@@ -78,6 +83,10 @@ def _ros_child(args: argparse.Namespace) -> None:
 
     def on_image(msg: Any, ack: Any) -> None:
         now = time.monotonic_ns()
+        if msg.header.frame_id == state.get("last_id"):  # resent (ping): answered, not counted
+            ack.publish(UInt64(data=int(msg.header.frame_id)))
+            return
+        state["last_id"] = msg.header.frame_id
         stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         _ = np.asarray(msg.data)[:2].sum()  # touch the payload, as a user would
         if state["got"] == 0:
@@ -127,12 +136,16 @@ def _ros_child(args: argparse.Namespace) -> None:
                     node.create_subscription(UInt64, args.topic + "_ack", on_ack, qos=qos)
                     holder["timer"] = node.create_timer(0.01, start)
 
-            sent: dict[str, Any] = {"n": 0, "cpu0": 0.0, "started": False}
+            sent: dict[str, Any] = {"n": 0, "cpu0": 0.0, "started": False, "at": 0.0,
+                                    "resent": 0}
 
             def on_ack(msg: Any) -> None:
-                if args.mode == "ping" and sent["n"] < count:
+                # Only the acknowledgement of the last message sent: a resent one's first
+                # acknowledgement may still come.
+                if args.mode == "ping" and sent["n"] < count and msg.data == sent["n"] - 1:
                     send(sent["n"], holder["pub"])
                     sent["n"] += 1
+                    sent["at"] = time.monotonic()
 
             def start() -> None:
                 if sent["started"] or holder["pub"].get_subscription_count() < 1:
@@ -142,7 +155,7 @@ def _ros_child(args: argparse.Namespace) -> None:
                 sent["cpu0"] = _cpu_s()
                 if args.mode == "ping":
                     send(0, holder["pub"])
-                    sent["n"] = 1
+                    sent["n"], sent["at"] = 1, time.monotonic()
                 else:
                     for i in range(count):
                         send(i, holder["pub"])
@@ -155,10 +168,19 @@ def _ros_child(args: argparse.Namespace) -> None:
                 container.spin_once(0.1)
                 if args.role == "pub" and sent["n"] >= count:
                     break
+                if (args.role == "pub" and args.mode == "ping" and sent["started"]
+                        and time.monotonic() - sent["at"] > _RESEND_S):
+                    # No acknowledgement: the subscriber's acknowledgement writer had not
+                    # matched our reader yet when it answered (DDS discovery is not
+                    # symmetric; a composed writer writes only to matched readers), and
+                    # one in flight would wait forever. Counted, and printed.
+                    send(sent["n"] - 1, holder["pub"])
+                    sent["at"] = time.monotonic()
+                    sent["resent"] += 1
             if args.role == "sub":
                 _emit(sub_record())
             else:
-                _emit({"side": "pub", "sent": sent["n"],
+                _emit({"side": "pub", "sent": sent["n"], "resent": sent["resent"],
                        "cpu_us_per_msg": (_cpu_s() - sent["cpu0"]) * 1e6 / max(1, sent["n"])})
                 sys.stdin.read()  # stay until the parent is done with the subscriber
         return
@@ -369,11 +391,17 @@ def run_one(backend: str, size: int, mode: str, count: int, domain: int) -> dict
             if proc is not None:
                 _stop(proc)
     if pub_rec is None or sub_rec is None:
-        raise RuntimeError(f"{backend} {size} B {mode}: a side reported nothing")
+        # A stalled pair (ping: a message or its acknowledgement lost with one in flight)
+        # is a result too: recorded, and the run goes on; main() exits 1 at the end.
+        got = sub_rec["received"] if sub_rec is not None else 0
+        return {"backend": backend, "size": size, "mode": mode, "sent": None,
+                "received": got, "median_us": None, "p99_us": None, "msgs_per_s": None,
+                "pub_cpu_us": None, "sub_cpu_us": None, "stalled": True}
     lat = sorted(sub_rec["lat_ns"])
     got = sub_rec["received"]
     return {
         "backend": backend, "size": size, "mode": mode, "sent": pub_rec["sent"], "received": got,
+        "resent": pub_rec.get("resent", 0),
         "median_us": lat[len(lat) // 2] / 1e3 if lat else None,
         "p99_us": lat[min(len(lat) - 1, int(len(lat) * 0.99))] / 1e3 if lat else None,
         "msgs_per_s": (got - 1) / sub_rec["span_s"] if got > 1 and sub_rec["span_s"] else None,
@@ -426,7 +454,10 @@ def main() -> None:
         record.update(run=run, label=label)
         print(f"  run {run} {label:>5} {mode:4} {backend:4}: "
               f"median {_fmt(record['median_us'])} µs, "
-              f"{record['received']}/{record['sent']} received", flush=True)
+              f"{record['received']}/{record['sent']} received"
+              + (f", {record['resent']} resent" if record.get("resent") else "")
+              + (" STALLED (a side reported nothing)" if record.get("stalled") else ""),
+              flush=True)
         return record
 
     if args.smoke:  # side by side: the startup of six process pairs is what takes time
@@ -467,6 +498,12 @@ def main() -> None:
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps({"records": records, "load": load}, indent=1))
+    stalled = [r for r in records if r.get("stalled")]
+    if stalled:
+        print(f"\n{len(stalled)} pair(s) stalled: " + ", ".join(
+            f"run {r['run']} {r['label']} {r['mode']} {r['backend']} "
+            f"({r['received']} received)" for r in stalled))
+        sys.exit(1)
 
 
 if __name__ == "__main__":

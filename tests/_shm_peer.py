@@ -6,10 +6,13 @@ a container with the transport publishing sensor_msgs/Image number ``i`` (``fram
 prints ``ready``, then ``published N``, and stays until stdin closes.
 
 ``python tests/_shm_peer.py sub TOPIC [--slow S] [--no-shm]``: a container subscribing;
-per message a line ``msg <frame_id> <shm|dds> <ro|rw> <ok|bad> <dropped> <kept|overwritten>``
+per message a line
+``msg <frame_id> <shm|dds> <ro|rw> <ok|bad> <dropped> <kept|overwritten> <eq|neq>``
 (``shm`` when the data is an array over shared memory, ``ok`` when every byte is the
 expected value, ``dropped`` the subscription's loss count so far, then ``kept`` while the
-first message from shared memory, which it keeps, still holds its bytes). ``--slow``
+first message from shared memory, which it keeps, still holds its bytes, ``eq`` when the
+message (and its data) equals, both ways, the Image the publisher built and differs from one
+with a byte changed; ``neq`` if not or if comparing raised). ``--slow``
 spends S seconds of CPU in the callback (a slow reader).
 
 ``python tests/_shm_peer.py plain TOPIC``: a plain rclpy node (no efficient_comm), printing
@@ -90,8 +93,27 @@ class _Subscriber:
             self._kept = (i, msg)  # held while later chunks come and go
         kept = self._kept is None or bool(np.all(np.asarray(self._kept[1].data)
                                                  == self._kept[0] % 251))
-        print(f"msg {i} {via} {ro} {ok} {self._dropped} {'kept' if kept else 'overwritten'}",
-              flush=True)
+        print(f"msg {i} {via} {ro} {ok} {self._dropped} {'kept' if kept else 'overwritten'} "
+              f"{_equality(msg, i)}", flush=True)
+
+
+def _equality(msg: Image, i: int) -> str:
+    """``eq`` when ``msg`` compares as the publisher's message ``i`` (built here as the
+    publisher builds it, so its data is the ``array.array`` a DDS message has)."""
+    size = len(msg.data)
+    same = Image(height=1, width=size, encoding="mono8", step=size)
+    same.header.frame_id = str(i)
+    same.data = np.full(size, i % 251, dtype=np.uint8).tobytes()
+    other = Image(height=1, width=size, encoding="mono8", step=size)
+    other.header.frame_id = str(i)
+    other.data = np.full(size, i % 251, dtype=np.uint8).tobytes()
+    other.data[-1] = (i + 1) % 251
+    try:
+        equal = msg == same and same == msg and msg.data == same.data
+        differ = msg != other and other != msg and msg.data != other.data
+    except Exception:  # numpy's element-wise answer in a generated __eq__
+        return "neq"
+    return "eq" if equal and differ else "neq"
 
 
 def _plain(topic: str) -> None:

@@ -96,7 +96,8 @@ def test_each_subscriber_gets_each_message_once_in_order(
 ) -> None:
     """A subscriber with the transport beside a plain rclpy one: large messages reach the
     first in place (read-only, bytes intact, a kept one untouched by later chunks), small
-    ones over DDS, each once and in order; the plain one gets every message once."""
+    ones over DDS, each once and in order, and each compares with ``==`` as a message of
+    its type does; the plain one gets every message once."""
     env, topic, started = peers
     count = 12
     sub = _start(started, env, "sub", topic)
@@ -109,9 +110,10 @@ def test_each_subscriber_gets_each_message_once_in_order(
     got = sub.until(count) and sub.messages()
     plain_got = plain.until(count) and plain.messages()
     assert [int(m[0]) for m in got] == list(range(count))
-    for i, (_, via, ro, ok, dropped, kept) in enumerate(got):
+    for i, (_, via, ro, ok, dropped, kept, equal) in enumerate(got):
         assert (via, ro) == (("shm", "ro") if i % 2 else ("dds", "rw")), got[i]
         assert (ok, dropped, kept) == ("ok", "0", "kept"), got[i]
+        assert equal == "eq", f"msg == other does not work for {via}: {got[i]}"
     assert [int(m[0]) for m in plain_got] == list(range(count))
     sub.stop()  # no duplicate that came late
     assert len(sub.messages()) == count
@@ -229,3 +231,40 @@ def test_what_does_not_fit_falls_back_to_dds_with_one_line_why() -> None:
     assert not any("/image" in line for line in lines), lines
     assert any("nodds" in line and "no DDS" in line for line in lines), lines
     assert len(lines) == 3, lines
+
+
+ONE_WAIT = textwrap.dedent("""
+    import threading
+    from efficient_comm import Container
+    from sensor_msgs.msg import Image
+    from std_msgs.msg import Float32MultiArray
+    with Container("onewait", shm=True, serve=False, stats_period_s=0) as c:
+        before = threading.active_count()
+        def make(node):
+            for i in range(3):
+                node.create_subscription(Image, f"image{i}", lambda m: None)
+            node.create_subscription(Float32MultiArray, "floats", lambda m: None)
+        c.add(make, name="subs")
+        grown = threading.active_count() - before
+        ran = []
+        poster = threading.Thread(
+            target=lambda: c.executor.post(lambda: ran.append(threading.get_ident())))
+        poster.start()
+        posted = c.executor.spin_until(lambda: bool(ran), timeout_s=30)
+        poster.join()
+        c.take_dds()  # the executor takes from DDS itself: the relay steps aside
+        here = posted and ran[0] == threading.get_ident()
+        print("threads", grown, "posted", "here" if here else "elsewhere", "took", flush=True)
+""")
+
+
+def test_subscriptions_share_the_executors_one_wait() -> None:
+    """Four shared-memory subscriptions add one thread (the DDS relay), not one each: the
+    executor's thread waits on their listeners itself, so a chunk wakes it directly; a
+    call posted from another thread still runs in the executor's thread, and a direct
+    DDS take (a lockstep world's) works beside the relay."""
+    env = ros_env(isolated_domain_id())
+    done = subprocess.run([sys.executable, "-c", ONE_WAIT], env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["threads", "1", "posted", "here", "took"], done.stdout

@@ -18,18 +18,21 @@ Timers run on the executor's clock (real ROS time, a :class:`ManualClock` advanc
 process moves, stepped the same way: see :mod:`efficient_comm.simtime`, also for lockstep).
 DDS entities (subscriptions from other processes, services, clients, graph events) are
 waited on through an rclpy executor inside, only when the container talks DDS; a guard
-condition in that wait set lets another thread's publish wake it at once. A callback that
-raises is logged and counted; the others go on.
+condition in that wait set lets another thread's publish wake it at once. A source rclpy's
+wait set cannot hold (shared memory's listeners) brings an :class:`OwnWait` the thread
+blocks in instead, which relays DDS from a thread of its own. A callback that raises is
+logged and counted; the others go on.
 """
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import itertools
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from ._clock import ManualClock, SimClock, SystemClock
@@ -63,6 +66,30 @@ MAX_TAKES = 64
 
 class _Runnable(Protocol):
     def run_one(self, executor: ConsecutiveExecutor) -> None: ...
+
+
+class OwnWait(Protocol):
+    """A wait the executor's thread blocks in instead of rclpy's, for a source that rclpy's
+    wait set cannot hold (:mod:`efficient_comm.shm`'s iceoryx2 listeners). It must still
+    hear DDS: it relays :meth:`ConsecutiveExecutor.dds_ready` from a thread of its own and
+    hands what that found to :meth:`ConsecutiveExecutor.run_dds_items` in the executor's
+    thread."""
+
+    def wait(self, timeout_s: float) -> None:
+        """Block up to ``timeout_s`` (executor thread); run what woke it."""
+
+    def poll(self) -> None:
+        """Run what is ready, without blocking (executor thread)."""
+
+    def wake(self) -> None:
+        """End the current or next :meth:`wait` (any thread)."""
+
+    def pause(self) -> contextlib.AbstractContextManager[None]:
+        """While in this context, the relay does not wait on DDS (the executor's thread
+        takes from it itself: :meth:`ConsecutiveExecutor.take_dds`)."""
+
+    def stop(self) -> None:
+        """Stop relaying DDS (the executor leaves it)."""
 
 
 class _Task:
@@ -182,6 +209,7 @@ class ConsecutiveExecutor:
         self._wake_event = threading.Event()
         self._dds: RclpyExecutor | None = None
         self._dds_wake: Callable[[], None] | None = None
+        self._own_wait: OwnWait | None = None
         self._last_dds_poll = 0
         self._dds_poll_interval = DDS_POLL_INTERVAL_NS
         self.registry = StatsRegistry()
@@ -207,9 +235,45 @@ class ConsecutiveExecutor:
 
     def detach_dds(self) -> None:
         """Stop waiting on DDS (the container is leaving it); later waits are plain."""
+        own, self._own_wait = self._own_wait, None
+        if own is not None:
+            own.stop()
         self._dds_wake = None
         self._dds = None
         self._wake_event.set()
+
+    def attach_own_wait(self, wait: OwnWait) -> None:
+        """Block in ``wait`` instead of rclpy's wait from now on (needs DDS attached)."""
+        if self._dds is None:
+            raise ExecutorError("an own wait relays DDS: attach DDS first")
+        self._own_wait = wait
+        self._wake()
+
+    def dds_ready(self, timeout_s: float, *, stop: Callable[[], bool]) -> list[tuple[Any, Any]]:
+        """Wait up to ``timeout_s`` (or until ``stop()`` holds after a wake-up) for DDS, and
+        return the ready ``(handler, entity)`` pairs, without running them: an
+        :class:`OwnWait`'s relay thread calls this, the executor's thread runs them
+        (:meth:`run_dds_items`). Raises rclpy's ``ShutdownException`` once DDS is shut down.
+        """
+        from rclpy.executors import ConditionReachedException, TimeoutException
+
+        dds = self._dds
+        if dds is None:
+            return []
+        items: list[tuple[Any, Any]] = []
+        ready: Iterator[tuple[Any, Any, Any]] = dds._wait_for_ready_callbacks(
+            timeout_sec=timeout_s, condition=stop)
+        try:
+            for handler, entity, _ in ready:
+                items.append((handler, entity))
+        except (TimeoutException, ConditionReachedException):
+            pass
+        return items
+
+    def wake_dds(self) -> None:
+        """End a :meth:`dds_ready` wait now (any thread)."""
+        if self._dds is not None:
+            self._dds.wake()
 
     def create_timer(
         self, period_s: float, callback: Callable[[], None], *, stats: CallbackStats, logger: Logger
@@ -458,7 +522,10 @@ class ConsecutiveExecutor:
     def _wake(self) -> None:
         if self._lockstep is not None and self._lockstep.joined:
             self._lockstep.wake()
-        if self._dds_wake is not None:
+        own = self._own_wait
+        if own is not None:
+            own.wake()
+        elif self._dds_wake is not None:
             self._dds_wake()
         else:
             self._wake_event.set()
@@ -473,7 +540,14 @@ class ConsecutiveExecutor:
                 self._run_dds_ready(self._dds, 0.0)
                 self._last_dds_poll = time.monotonic_ns()
             return
-        if self._dds is not None:
+        own = self._own_wait
+        if own is not None:
+            if timeout_s > 0:
+                own.wait(timeout_s)
+            else:
+                own.poll()
+            self._last_dds_poll = time.monotonic_ns()
+        elif self._dds is not None:
             self._run_dds_ready(self._dds, timeout_s)
             self._last_dds_poll = time.monotonic_ns()
         else:
@@ -498,7 +572,6 @@ class ConsecutiveExecutor:
         the poll interval (:data:`DDS_POLL_SHARE`).
         """
         from rclpy.executors import ShutdownException, TimeoutException
-        from rclpy.subscription import Subscription
 
         ran = 0
         ready: Iterator[Any] = dds._wait_for_ready_callbacks(timeout_sec=timeout_s)
@@ -511,15 +584,25 @@ class ConsecutiveExecutor:
                     cost = time.monotonic_ns() - start
                     self._dds_poll_interval = max(DDS_POLL_INTERVAL_NS,
                                                   int(cost / DDS_POLL_SHARE))
-            for handler, entity, _ in itertools.chain((first,), ready):
-                handler()
-                if (exc := handler.exception()) is not None:
-                    raise exc
-                ran += 1
-                if isinstance(entity, Subscription):
-                    ran += take_samples(entity, limit=MAX_TAKES)
+            ran = self.run_dds_items((handler, entity) for handler, entity, _ in
+                                     itertools.chain((first,), ready))
         except (StopIteration, TimeoutException, ShutdownException):
             pass
+        return ran
+
+    def run_dds_items(self, items: Iterable[tuple[Any, Any]]) -> int:
+        """Run ready DDS handlers (rclpy's), and of each ready subscription every sample its
+        reader holds (up to :data:`MAX_TAKES`); returns how many callbacks ran."""
+        from rclpy.subscription import Subscription
+
+        ran = 0
+        for handler, entity in items:
+            handler()
+            if (exc := handler.exception()) is not None:
+                raise exc
+            ran += 1
+            if isinstance(entity, Subscription):
+                ran += take_samples(entity, limit=MAX_TAKES)
         return ran
 
     def _poll_dds(self) -> None:
@@ -674,7 +757,8 @@ class ConsecutiveExecutor:
         if dds is None:
             return 0
         ran = 0
-        with self._owning():
+        own = self._own_wait
+        with self._owning(), own.pause() if own is not None else contextlib.nullcontext():
             while True:
                 try:
                     handler, _, _ = dds.wait_for_ready_callbacks(0.0)

@@ -5,10 +5,12 @@ serialization and two full copies. This module carries the big array of such a m
 (``sensor_msgs/Image``'s ``data``, ``PointCloud2``'s, ``CompressedImage``'s, a
 ``Float32MultiArray``'s: any message with exactly one top-level sequence of numbers)
 through iceoryx2's zero-copy publish-subscribe instead. The publisher copies the array once
-into a loaned chunk, next to the rest of the message in CDR (small: header, sizes,
-encoding); each subscribing process reads the chunk in place: the message it gets holds a
-read-only numpy array over the shared chunk, and the chunk stays its until the last
-reference to that array is gone (iceoryx2 never reuses a chunk a reader holds).
+into a loaned chunk, next to the rest of the message pickled (small: header, sizes,
+encoding; see :class:`_Rest`); each subscribing process reads the chunk in place: the
+message it gets holds a read-only numpy array over the shared chunk, and the chunk stays its
+until the last reference to that array is gone (iceoryx2 never reuses a chunk a reader
+holds). The receiving executor's thread waits on iceoryx2 itself, so a chunk wakes the
+thread that runs the callback, once; DDS is relayed to it (:class:`ShmWait`).
 
 Turned on per container (``Container(shm=True)``) or for every container of a process by
 ``EFFICIENT_COMM_SHM=1``; ``shm_threshold_bytes`` (``EFFICIENT_COMM_SHM_THRESHOLD``) is the
@@ -46,19 +48,21 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import io
 import itertools
 import os
+import pickle
+import re
 import secrets
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message, serialize_message
 
 from ._qos import is_transient_local
 from .typenames import type_name
@@ -121,13 +125,13 @@ class _Header(ctypes.Structure):
         ("dds_seq", ctypes.c_uint64),  # DDS's sequence number of the DDS copy, 0: none
         ("dds_t0", ctypes.c_int64),  # wall-clock window of the DDS write (its source stamp)
         ("dds_t1", ctypes.c_int64),
-        ("meta_len", ctypes.c_uint32),  # CDR bytes of the message without its array
+        ("meta_len", ctypes.c_uint32),  # bytes of the rest of the message (_Rest)
         ("array_offset", ctypes.c_uint32),
     )
 
     @staticmethod
     def type_name() -> str:  # iceoryx2 matches both sides' header types by this name
-        return "efficient_comm.ShmHeader.1"
+        return "efficient_comm.ShmHeader.2"  # .2: the rest pickled, no longer CDR
 
 
 @dataclass(frozen=True)
@@ -136,6 +140,53 @@ class Layout:
 
     field: str
     dtype: np.dtype[Any]
+
+
+# Classes the rest of a message may name: generated message classes, and array.array's
+# reconstructor (a message's other sequences of numbers).
+_MESSAGE_MODULE = re.compile(r"[A-Za-z_]\w*\.msg\._\w+")
+
+
+class _RestUnpickler(pickle.Unpickler):
+    """Builds only messages (and arrays of numbers): what a chunk's rest may hold."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if (module == "array" and name == "_array_reconstructor") or (
+                _MESSAGE_MODULE.fullmatch(module) and not name.startswith("_")):
+            found = super().find_class(module, name)
+            if module == "array" or hasattr(found, "get_fields_and_field_types"):
+                return found
+        raise pickle.UnpicklingError(f"not a message class: {module}.{name}")
+
+
+class _Rest:
+    """The message without its array, as bytes next to the chunk: the values of its other
+    slots, pickled. CDR (rclpy's ``serialize_message`` of a copy with an empty array, and
+    ``deserialize_message``, which builds the message through its checking setters) took
+    0.1-0.2 ms a side for an Image's few fields; this a fifth of that. The reader restores
+    message classes and ``array.array`` only (:class:`_RestUnpickler`).
+    """
+
+    def __init__(self, msg_type: type, field: str) -> None:
+        self._type = msg_type
+        self._array_slot = "_" + field
+        self._slots = tuple(slot for slot in getattr(msg_type, "__slots__", ())
+                            if slot not in (self._array_slot, "_check_fields"))
+        self._check_fields = getattr(msg_type(), "_check_fields", None)
+
+    def dump(self, msg: Any) -> bytes:
+        return pickle.dumps(tuple(getattr(msg, slot) for slot in self._slots), protocol=5)
+
+    def load(self, data: bytes, array: Any) -> Any:
+        values = _RestUnpickler(io.BytesIO(data)).load()
+        msg_type = self._type
+        msg: Any = object.__new__(msg_type)
+        for slot, value in zip(self._slots, values, strict=True):
+            setattr(msg, slot, value)
+        setattr(msg, self._array_slot, array)  # the field's setter would copy the array
+        if self._check_fields is not None:
+            msg._check_fields = self._check_fields
+        return msg
 
 
 def layout(msg_type: type) -> Layout | str:
@@ -181,10 +232,39 @@ def _bytes_type(n: int) -> type[ctypes.Array[ctypes.c_uint8]]:
     return type(f"ShmBytes{n}", (ctypes.c_uint8 * n,), {})
 
 
-def _view(chunk: _Chunk, address: int, nbytes: int, dtype: np.dtype[Any]) -> np.ndarray:
+class SharedArray(np.ndarray):
+    """A received message's array over its shared chunk: a read-only numpy array, except
+    that ``==`` and ``!=`` compare the whole sequence and give one bool, as the
+    ``array.array`` of the same field from DDS does. A generated message's ``__eq__``
+    tests ``if self.data != other.data``, which numpy's element-wise answer made raise.
+    Indexing and slicing give plain numpy arrays (element-wise comparisons), as does
+    ``np.asarray(msg.data)``."""
+
+    def __eq__(self, other: object) -> bool:
+        return _same(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        return not _same(self, other)
+
+    __hash__ = None
+
+    def __getitem__(self, key: Any) -> Any:
+        return np.ndarray.__getitem__(self.view(np.ndarray), key)
+
+
+def _same(array: np.ndarray, other: object) -> bool:
+    """Sequence equality of ``array`` and ``other`` (an ``array.array``, a numpy array)."""
+    try:
+        values = np.asarray(other)
+    except Exception:
+        return False
+    return values.shape == array.shape and bool(np.array_equal(array.view(np.ndarray), values))
+
+
+def _view(chunk: _Chunk, address: int, nbytes: int, dtype: np.dtype[Any]) -> SharedArray:
     raw = _bytes_type(nbytes).from_address(address)
     raw.chunk = chunk  # type: ignore[attr-defined]  # the array's base keeps the sample
-    array: np.ndarray = np.frombuffer(memoryview(raw), dtype=dtype)
+    array = np.frombuffer(memoryview(raw), dtype=dtype).view(SharedArray)
     array.flags.writeable = False  # the mapping is read-only: a write would crash
     return array
 
@@ -209,6 +289,22 @@ class ShmTransport:
         self._services: dict[str, tuple[Any, Any]] = {}
         self._local_subs: dict[str, int] = {}  # service -> this process's shm subscribers
         self._lock = threading.Lock()
+        self._wait: ShmWait | None = None  # the executor's, from the first subscription
+
+    def listen(self, sub: ShmSubscription) -> None:
+        """Have the executor's thread wait on ``sub``'s listener (and relay DDS)."""
+        with self._lock:
+            if self._wait is None:
+                self._wait = ShmWait(self.iox2, self.executor)
+                self.executor.attach_own_wait(self._wait)
+        self._wait.add(sub)
+
+    def unlisten(self, sub: ShmSubscription, listener: Any) -> None:
+        """``sub`` is gone; its listener is deleted once the executor no longer waits on it."""
+        if self._wait is not None:
+            self._wait.remove(sub, listener)
+        else:
+            listener.delete()
 
     def service_name(self, topic: str, msg_type: type, qos: QoSProfile) -> str:
         reliability = "r" if qos.reliability == ReliabilityPolicy.RELIABLE else "b"
@@ -267,6 +363,8 @@ class ShmTransport:
             return None
 
     def close(self) -> None:
+        if self._wait is not None:
+            self._wait.stop()
         with self._lock:
             self._services.clear()
         self.node = None  # iceoryx2 removes the node when its last port is gone
@@ -312,7 +410,7 @@ class ShmPublisher:
         self._pid = os.getpid()
         self._seq = itertools.count(1)
         self._dds_seq = 0  # DDS's sequence number of our last DDS write (it counts from 1)
-        self._empty = pub.topic.msg_type()
+        self._rest = _Rest(pub.topic.msg_type, fit.field)
         self._warned = False
         self._subscribers = 0  # what the port was last connected to
 
@@ -344,7 +442,7 @@ class ShmPublisher:
                 self._dds_seq += 1
 
     def _send(self, msg: Any, data: memoryview, *, write_dds: bool) -> None:
-        meta = self._meta(msg)
+        meta = self._rest.dump(msg)
         offset = -(-len(meta) // _ALIGN) * _ALIGN
         sample = self._port.loan_slice_uninit(offset + data.nbytes)
         base = sample.payload_ptr
@@ -366,14 +464,6 @@ class ShmPublisher:
             self._pub.dds.publish(msg)
             self._dds_seq += 1
 
-    def _meta(self, msg: Any) -> bytes:
-        """The message without its array, in CDR (its fields shared, not copied)."""
-        empty = self._empty
-        for name in msg.get_fields_and_field_types():
-            if name != self._layout.field:
-                setattr(empty, name, getattr(msg, name))
-        return bytes(serialize_message(empty))
-
     def close(self) -> None:
         self._notifier.delete()
         self._port.delete()
@@ -392,43 +482,24 @@ class ShmSubscription:
         self._logger = logger
         self._on_lost = on_lost
         self._msg_type = sub.topic.msg_type
+        self._rest = _Rest(self._msg_type, fit.field)
+        self._warned = False
         self.name = transport.service_name(sub.topic_name, self._msg_type, sub.qos)
         pubsub, event = transport.services(self.name)
         depth = sub.queue.maxlen or _BUFFER
         self._port = pubsub.subscriber_builder().buffer_size(min(depth, _BUFFER)).create()
         transport._count_local(self.name, 1)
-        self._listener = event.listener_builder().create()
-        self._waker = event.notifier_builder().create()  # ends the waiter on close
+        self.listener = event.listener_builder().create()
         self._last: dict[int, int] = {}  # publisher -> last sequence number
         self._expected: deque[tuple[int, int, int]] = deque(maxlen=_REMEMBER)  # DDS copies
         self._delivered: deque[tuple[int, int]] = deque(maxlen=_REMEMBER)  # from DDS
         self._pid = os.getpid()
-        self._pending = False
         self._running = True
-        self._thread = threading.Thread(target=self._wait, daemon=True,
-                                        name=f"shm {sub.topic_name}")
-        self._thread.start()
+        transport.listen(self)
         transport.executor.post(self.drain)  # a first receive connects the port
-
-    # -- the waiter thread ---------------------------------------------------------------
-
-    def _wait(self) -> None:
-        """Block on the event (the GIL released) and have the executor drain the port."""
-        timeout = self._transport.iox2.Duration.from_millis(_WAKE_MS)
-        while self._running:
-            try:
-                woken = self._listener.timed_wait(timeout)
-            except Exception:
-                return
-            if woken and self._running and not self._pending:
-                self._pending = True
-                self._transport.executor.post(self.drain)
-
-    # -- the executor thread -------------------------------------------------------------
 
     def drain(self) -> None:
         """Deliver every chunk waiting (executor thread)."""
-        self._pending = False
         while self._running:
             sample = self._port.receive()
             if sample is None:
@@ -454,7 +525,6 @@ class ShmSubscription:
                 return None
             self._expected.append(copy)
         base = sample.payload_ptr
-        msg = deserialize_message(ctypes.string_at(base, header.meta_len), self._msg_type)
         nbytes = sample.header.number_of_elements - header.array_offset
         transport = self._transport
         chunk = _Chunk(sample, transport)
@@ -465,8 +535,14 @@ class ShmSubscription:
             array = array.copy()
             array.flags.writeable = False
         del chunk
-        setattr(msg, "_" + self._layout.field, array)  # the setter would copy it
-        return msg
+        try:
+            return self._rest.load(ctypes.string_at(base, header.meta_len), array)
+        except Exception as exc:  # not what our publisher writes: told once, dropped
+            if not self._warned:
+                self._warned = True
+                self._logger.warning(f"topic {self._sub.topic_name}: a shared-memory chunk "
+                                     f"did not decode ({exc!r}); dropped")
+            return None
 
     def _lost(self, count: int) -> None:
         self._sub.stats.dropped += count
@@ -492,10 +568,193 @@ class ShmSubscription:
 
     def close(self) -> None:
         self._running = False
-        with contextlib.suppress(Exception):  # the event service may be gone already
-            self._waker.notify()
-        self._thread.join(timeout=2 * _WAKE_MS / 1000)
+        self._transport.unlisten(self, self.listener)
         self._transport._count_local(self.name, -1)
-        self._waker.delete()
-        self._listener.delete()
         self._port.delete()
+
+
+class ShmWait:
+    """The executor's wait while its process receives through shared memory.
+
+    rclpy's wait set takes rcl entities only, and iceoryx2 gives Python no file descriptor
+    for a listener, so one of the two needs a thread. A thread per listener that woke the
+    executor out of rclpy's wait (a guard condition) made each message two thread wake-ups
+    and a round of rclpy's wait-set Python: most of a 1 MiB message's latency. Here the
+    executor's thread itself blocks in an iceoryx2 ``WaitSet`` over every subscription's
+    listener and an eventfd, and receives a chunk as it wakes; DDS is what is relayed: a
+    thread waits in rclpy's wait (:meth:`ConsecutiveExecutor.dds_ready`), hands the ready
+    handlers over through the eventfd and waits for the executor's thread to have run
+    them before it waits again, so rclpy's entities are never waited on by two threads at
+    once. The eventfd is also the executor's wake-up for another thread's publish.
+    """
+
+    def __init__(self, iox2: Any, executor: ConsecutiveExecutor) -> None:
+        self._iox2 = iox2
+        self._executor = executor
+        self._fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
+        # Subscriptions come and go in any thread (under _lock); the WaitSet is the
+        # executor thread's alone, rebuilt there before its next wait (_dirty), and a gone
+        # subscription's listener is deleted only then, once no WaitSet holds it (_retired).
+        self._lock = threading.Lock()
+        self._subs: list[ShmSubscription] = []
+        self._retired: list[Any] = []
+        self._dirty = True
+        self._waitset: Any = None
+        self._fd_guard: Any = None
+        self._guards: list[tuple[Any, ShmSubscription]] = []
+        # The relay's state, under _cond: DDS handlers it found (run by the executor's
+        # thread, then None), whether the executor's thread takes from DDS itself (paused),
+        # and whether the relay is parked (not in a DDS wait).
+        self._cond = threading.Condition()
+        self._items: list[tuple[Any, Any]] | None = None
+        self._paused = False
+        self._parked = False
+        self._running = True
+        self._error: BaseException | None = None  # what ended the relay, raised in _run
+        self._relay = threading.Thread(target=self._relay_dds, daemon=True, name="dds relay")
+        self._relay.start()
+
+    # -- subscriptions (any thread) --------------------------------------------------------
+
+    def add(self, sub: ShmSubscription) -> None:
+        with self._lock:
+            self._subs.append(sub)
+            self._dirty = True
+        self.wake()
+
+    def remove(self, sub: ShmSubscription, listener: Any) -> None:
+        """``sub`` is gone; its ``listener`` is deleted once no WaitSet holds it."""
+        with self._lock:
+            if sub in self._subs:
+                self._subs.remove(sub)
+            self._retired.append(listener)
+            self._dirty = True
+        self.wake()
+
+    def _rebuild(self) -> None:
+        iox2 = self._iox2
+        with self._lock:
+            subs, retired, self._retired = list(self._subs), self._retired, []
+            self._dirty = False
+        self._guards = []
+        self._fd_guard = self._waitset = None  # the old WaitSet and its guards first
+        for listener in retired:
+            with contextlib.suppress(Exception):
+                listener.delete()
+        waitset = (iox2.WaitSetBuilder.new()
+                   .signal_handling_mode(iox2.SignalHandlingMode.Disabled)
+                   .create(iox2.ServiceType.Ipc))
+        self._fd_guard = waitset.attach_notification_fd(
+            iox2.FileDescriptor.non_owning_new(self._fd))
+        self._guards = [(waitset.attach_notification(sub.listener), sub) for sub in subs]
+        self._waitset = waitset
+
+    # -- the executor's thread -------------------------------------------------------------
+
+    def wait(self, timeout_s: float) -> None:
+        if self._dirty:
+            self._rebuild()
+        fired, _ = self._waitset.wait_and_process_with_timeout(
+            self._iox2.Duration.from_secs_f64(min(timeout_s, 3600.0)))
+        ready = [sub for guard, sub in self._guards
+                 if any(event.has_event_from(guard) for event in fired)]
+        for sub in ready:
+            sub.listener.try_wait()  # consumed, or the WaitSet wakes at once again
+        self._run(ready)
+
+    def poll(self) -> None:
+        if self._dirty:
+            self._rebuild()
+        self._run([sub for _, sub in self._guards])
+
+    def _run(self, subs: list[ShmSubscription]) -> None:
+        """Shared memory first (a publisher's chunks before its later DDS samples), then
+        what the relay found on DDS."""
+        with contextlib.suppress(BlockingIOError):
+            os.eventfd_read(self._fd)
+        for sub in subs:
+            sub.drain()
+        if self._error is not None:  # raised from the spin, as rclpy's own wait's would be
+            error, self._error = self._error, None
+            raise error
+        items = self._items
+        if items is not None:
+            try:
+                self._executor.run_dds_items(items)
+            finally:
+                with self._cond:  # the relay waits again only now: one waiter at a time
+                    self._items = None
+                    self._cond.notify_all()
+
+    @contextlib.contextmanager
+    def pause(self) -> Iterator[None]:
+        with self._cond:
+            self._paused = True
+        self._executor.wake_dds()
+        with self._cond:
+            self._cond.wait_for(lambda: self._parked, timeout=5.0)
+        self._run([])  # what the relay had found
+        try:
+            yield
+        finally:
+            with self._cond:
+                self._paused = False
+                self._cond.notify_all()
+
+    # -- any thread --------------------------------------------------------------------------
+
+    def wake(self) -> None:
+        with contextlib.suppress(OSError):  # closed
+            os.eventfd_write(self._fd, 1)
+
+    def stop(self) -> None:
+        """End the relay (the executor leaves DDS or the transport closes)."""
+        with self._cond:
+            if not self._running:
+                return
+            self._running = False
+            self._cond.notify_all()
+        self._executor.wake_dds()
+        self._relay.join(timeout=5.0)
+        self._guards = []
+        self._fd_guard = self._waitset = None
+        with self._lock:
+            retired, self._retired = self._retired, []
+        for listener in retired:
+            with contextlib.suppress(Exception):
+                listener.delete()
+
+    def __del__(self) -> None:
+        os.close(self._fd)  # not in stop(): a late wake() must not write to a reused fd
+
+    # -- the relay thread --------------------------------------------------------------------
+
+    def _relay_dds(self) -> None:
+        cond = self._cond
+        while True:
+            with cond:
+                while self._running and (self._paused or self._items is not None):
+                    self._parked = True
+                    cond.notify_all()
+                    cond.wait()
+                self._parked = False
+                if not self._running:
+                    break
+            try:
+                items = self._executor.dds_ready(_WAKE_MS / 1000, stop=self._stopping)
+            except Exception as exc:
+                if self._running and type(exc).__name__ not in (
+                        "ShutdownException", "ExternalShutdownException"):
+                    self._error = exc  # not a shutdown: the executor's thread raises it
+                    self.wake()
+                break
+            if items:
+                with cond:
+                    self._items = items
+                self.wake()
+        with cond:
+            self._parked = True
+            cond.notify_all()
+
+    def _stopping(self) -> bool:
+        return not self._running or self._paused
