@@ -74,11 +74,16 @@ def test_stop_process_group_ends_a_process_that_ignores_sigint_and_its_children(
 
 
 def test_stop_process_group_gives_the_exit_status_of_a_clean_stop() -> None:
-    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"],
-                            start_new_session=True)
-    # Python ends on Ctrl-C by SIGINT (KeyboardInterrupt, then the signal re-raised).
-    assert stop_process_group(proc) == -signal.SIGINT
-    assert stop_process_group(proc) == -signal.SIGINT  # already ended: nothing sent
+    with subprocess.Popen(
+            [sys.executable, "-c", "import time; print('sleeping', flush=True); time.sleep(120)"],
+            start_new_session=True, stdout=subprocess.PIPE, text=True) as proc:
+        # Stopped once it runs its code: a SIGINT while the interpreter still starts up may
+        # end it with status 1 (a KeyboardInterrupt in site's imports), which once failed
+        # this test.
+        assert proc.stdout is not None and proc.stdout.readline() == "sleeping\n"
+        # Python ends on Ctrl-C by SIGINT (KeyboardInterrupt, then the signal re-raised).
+        assert stop_process_group(proc) == -signal.SIGINT
+        assert stop_process_group(proc) == -signal.SIGINT  # already ended: nothing sent
 
 
 #: Two participants in one process, as debug_gui's Hub makes (one context a domain).
