@@ -7,7 +7,8 @@ Tree (other views append their subclasses at the end, one class per block)::
     ├── InvalidInput(ValueError)           a name, value, option or layout that is malformed
     │   └── LayoutConflict                 the saved layout changed since this tab loaded it
     ├── RobotUnavailable(LookupError)      no such robot, service or domain (or it went away)
-    └── CallFailed                         a service call that timed out or failed
+    ├── CallFailed                         a service call that timed out or failed
+    └── NotLive                            a call a recorded log cannot answer (playback)
 """
 
 from __future__ import annotations
@@ -36,3 +37,8 @@ class CallFailed(DebugGuiError):  # noqa: N818 (the views' contract names them)
 class LayoutConflict(InvalidInput):
     """A save that would silently replace a saved layout this tab never saw (another tab,
     or another server, saved a different one since this tab loaded its own)."""
+
+
+class NotLive(DebugGuiError):  # noqa: N818 (the views' contract names them)
+    """A service call (parameters, recorder control) made of a log played back: a log
+    answers only with what it recorded."""

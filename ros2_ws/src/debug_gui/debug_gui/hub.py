@@ -27,7 +27,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import rclpy
 from rclpy.context import Context
@@ -43,6 +43,9 @@ from throttle_publisher import ThrottledSubscription, ThrottleOptions
 from .errors import CallFailed, InvalidInput, RobotUnavailable
 from .robots import STATS_SUFFIX, RobotId, Via, check_domain
 from .security import check_name, check_rate
+
+if TYPE_CHECKING:
+    from .source import Source
 
 _log = logging.getLogger(__name__)
 
@@ -431,6 +434,22 @@ class Hub:
             except Exception:
                 _log.exception("on_robots_changed callback raised")
 
+    # -- the Source protocol's clock -------------------------------------------------
+
+    @property
+    def live(self) -> bool:
+        """Always True: robots running now (see debug_gui.source)."""
+        return True
+
+    def now(self) -> float:
+        """Monotonic seconds: live, a message is as old as it is now."""
+        return time.monotonic()
+
+    def on_reset(self, callback: Callable[[], None]) -> Callable[[], None]:
+        """A live source never resets (nothing delivered stops holding); the unsubscribe
+        function returned does nothing."""
+        return lambda: None
+
     # -- robots ------------------------------------------------------------------------
 
     def robots(self) -> list[RobotId]:
@@ -611,3 +630,6 @@ class Hub:
 
 
 __all__ = ["STATS_SUFFIX", "Feed", "Hub", "TopicCounter", "hidden"]
+
+if TYPE_CHECKING:
+    _LIVE_IS_A_SOURCE: type[Source] = Hub
