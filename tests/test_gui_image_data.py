@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from sensor_msgs.msg import CompressedImage
 
-from debug_gui import Hub, RobotId
+from debug_gui import Feed, Hub, RobotId
 from debug_gui.errors import InvalidInput
 from debug_gui.models.image import GRACE_S, IMAGE_TOPIC, MARKERS_TOPIC, ImageModel, svg_overlay
 from debug_gui.ui.image import frame_message
@@ -151,7 +151,8 @@ def test_against_a_robot_frames_match_drawings_quality_applies_and_hidden_costs_
         model.activate()
         wait_for(lambda: model.received >= 5 and model.drawings_received >= 5,
                  what="frames and drawings", alive=[proc], timeout_s=60)
-        assert all(feed.throttled for feed in model._feeds)  # the robot limits what it sends
+        # the robot limits what it sends
+        assert all(isinstance(feed, Feed) and feed.throttled for feed in model._feeds)
 
         def matched() -> Any:
             shown = model.current()

@@ -60,6 +60,7 @@ from .errors import AccessDenied, DebugGuiError, InvalidInput, RobotUnavailable
 from .hub import Feed, Hub
 from .robots import RobotId
 from .security import AccessPolicy, check_port
+from .source import Stream
 
 __all__ = ["DEFAULT_PORT", "FoxgloveEndpoint", "serve_foxglove", "start"]
 
@@ -143,7 +144,7 @@ class _Bridge(ServerListener):
         # SDK client id -> may it write; only the gate's connections are here (see the gate).
         self._writers: dict[int, bool] = {}
         self._introduced: dict[str, bool] = {}
-        self._param_feeds: dict[RobotId, Feed] = {}
+        self._param_feeds: dict[RobotId, Stream] = {}
         self.server: WebSocketServer | None = None
 
     # -- what exists: topics and services, kept in step with the Hub ----------------------
@@ -447,7 +448,7 @@ class _Bridge(ServerListener):
 
     def close(self) -> None:
         with self._lock:
-            feeds = [e.feed for e in self._channels.values() if e.feed is not None]
+            feeds: list[Stream] = [e.feed for e in self._channels.values() if e.feed is not None]
             feeds.extend(self._param_feeds.values())
             for entry in self._channels.values():
                 entry.feed = None

@@ -35,8 +35,8 @@ from rcl_interfaces.srv import (
 )
 
 from .errors import CallFailed, InvalidInput, RobotUnavailable
-from .hub import Feed, Hub
 from .robots import RobotId
+from .source import Source, Stream
 
 #: Per node when every node's parameters are asked for: a node that hangs must not stall it.
 LIST_TIMEOUT_S = 3.0
@@ -313,7 +313,7 @@ class SetOutcome:
     reason: str
 
 
-def parameter_nodes(hub: Hub, robot: RobotId) -> list[str]:
+def parameter_nodes(hub: Source, robot: RobotId) -> list[str]:
     """The robot's nodes that offer parameter services (fully qualified, sorted; the GUI's
     own node left out)."""
     services = hub.services(robot)
@@ -321,14 +321,14 @@ def parameter_nodes(hub: Hub, robot: RobotId) -> list[str]:
             if _LIST_SERVICE_TYPE in services.get(f"{node}/list_parameters", [])]
 
 
-def list_names(hub: Hub, robot: RobotId, node: str, *,
+def list_names(hub: Source, robot: RobotId, node: str, *,
                timeout_s: float = CALL_TIMEOUT_S) -> list[str]:
     listed = hub.call(robot, f"{node}/list_parameters", ListParameters,
                       ListParameters.Request(), timeout_s=timeout_s)
     return sorted(str(n) for n in listed.result.names)
 
 
-def get_values(hub: Hub, robot: RobotId, node: str, names: list[str], *,
+def get_values(hub: Source, robot: RobotId, node: str, names: list[str], *,
                timeout_s: float = CALL_TIMEOUT_S) -> dict[str, ParameterValue]:
     """The named parameters' values (ones the node does not have are left out)."""
     if not names:
@@ -339,7 +339,7 @@ def get_values(hub: Hub, robot: RobotId, node: str, names: list[str], *,
             if value.type != RosType.PARAMETER_NOT_SET}
 
 
-def get(hub: Hub, robot: RobotId, node: str, *, names: list[str] | None = None,
+def get(hub: Source, robot: RobotId, node: str, *, names: list[str] | None = None,
         timeout_s: float | None = None) -> dict[str, ParameterValue]:
     """Named parameters of ``node``, or all of them (``names=None``, sooner given up)."""
     wait = timeout_s if timeout_s is not None else (
@@ -349,7 +349,7 @@ def get(hub: Hub, robot: RobotId, node: str, *, names: list[str] | None = None,
     return get_values(hub, robot, node, names, timeout_s=wait)
 
 
-def get_many(hub: Hub, targets: Iterable[tuple[RobotId, str]]
+def get_many(hub: Source, targets: Iterable[tuple[RobotId, str]]
              ) -> list[tuple[RobotId, str, dict[str, ParameterValue]]]:
     """Every parameter of each (robot, node), the nodes asked in parallel (as
     foxglove_bridge does); a node without parameter services, or one that hangs, is
@@ -369,7 +369,7 @@ def get_many(hub: Hub, targets: Iterable[tuple[RobotId, str]]
         return list(pool.map(one, nodes))
 
 
-def describe(hub: Hub, robot: RobotId, node: str, *, names: list[str] | None = None,
+def describe(hub: Source, robot: RobotId, node: str, *, names: list[str] | None = None,
              timeout_s: float = CALL_TIMEOUT_S) -> list[Described]:
     """The node's parameters (all, or the named ones) with values and descriptors, by name."""
     if names is None:
@@ -387,7 +387,7 @@ def describe(hub: Hub, robot: RobotId, node: str, *, names: list[str] | None = N
     )
 
 
-def set_values(hub: Hub, robot: RobotId, node: str, values: Mapping[str, ParameterValue], *,
+def set_values(hub: Source, robot: RobotId, node: str, values: Mapping[str, ParameterValue], *,
                timeout_s: float = CALL_TIMEOUT_S) -> list[SetOutcome]:
     """Set each parameter (one at a time, as ``ros2 param set``: one veto stops only its
     own); the node's answer for each, its veto's reason verbatim."""
@@ -401,7 +401,7 @@ def set_values(hub: Hub, robot: RobotId, node: str, values: Mapping[str, Paramet
             for sent, outcome in zip(request.parameters, result.results, strict=False)]
 
 
-def watch(hub: Hub, robot: RobotId, callback: Callable[[ParameterEvent], None]) -> Feed:
+def watch(hub: Source, robot: RobotId, callback: Callable[[ParameterEvent], None]) -> Stream:
     """Every parameter change in the robot's domain (new, changed, deleted), as the nodes
     report it on ``/parameter_events``; ``callback`` runs on the Hub's thread (no
     :meth:`Hub.call` there). Close the feed to stop."""

@@ -157,7 +157,7 @@ def serve(options: Options, *, default_layout: Layout | None = None) -> int:
     try:
         if options.foxglove_port is not None:
             closers.append(_start_foxglove(hub, options))
-        shell = Shell(hub=hub, policy=options.policy, layout=Layout(),
+        shell = Shell(source=hub, policy=options.policy, layout=Layout(),
                       layout_path=options.layout_path)
         shell.layout = (layout if layout is not None else default_layout
                         if default_layout is not None else shell.default_layout())

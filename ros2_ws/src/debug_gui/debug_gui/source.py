@@ -45,6 +45,11 @@ class Stream(Protocol):
         """Messages handed to the callback so far."""
         ...
 
+    @property
+    def rate_hz(self) -> float | None:
+        """The rate asked for (None: every message)."""
+        ...
+
     def set_rate(self, rate_hz: float | None) -> None:
         """Deliver at most ``rate_hz`` from now on (None: every message)."""
         ...

@@ -31,7 +31,7 @@ def _cb(node: str, mean_ms: float, *, kind: str = "subscription", rate: float = 
 
 
 def _model(clock: _Clock) -> ComponentsModel:
-    return ComponentsModel(hub=None, robot=RobotId(0, "/r"), clock=clock)  # type: ignore[arg-type]
+    return ComponentsModel(source=None, robot=RobotId(0, "/r"), clock=clock)  # type: ignore[arg-type]
 
 
 def test_rows_sort_flag_and_keep_a_short_history() -> None:

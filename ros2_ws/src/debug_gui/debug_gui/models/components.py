@@ -22,8 +22,8 @@ from typing import Any
 from efficient_comm import from_msg
 
 from ..errors import DebugGuiError, InvalidInput
-from ..hub import Feed, Hub
 from ..robots import STATS_SUFFIX, RobotId
+from ..source import Source, Stream
 
 #: How many past values each row keeps (one per stats message: 30 s at the default 1 s).
 HISTORY = 30
@@ -87,14 +87,14 @@ class ComponentsModel:
 
     def __init__(
         self,
-        hub: Hub,
+        source: Source,
         robot: RobotId,
         *,
         rate_hz: float = 1.0,
         clock: Callable[[], float] = time.monotonic,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
-        self.hub = hub
+        self.source = source
         self.robot = robot
         self.rate_hz = rate_hz
         self._clock = clock
@@ -103,7 +103,7 @@ class ComponentsModel:
         self._first_stamp: tuple[float, float] | None = None
         self._last_stamp: tuple[float, float] | None = None
         self._lock = threading.Lock()
-        self._feed: Feed | None = None
+        self._feed: Stream | None = None
         #: process key -> (time heard, {callback key -> series})
         self._processes: dict[str, tuple[float, dict[tuple[str, str, str], _Series]]] = {}
         self.messages = 0
@@ -116,7 +116,7 @@ class ComponentsModel:
         from efficient_comm_interfaces.msg import ExecutorStats
 
         if self._feed is None:
-            self._feed = self.hub.subscribe(
+            self._feed = self.source.subscribe(
                 self.robot, STATS_SUFFIX, ExecutorStats, self.on_stats, rate_hz=self.rate_hz
             )
 
@@ -215,7 +215,7 @@ class ComponentsModel:
         if self.last_heard is not None:
             return True
         try:
-            return self.hub.publishes_statistics(self.robot)
+            return self.source.publishes_statistics(self.robot)
         except DebugGuiError:  # the GUI is closing: nothing to tell
             return True
 

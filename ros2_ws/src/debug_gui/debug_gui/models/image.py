@@ -27,8 +27,8 @@ from debug_probes import JPEG_QUALITY, Drawing, Shape, read_drawing
 from efficient_comm import from_msg
 
 from ..errors import CallFailed, InvalidInput
-from ..hub import Feed, Hub
 from ..robots import RobotId
+from ..source import Source, Stream
 
 IMAGE_TOPIC = "camera/image_raw/compressed"
 MARKERS_TOPIC = "ball/debug_markers"
@@ -55,7 +55,7 @@ class ImageModel:
 
     def __init__(
         self,
-        hub: Hub,
+        source: Source,
         robot: RobotId,
         *,
         rate_hz: float = DEFAULT_RATE_HZ,
@@ -66,7 +66,7 @@ class ImageModel:
     ) -> None:
         if buffer < 1:
             raise InvalidInput(f"the frame buffer holds at least 1 frame, not {buffer}")
-        self.hub = hub
+        self.source = source
         self.robot = robot
         self.image_topic = image_topic
         self.markers_topic = markers_topic
@@ -79,7 +79,7 @@ class ImageModel:
         self._max_drawings = 2 * buffer
         self._layers: dict[str, None] = {}
         self._hidden_layers: set[str] = set()
-        self._feeds: list[Feed] = []
+        self._feeds: list[Stream] = []
         self._listeners: list[Callable[[], None]] = []
         self._seq = 0
         self._paused_at: int | None = None  # index into the frozen buffer while paused
@@ -103,9 +103,9 @@ class ImageModel:
             if self._feeds or self._paused_at is not None:
                 return
             self._feeds = [
-                self.hub.subscribe(self.robot, self.image_topic, CompressedImage,
+                self.source.subscribe(self.robot, self.image_topic, CompressedImage,
                                    self.on_image, rate_hz=self._rate_hz, qos=2),
-                self.hub.subscribe(self.robot, self.markers_topic, ImageMarkerArray,
+                self.source.subscribe(self.robot, self.markers_topic, ImageMarkerArray,
                                    self.on_markers, rate_hz=None, qos=5),
             ]
 
@@ -187,7 +187,7 @@ class ImageModel:
     def has_camera(self) -> bool:
         """Whether the robot publishes the image topic now (a plain ROS 2 robot, or one
         without a camera, does not: its view says so rather than wait)."""
-        return self.hub.publishes(self.robot, self.image_topic)
+        return self.source.publishes(self.robot, self.image_topic)
 
     def drawing_for(self, stamp_ns: int) -> Drawing | None:
         with self._lock:
@@ -290,7 +290,7 @@ class ImageModel:
         """The compressor's ``jpeg_quality`` (blocking: never on the UI's event loop)."""
         from rcl_interfaces.srv import GetParameters
 
-        response = self.hub.call(self.robot, f"{COMPRESSOR_NODE}/get_parameters",
+        response = self.source.call(self.robot, f"{COMPRESSOR_NODE}/get_parameters",
                                  GetParameters, GetParameters.Request(names=["jpeg_quality"]),
                                  timeout_s=timeout_s)
         if not response.values or response.values[0].type != 2:  # PARAMETER_INTEGER
@@ -308,7 +308,7 @@ class ImageModel:
             raise InvalidInput(f"JPEG quality is an integer {low}..{high}, not {quality!r}")
         value = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=quality)
         request = SetParameters.Request(parameters=[Parameter(name="jpeg_quality", value=value)])
-        response = self.hub.call(self.robot, f"{COMPRESSOR_NODE}/set_parameters", SetParameters,
+        response = self.source.call(self.robot, f"{COMPRESSOR_NODE}/set_parameters", SetParameters,
                                  request, timeout_s=timeout_s)
         result = response.results[0] if response.results else None
         if result is None or not result.successful:

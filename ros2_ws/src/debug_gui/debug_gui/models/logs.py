@@ -23,8 +23,8 @@ from typing import Any
 from efficient_comm import from_msg
 
 from ..errors import InvalidInput
-from ..hub import Feed, Hub
 from ..robots import RobotId
+from ..source import Source, Stream
 
 CAPACITY = 2000
 #: rcl_interfaces/Log levels (a byte each) and the names the filter accepts.
@@ -82,16 +82,16 @@ def check_filter(level: str, text: str) -> tuple[int, str]:
 class LogsModel:
     """One robot's log records and diagnostic statuses (activate to receive)."""
 
-    def __init__(self, hub: Hub, robot: RobotId, *, capacity: int = CAPACITY,
+    def __init__(self, source: Source, robot: RobotId, *, capacity: int = CAPACITY,
                  others: Callable[[], list[RobotId]] | None = None) -> None:
-        self.hub = hub
+        self.source = source
         self.robot = robot
         #: The other robots of the hub, to tell entries of theirs from shared ones.
-        self._others = others or (lambda: [r for r in hub.robots() if r != robot])
+        self._others = others or (lambda: [r for r in source.robots() if r != robot])
         self._lock = threading.Lock()
         self._logs: deque[LogEntry] = deque(maxlen=capacity)
         self._statuses: dict[str, StatusEntry] = {}
-        self._feeds: list[Feed] = []
+        self._feeds: list[Stream] = []
         self.received = 0
 
     def activate(self) -> None:
@@ -100,8 +100,8 @@ class LogsModel:
 
         if not self._feeds:
             self._feeds = [
-                self.hub.subscribe(self.robot, "/rosout", Log, self.on_log, qos=100),
-                self.hub.subscribe(self.robot, "/diagnostics", DiagnosticArray,
+                self.source.subscribe(self.robot, "/rosout", Log, self.on_log, qos=100),
+                self.source.subscribe(self.robot, "/diagnostics", DiagnosticArray,
                                    self.on_diagnostics, qos=100),
             ]
 

@@ -22,9 +22,9 @@ from typing import Any
 
 from .. import params
 from ..errors import DebugGuiError, InvalidInput
-from ..hub import Feed, Hub
 from ..robots import RobotId
 from ..security import AccessPolicy, check_name
+from ..source import Source, Stream
 
 
 @dataclass(frozen=True, slots=True)
@@ -43,14 +43,14 @@ class ParametersModel:
     """One robot's parameter nodes and the chosen node's parameters (activate to follow
     changes made elsewhere, deactivate to stop)."""
 
-    def __init__(self, hub: Hub, robot: RobotId, *, policy: AccessPolicy,
+    def __init__(self, source: Source, robot: RobotId, *, policy: AccessPolicy,
                  token: str | None) -> None:
-        self.hub = hub
+        self.source = source
         self.robot = robot
         self._policy = policy
         self._token = token
         self._lock = threading.Lock()
-        self._feed: Feed | None = None
+        self._feed: Stream | None = None
         self.node: str | None = None
         self._params: dict[str, params.Described] = {}
         self._outcomes: dict[str, Outcome] = {}
@@ -71,7 +71,7 @@ class ParametersModel:
     def activate(self) -> None:
         """Follow ``/parameter_events`` of the robot's domain (idempotent)."""
         if self._feed is None:
-            self._feed = params.watch(self.hub, self.robot, self.on_event)
+            self._feed = params.watch(self.source, self.robot, self.on_event)
 
     def deactivate(self) -> None:
         feed, self._feed = self._feed, None
@@ -114,7 +114,7 @@ class ParametersModel:
 
     def nodes(self, text: str = "") -> list[str]:
         """The robot's nodes with parameter services, those containing ``text``."""
-        return [n for n in params.parameter_nodes(self.hub, self.robot) if text in n]
+        return [n for n in params.parameter_nodes(self.source, self.robot) if text in n]
 
     def parameters(self, text: str = "") -> list[params.Described]:
         """The chosen node's parameters (those whose name contains ``text``), by name."""
@@ -145,7 +145,7 @@ class ParametersModel:
             self.stale = False
             self._loading += 1
         try:
-            got = params.describe(self.hub, self.robot, node)
+            got = params.describe(self.source, self.robot, node)
         finally:
             with self._lock:
                 self._loading -= 1
@@ -202,9 +202,9 @@ class ParametersModel:
                     self._pending.pop(name, None)
 
     def _send(self, node: str, name: str, value: Any) -> Outcome:
-        (result,) = params.set_values(self.hub, self.robot, node, {name: value})
+        (result,) = params.set_values(self.source, self.robot, node, {name: value})
         # What the node holds now: the value set, or the old one after a veto.
-        now = params.get_values(self.hub, self.robot, node, [name]).get(name)
+        now = params.get_values(self.source, self.robot, node, [name]).get(name)
         if now is not None:
             with self._lock:
                 known = self._params.get(name)

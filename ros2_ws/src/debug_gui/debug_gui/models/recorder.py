@@ -30,9 +30,9 @@ from typing import Any
 from robot_recorder import RecorderConfigError, TopicSelection, parse_selection
 
 from ..errors import DebugGuiError, InvalidInput, RobotUnavailable
-from ..hub import Feed, Hub
 from ..robots import RobotId
 from ..security import AccessPolicy
+from ..source import Source, Stream
 
 STATUS_TYPE = "robot_recorder_interfaces/msg/RecorderStatus"
 START_TYPE = "robot_recorder_interfaces/srv/Start"
@@ -165,7 +165,7 @@ class _Follow:
     __slots__ = ("count", "feed", "heard", "last")
 
     def __init__(self) -> None:
-        self.feed: Feed | None = None
+        self.feed: Stream | None = None
         self.last: Any = None
         self.heard: float | None = None
         self.count = 0
@@ -180,7 +180,7 @@ class RecorderModel:
 
     def __init__(
         self,
-        hub: Hub,
+        source: Source,
         robot: RobotId,
         *,
         policy: AccessPolicy,
@@ -188,7 +188,7 @@ class RecorderModel:
         timeout_s: float = 10.0,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.hub = hub
+        self.source = source
         self.robot = robot
         self._policy = policy
         self._token = token
@@ -206,9 +206,9 @@ class RecorderModel:
     def discover(self) -> list[str]:
         """The robot's recorders on the graph now (absolute node names, sorted); while
         active, a newly found one's status is followed at once."""
-        services = self.hub.services(self.robot)
+        services = self.source.services(self.robot)
         found = []
-        for name, types in self.hub.topics(self.robot).items():
+        for name, types in self.source.topics(self.robot).items():
             if STATUS_TYPE in types and name.endswith(STATUS_SUFFIX):
                 node = name[: -len(STATUS_SUFFIX)]
                 if START_TYPE in services.get(f"{node}/start", ()):
@@ -247,7 +247,7 @@ class RecorderModel:
         with self._lock:
             todo = [n for n, f in self._recorders.items() if f.feed is None]
         for node in todo:
-            feed = self.hub.subscribe(
+            feed = self.source.subscribe(
                 self.robot, node + STATUS_SUFFIX, RecorderStatus,
                 functools.partial(self.on_status, node),
             )
@@ -372,7 +372,7 @@ class RecorderModel:
               ) -> ControlResult:
         self._policy.check_write(self._token)
         node = self._one(node)
-        response = self.hub.call(self.robot, f"{node}/{action}", srv_type, request,
+        response = self.source.call(self.robot, f"{node}/{action}", srv_type, request,
                                  timeout_s=self.timeout_s)
         return ControlResult(
             robot=self.robot, node=node, action=action, success=bool(response.success),

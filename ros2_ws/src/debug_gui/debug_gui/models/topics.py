@@ -26,8 +26,9 @@ from typing import Any
 from efficient_comm import UnknownTypeError, import_type, to_plain
 
 from ..errors import InvalidInput
-from ..hub import Feed, Hub, hidden
+from ..hub import hidden
 from ..robots import STATS_SUFFIX, RobotId
+from ..source import Source, Stream
 
 ECHO_HZ = 5.0
 PLOT_HZ = 20.0
@@ -77,15 +78,15 @@ def value_at(tree: Any, path: str) -> float | None:
 class TopicsModel:
     """One robot's topic list, and the one topic being echoed (and maybe plotted)."""
 
-    def __init__(self, hub: Hub, robot: RobotId, *,
+    def __init__(self, source: Source, robot: RobotId, *,
                  clock: Callable[[], float] = time.monotonic) -> None:
-        self.hub = hub
+        self.source = source
         self.robot = robot
         self._clock = clock
         self._lock = threading.Lock()
-        self._stats_feed: Feed | None = None
+        self._stats_feed: Stream | None = None
         self._stats_rates: dict[str, float] = {}
-        self._echo_feed: Feed | None = None
+        self._echo_feed: Stream | None = None
         self.echo_topic: str | None = None
         self.echo_type: str | None = None
         self._last: Any = None
@@ -100,7 +101,7 @@ class TopicsModel:
         from efficient_comm_interfaces.msg import ExecutorStats
 
         if self._stats_feed is None:
-            self._stats_feed = self.hub.subscribe(
+            self._stats_feed = self.source.subscribe(
                 self.robot, STATS_SUFFIX, ExecutorStats, self.on_stats, rate_hz=1.0)
 
     def deactivate(self) -> None:
@@ -134,7 +135,7 @@ class TopicsModel:
         with self._lock:
             rates = dict(self._stats_rates)
             echo, measured = self.echo_topic, self._measured_rate()
-        graph = self.hub.topics(self.robot)
+        graph = self.source.topics(self.robot)
         # Topics only the statistics name: in-process topics of a container (no DDS
         # reader or writer, so the graph does not see them); their types are unknown here.
         # Hidden ones (a ThrottledPublisher's ``_throttle`` request subscriptions) are left
@@ -165,7 +166,7 @@ class TopicsModel:
             self._last, self.plot_path = None, None
             self._arrivals.clear()
             self._series.clear()
-        self._echo_feed = self.hub.subscribe(self.robot, full, cls, self.on_message,
+        self._echo_feed = self.source.subscribe(self.robot, full, cls, self.on_message,
                                              rate_hz=ECHO_HZ)
 
     def stop_echo(self) -> None:

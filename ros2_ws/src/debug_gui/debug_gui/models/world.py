@@ -56,8 +56,8 @@ from typing import Any
 from efficient_comm import from_msg, latched_qos
 from soccer_field import KIDSIZE
 
-from ..hub import Feed, Hub
 from ..robots import RobotId
+from ..source import Source, Stream
 
 #: The field the view draws, by the names ui/world.py uses (metres); the dimensions are
 #: soccer_field's, the same the simulator builds and the referee judges with.
@@ -260,7 +260,7 @@ class _Robot:
         self.localized: Pose2D | None = None
         self.team_ball: tuple[float, float] | None = None
         self.team_ball_stamp_ns = 0
-        self.feeds: list[Feed] = []
+        self.feeds: list[Stream] = []
 
     def heard(self, stamp: Any) -> int:
         """A stamp of the robot's own clock (never one the world stamped: see the module
@@ -294,13 +294,13 @@ class WorldModel:
 
     def __init__(
         self,
-        hub: Hub,
+        source: Source,
         robots: list[RobotId],
         *,
         rate_hz: float = 10.0,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.hub = hub
+        self.source = source
         self.rate_hz = rate_hz
         self._clock = clock
         self._lock = threading.Lock()
@@ -335,7 +335,7 @@ class WorldModel:
                 ("ground_truth/pose", PoseStamped, self.on_true_robot),
                 ("ground_truth/ball", PoseStamped, self.on_true_ball),
             ]
-            r.feeds = [self.hub.subscribe(r.robot, topic, msg_type,
+            r.feeds = [self.source.subscribe(r.robot, topic, msg_type,
                                           functools.partial(handler, r.robot),
                                           rate_hz=self.rate_hz)
                        for topic, msg_type, handler in handlers]
@@ -346,7 +346,7 @@ class WorldModel:
                 ("role", String, self.on_role),
                 ("game_state", GameState, self.on_game_state),
             ]
-            r.feeds += [self.hub.subscribe(r.robot, topic, msg_type,
+            r.feeds += [self.source.subscribe(r.robot, topic, msg_type,
                                            functools.partial(handler, r.robot), qos=LATCHED)
                         for topic, msg_type, handler in latched]
 

@@ -29,10 +29,10 @@ from typing import Any, Literal
 from nicegui import Client, app, ui
 
 from ..errors import DebugGuiError, InvalidInput, LayoutConflict
-from ..hub import Hub
 from ..layout import Layout, Panel, Setting, saved_text
 from ..robots import RobotId
 from ..security import AccessPolicy
+from ..source import Source
 from . import registry
 from .registry import ViewContext
 
@@ -48,7 +48,7 @@ TAB_KEY = "debug_gui_layout"
 class Shell:
     """Server-wide state: the Hub, the access policy and the layout new tabs start from."""
 
-    hub: Hub
+    source: Source
     policy: AccessPolicy
     layout: Layout
     layout_path: Path | None = None
@@ -112,7 +112,7 @@ class _Tab:
         self.adopted = False
         self._layout = shell.layout
         self.views: list[_PanelView] = []
-        self.robots: list[RobotId] = shell.hub.robots()
+        self.robots: list[RobotId] = shell.source.robots()
         #: The view kind and robot last chosen for "add": kept across the binding view's
         #: re-renders (each add, each robot coming or going), so adding several views for
         #: one robot does not mean choosing it again every time.
@@ -183,7 +183,7 @@ class _Tab:
         self.client.on_connect(self._show_open)
 
     def _poll_robots(self) -> None:
-        robots = self.shell.hub.robots()
+        robots = self.shell.source.robots()
         if robots == self.robots:
             return
         self.robots = robots
@@ -440,7 +440,7 @@ class _Tab:
                     if view.panel.robot is None and robot is not None:
                         ui.label(robot.label).classes("text-bold")
                     ctx = ViewContext(
-                        hub=self.shell.hub, robot=robot, robots=list(self.robots),
+                        source=self.shell.source, robot=robot, robots=list(self.robots),
                         policy=self.shell.policy, token=self.token, app=app,
                         settings=dict(view.panel.settings),
                         remember=functools.partial(self._remember, view),

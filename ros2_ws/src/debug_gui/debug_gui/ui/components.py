@@ -107,7 +107,7 @@ def table_row(row: Row, robot: RobotId) -> dict[str, Any]:
 def build(ctx: ViewContext) -> None:
     assert ctx.robot is not None  # a per-robot kind: the shell binds every instance
     robot = ctx.robot
-    model = ComponentsModel(ctx.hub, robot)
+    model = ComponentsModel(ctx.source, robot)
     waiting = "waiting for the robot's statistics…"
     status_id = f"components-status-{robot.key}"
     every_second = os.environ.get(POLICY_VARIABLE) == "every-second"

@@ -178,7 +178,7 @@ app.add_api_websocket_route(ROUTE + "/{key}", _stream)
 def build(ctx: ViewContext) -> None:
     assert ctx.robot is not None  # a per-robot kind: the shell binds every instance
     robot = ctx.robot
-    model = ImageModel(ctx.hub, robot)
+    model = ImageModel(ctx.source, robot)
     kept_rate = ctx.settings.get("rate_hz")
     if isinstance(kept_rate, int) and not isinstance(kept_rate, bool) and kept_rate in RATES_HZ:
         model.set_rate(float(kept_rate))  # the panel's layout: the rate the user chose
@@ -240,7 +240,7 @@ def build(ctx: ViewContext) -> None:
         counts["received"], counts["at"] = model.received, loop_now
         position = model.position()
         shown_now = model.current()
-        online = robot in ctx.hub.robots()
+        online = robot in ctx.source.robots()
         where = live_state(online=online, position=position, fps=fps, asked=model.rate_hz,
                            camera=bool(model.received) or model.has_camera())
         if online != counts["online"]:

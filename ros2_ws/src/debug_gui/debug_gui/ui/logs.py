@@ -50,7 +50,7 @@ def log_row(i: int, e: LogEntry) -> dict[str, Any]:
 def build(ctx: ViewContext) -> None:
     assert ctx.robot is not None
     robot = ctx.robot
-    model = LogsModel(ctx.hub, robot)
+    model = LogsModel(ctx.source, robot)
     key = robot.key
     with ui.row().classes("items-center gap-2"):
         kept_level = ctx.text("level", "debug")

@@ -80,7 +80,7 @@ def build(ctx: ViewContext) -> None:
     assert ctx.robot is not None  # a per-robot kind: the shell binds every instance
     robot = ctx.robot
     key = robot.key
-    model = ParametersModel(ctx.hub, robot, policy=ctx.policy, token=ctx.token)
+    model = ParametersModel(ctx.source, robot, policy=ctx.policy, token=ctx.token)
     with ui.row().classes("items-center gap-2"):
         node = ui.select([], label="node", with_input=True).props(
             f"dense data-testid={_testid('params-node', key)}").classes("w-80")

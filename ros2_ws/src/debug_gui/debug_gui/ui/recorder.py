@@ -188,7 +188,7 @@ class _RecorderPanel:
         """List the robot's topics, ticked as the recorder records them."""
         robot = self.model.robot
         try:
-            topics = self.ctx.hub.topics(robot)
+            topics = self.ctx.source.topics(robot)
             selected = {robot.resolve(s.name): s for s in self.model.selection(self.node)}
         except DebugGuiError as exc:
             self.show(str(exc), ok=False)
@@ -266,7 +266,7 @@ class _RobotColumn:
 @register(kind="recorder", title="Recorder", team=True, order=70)
 def build(ctx: ViewContext) -> None:
     robots = [ctx.robot] if ctx.robot is not None else list(ctx.robots)
-    team = RecorderTeam([RecorderModel(ctx.hub, r, policy=ctx.policy, token=ctx.token)
+    team = RecorderTeam([RecorderModel(ctx.source, r, policy=ctx.policy, token=ctx.token)
                          for r in robots])
     if ctx.robot is None:
         with ui.row().classes("items-center gap-2"):

@@ -4,7 +4,7 @@ A view module registers its builder::
 
     @register(kind="components", title="Components")
     def build(ctx: ViewContext) -> None:
-        model = ComponentsModel(ctx.hub, ctx.robot)
+        model = ComponentsModel(ctx.source, ctx.robot)
         ctx.on_show(model.activate)
         ctx.on_hide(model.deactivate)
         ...  # NiceGUI elements, a ui.timer polling the model
@@ -24,10 +24,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import InvalidInput
-from ..hub import Hub
 from ..layout import Setting
 from ..robots import RobotId
 from ..security import AccessPolicy
+from ..source import Source
 
 _log = logging.getLogger(__name__)
 
@@ -42,7 +42,7 @@ TEAM_GRID = ("display: grid; gap: 0.5rem; "
 class ViewContext:
     """What a view instance is bound to and may use."""
 
-    hub: Hub
+    source: Source
     #: The robot this instance shows (None only for a kind registered with team=True).
     robot: RobotId | None
     #: Every robot known when the view was built (team views, robot pickers).

@@ -46,7 +46,7 @@ def build(ctx: ViewContext) -> None:
     assert ctx.robot is not None
     robot = ctx.robot
     key = robot.key
-    model = TopicsModel(ctx.hub, robot)
+    model = TopicsModel(ctx.source, robot)
     table = ui.table(columns=COLUMNS, rows=[], row_key="name", pagination=0).props(
         f"dense flat virtual-scroll data-testid=topics-{key}"
     ).classes("w-full cursor-pointer").style("max-height: 18rem")

@@ -163,7 +163,7 @@ def game_text(game: Game | None) -> str:
 @register(kind="world", title="World", team=True, order=40)
 def build(ctx: ViewContext) -> None:
     robots = [ctx.robot] if ctx.robot is not None else list(ctx.robots)
-    model = WorldModel(ctx.hub, robots)
+    model = WorldModel(ctx.source, robots)
     suffix = ctx.robot.key if ctx.robot is not None else "team"
     game = ui.label(game_text(None)).classes("text-subtitle2").props(
         f"data-testid=world-game-{suffix}")
