@@ -3,7 +3,8 @@
 ``python tests/_shm_peer.py pub TOPIC --count N --sizes B[,B...] --readers K [--period S]``:
 a container with the transport publishing sensor_msgs/Image number ``i`` (``frame_id`` ``i``,
 ``data`` filled with ``i % 251``, the sizes taken in turn) once ``K`` DDS readers matched;
-prints ``ready``, then ``published N``, and stays until stdin closes.
+prints ``ready``, then ``published N dds D`` (D: how many it also wrote to DDS, ``?``
+without the transport), and stays until stdin closes.
 
 ``python tests/_shm_peer.py sub TOPIC [--slow S] [--no-shm]``: a container subscribing;
 per message a line
@@ -64,7 +65,9 @@ class _Publisher:
         self._pub.publish(msg)
         self._sent += 1
         if self._sent == self._args.count:
-            print(f"published {self._sent}", flush=True)
+            shm = getattr(self._pub, "shm", None)
+            dds = "?" if shm is None else shm.dds_writes
+            print(f"published {self._sent} dds {dds}", flush=True)
 
 
 class _Subscriber:

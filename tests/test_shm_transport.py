@@ -212,11 +212,17 @@ FALLBACKS = textwrap.dedent("""
         c.add(make, name="maker")
     with Container("nodds", shm=True, dds=False, serve=False, stats_period_s=0):
         pass
+    import os
+    from efficient_comm import Standalone
+    os.environ["EFFICIENT_COMM_SHM"] = "1"
+    with Standalone(lambda node: None, name="alone", stats_period_s=0):
+        pass
 """)
 
 
 def test_what_does_not_fit_falls_back_to_dds_with_one_line_why() -> None:
-    """A latched image, a type with three arrays, a container without DDS: one line each."""
+    """A latched image, a type with three arrays, a container without DDS, a standalone node
+    with EFFICIENT_COMM_SHM set: one line each."""
     env = ros_env(isolated_domain_id())
     done = subprocess.run([sys.executable, "-c", FALLBACKS], env=env, capture_output=True,
                           text=True, timeout=60)
@@ -230,7 +236,9 @@ def test_what_does_not_fit_falls_back_to_dds_with_one_line_why() -> None:
     assert not any("/text" in line or "/pairs" in line for line in lines), lines
     assert not any("/image" in line for line in lines), lines
     assert any("nodds" in line and "no DDS" in line for line in lines), lines
-    assert len(lines) == 3, lines
+    assert any("alone" in line and "standalone" in line and "container" in line
+               for line in lines), lines
+    assert len(lines) == 4, lines
 
 
 ONE_WAIT = textwrap.dedent("""
@@ -268,3 +276,55 @@ def test_subscriptions_share_the_executors_one_wait() -> None:
                           text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split() == ["threads", "1", "posted", "here", "took"], done.stdout
+
+
+def test_a_recorder_in_another_process_records_large_messages_from_shared_memory(
+    peers: tuple[dict[str, str], str, list[Peer]], tmp_path: Path,
+) -> None:
+    """robot_recorder in a container of its own, the transport on through the environment
+    (as a user starts it): the images reach it through shared memory (the publisher writes
+    none to DDS) and the bag holds every one of them, byte for byte."""
+    import yaml
+
+    from robot_recorder.testing import read_rosbags
+    from robot_recorder_interfaces.msg import RecorderStatus
+
+    from ._ros import executable, peer
+
+    env, topic, started = peers
+    count = 12
+    config = tmp_path / "recorder.yaml"
+    config.write_text(yaml.safe_dump({"components": [{
+        "class": "robot_recorder.recorder:Recorder", "name": "recorder",
+        "parameters": {"/recorder": {"ros__parameters": {
+            "topics": [topic], "output_dir": str(tmp_path / "logs"), "autostart": True,
+            "status_period_s": 0.2}}}}]}))
+    log = tmp_path / "recorder.log"
+    with open(log, "wb") as out:
+        recorder = subprocess.Popen(
+            [str(executable("efficient_comm", "container")), "--config", str(config),
+             "--name", "rec"],
+            env={**env, "EFFICIENT_COMM_SHM": "1"}, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True)
+    try:
+        statuses: list[RecorderStatus] = []
+        with peer(int(env["ROS_DOMAIN_ID"]), "status_reader") as reader:
+            reader.node.create_subscription(RecorderStatus, "/recorder/status",
+                                            statuses.append, 10)
+            pub = _start(started, env, "pub", topic, "--readers", "1", "--count", str(count),
+                         "--sizes", str(LARGE), "--period", "0.1")
+            (done,) = [line for line in pub.until("published") if line.startswith("published")]
+            assert reader.wait_for(
+                lambda: bool(statuses) and statuses[-1].messages >= count, timeout_s=60
+            ), (done, statuses[-1:] and (statuses[-1].error, statuses[-1].topics),
+             log.read_text()[-2000:])
+        assert done == f"published {count} dds 0", done  # shared memory served the recorder
+        os.killpg(recorder.pid, signal.SIGINT)
+        assert recorder.wait(timeout=30) == 0, log.read_text()[-2000:]
+    finally:
+        stop_process_group(recorder)
+    (bag,) = (tmp_path / "logs").iterdir()
+    images = [msg for name, msg in read_rosbags(bag) if name == topic]
+    assert [int(m.header.frame_id) for m in images] == list(range(count))
+    for i, image in enumerate(images):
+        assert image.width == LARGE and bytes(image.data) == bytes([i % 251]) * LARGE, i

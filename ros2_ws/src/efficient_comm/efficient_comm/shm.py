@@ -464,6 +464,12 @@ class ShmPublisher:
             self._pub.dds.publish(msg)
             self._dds_seq += 1
 
+    @property
+    def dds_writes(self) -> int:
+        """Messages this publisher also wrote to DDS (for plain peers, or small ones): 0
+        while shared memory serves every reader."""
+        return self._dds_seq
+
     def close(self) -> None:
         self._notifier.delete()
         self._port.delete()

@@ -53,6 +53,7 @@ from .handle import (
     Subscription,
     Timer,
 )
+from .shm import enabled_from_env as shm_enabled_from_env
 from .stats import CallbackKind, CallbackStats, StatsRegistry, StatsSnapshot
 from .stats_publisher import DEFAULT_STATS_PERIOD_S, StatsPublisher, check_stats_period
 
@@ -265,6 +266,11 @@ class Standalone(Closing):
             self.node = Node(name, namespace=namespace, context=self.context,
                              parameter_overrides=overrides)
             self.handle = StandaloneHandle(self.node)
+            if shm_enabled_from_env():  # what a user who set it for every process expects
+                self.node.get_logger().warning(
+                    "no shared memory for a standalone node (EFFICIENT_COMM_SHM is set); DDS "
+                    "carries its topics: run it in a container (`ros2 run efficient_comm "
+                    "container --config FILE`) for shared memory")
             # Declared before the component exists, so its parameter callbacks never see it.
             period_s = self._stats_period(stats_period_s)
             try:
