@@ -4,7 +4,10 @@ written beside it, a user's generator file taken, and bad input told in one line
 from __future__ import annotations
 
 import json
+import os
+import pty
 import subprocess
+import tty
 from pathlib import Path
 
 import av
@@ -179,3 +182,64 @@ def test_compare_two_ball_detectors_on_one_log_as_a_user_types_it(tmp_path: Path
          "--a", "colour=humanoid_sim::BallDetector", "--b", "blob", "-o", str(tmp_path / "x")],
         cwd=tmp_path, capture_output=True, text=True, timeout=90, check=False)
     assert bad.returncode == 2 and "a variant is LABEL=COMPONENT" in bad.stderr
+
+
+def _on_terminal(args: list[str], cwd: Path) -> tuple[int, str]:
+    """Run ``args`` with standard error on a terminal (a pty in raw mode, so what the
+    command writes arrives unchanged), as a user at a shell sees it; returns the status and
+    what it wrote there."""
+    master, slave = pty.openpty()
+    tty.setraw(slave)
+    with subprocess.Popen(args, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                          stderr=slave) as child:
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # EIO: the child closed its end
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        os.close(master)
+        status = child.wait(timeout=90)
+    return status, b"".join(chunks).decode()
+
+
+def _progress_lines(stderr: str, label: str) -> list[str]:
+    return [line for line in stderr.splitlines() if line.startswith(f"{label}: [")]
+
+
+def test_sync_video_and_compare_show_progress_to_100_percent_on_a_finished_line(
+        tmp_path: Path) -> None:
+    log, video = film_ball(tmp_path, _kicked, seconds=30, offset_s=-2.35, drift_ppm=0)
+    images = seen_ball(tmp_path / "images", robot="blue1",
+                       frames=[(1.0 + k / 4, -10.0 + k / 3, False) for k in range(60)])
+    commands = {
+        "sync-video": ["ros2", "run", "log_analysis", "sync-video", str(log), str(video),
+                       "-o", str(tmp_path / "fit.json")],
+        "compare": ["ros2", "run", "log_analysis", "compare", str(images), "--robot", "blue1",
+                    "--a", "colour=humanoid_sim::BallDetector",
+                    "--b", "blob=humanoid_sim::BlobBallDetector", "-o", str(tmp_path / "r")]}
+    for label, args in commands.items():
+        # Into a file or a CI log: a line per tenth, rising, the last at 100 %.
+        run = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=90,
+                             check=False)
+        assert run.returncode == 0, run.stderr
+        lines = _progress_lines(run.stderr, label)
+        assert len(lines) >= 3, run.stderr
+        percents = [int(line.split("]")[1].split("%")[0]) for line in lines]
+        assert percents == sorted(percents) and percents[-1] == 100, run.stderr
+        assert run.stderr.endswith("\n")
+        quiet = subprocess.run([*args, "--quiet"], cwd=tmp_path, capture_output=True,
+                               text=True, timeout=90, check=False)
+        assert quiet.returncode == 0, quiet.stderr
+        assert _progress_lines(quiet.stderr, label) == []
+        # On a terminal: one line redrawn in place, ending at 100 % with a newline.
+        status, shown = _on_terminal(args, tmp_path)
+        assert status == 0, shown
+        assert shown.count("\r") >= 3, shown
+        last = shown.rsplit("\r", 1)[1]
+        assert last.startswith(f"{label}: [{'#' * 30}] 100%"), shown
+        assert last.endswith("\n") and last.count("\n") == 1, shown
