@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cache, cached_property
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +27,10 @@ from rosbag2_layout import BagReader, Rosbag2Error, import_type
 from .errors import LogSourceError
 
 __all__ = ["LogMessage", "TeamLog", "split_topic"]
+
+
+#: A type name's class, looked up once per type rather than once per message.
+_message_class = cache(import_type)
 
 
 def split_topic(topic: str) -> tuple[str, str]:
@@ -52,7 +56,7 @@ class LogMessage:
 
     @cached_property
     def message(self) -> Any:
-        return deserialize_message(self.data, import_type(self.type))
+        return deserialize_message(self.data, _message_class(self.type))
 
     @property
     def t(self) -> float:
