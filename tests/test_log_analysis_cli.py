@@ -14,7 +14,7 @@ import av
 from std_msgs.msg import String
 
 from log_analysis import read_events
-from log_analysis.testing import LogBuilder, film_ball, seen_ball
+from log_analysis.testing import LogBuilder, RobotBag, film_ball, seen_ball
 
 
 def _events(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -243,3 +243,39 @@ def test_sync_video_and_compare_show_progress_to_100_percent_on_a_finished_line(
         last = shown.rsplit("\r", 1)[1]
         assert last.startswith(f"{label}: [{'#' * 30}] 100%"), shown
         assert last.endswith("\n") and last.count("\n") == 1, shown
+
+
+def test_events_of_several_robots_bags_are_those_of_their_merged_log(tmp_path: Path) -> None:
+    """``events ROBOT=BAG ...`` puts each robot's own bag on the team's time by the clock
+    estimates it recorded, as team_clock's merge does, and prints what the merged log
+    gives (the last line names the sidecar, which differs)."""
+    with RobotBag(tmp_path / "b1", robot="blue1", ahead_s=2.5) as blue:
+        for t in range(12):
+            blue.add("fall/state", String(data="fallen" if 4 <= t < 6 else "standing"), t=t)
+    with RobotBag(tmp_path / "r1", robot="red1", ahead_s=-1.3, drift_ppm=100) as red:
+        for t in range(12):
+            red.add("fall/state", String(data="fallen" if t >= 8 else "standing"), t=t)
+    merged = subprocess.run(["ros2", "run", "team_clock", "team_clock", "merge", "-o",
+                             str(tmp_path / "merged"), f"blue1={tmp_path / 'b1'}",
+                             f"red1={tmp_path / 'r1'}"],
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert merged.returncode == 0, merged.stderr
+    from_merged = _events(tmp_path / "merged", "--only", "falls", cwd=tmp_path)
+    from_bags = _events(f"blue1={tmp_path / 'b1'}", tmp_path / "r1", "--only", "falls",
+                        cwd=tmp_path)
+    assert from_bags.returncode == 0, from_bags.stderr
+    assert from_bags.stdout.splitlines()[:-1] == from_merged.stdout.splitlines()[:-1]
+    assert [line.split()[:6] for line in from_bags.stdout.splitlines()[1:4]] == [
+        ["4.00", "s", "2.00", "s", "blue1", "fell"], ["6.00", "s", "0.00", "s", "blue1", "got"],
+        ["8.00", "s", "3.00", "s", "red1", "fell"]]
+    assert [e.name for e in read_events(tmp_path / "team.events.mcap")] == [
+        "fell", "got up", "fell"]
+    with LogBuilder(tmp_path / "plain") as plain:  # no clock estimates in it
+        plain.add("", "fall/state", String(data="standing"), t=1.0)
+    for args, status, says in (
+            ((tmp_path / "b1", tmp_path / "plain"), 1, "on the team's time"),
+            ((tmp_path / "b1", tmp_path / "r1", "--robot", "blue1"), 2, "give each as ROBOT=LOG")):
+        run = _events(*args, cwd=tmp_path)
+        assert run.returncode == status, (args, run.stderr)
+        assert says in run.stderr, (args, run.stderr)
+        assert "Traceback" not in run.stderr

@@ -5,9 +5,13 @@
     ros2 run log_analysis events merged_20261126_120000/
     ros2 run log_analysis events blue1_bag/ --robot blue1 --only falls ball_lost
     ros2 run log_analysis events LOG --generators my_generators.py -o LOG.events.mcap
+    ros2 run log_analysis events blue1=bags/blue1/ red1=bags/red1/ -o team.events.mcap
 
-Prints one line per event (seconds from the log's start, robot, what, details), writes
-them to a sidecar MCAP (``<log>.events.mcap`` unless ``-o``) as Foxglove events, and shows
+Several robots' own bags are read as one team log in team reference time, each moved by
+the clock estimates it recorded (team_clock; ``ROBOT=LOG`` as its merge takes them), without
+merging them first. Prints one line per event (seconds from the log's start, robot, what,
+details), writes them to a sidecar MCAP (``<log>.events.mcap``, for several bags
+``team.events.mcap`` beside the first, unless ``-o``) as Foxglove events, and shows
 its progress on standard error. A generator that raises is named with what it raised and
 the others finish; the exit status is then 1. A log or generator file that cannot be read
 is one line and exit 1; wrong arguments exit 2.
@@ -56,6 +60,8 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import yaml
+
+from team_clock import RobotLog
 
 from .augment import augment_video
 from .compare import Variant, compare_components, write_report
@@ -134,8 +140,11 @@ def progress_line(total: int, start: int, *, quiet: bool, label: str, unit: str 
 def events_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="events", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("log", type=Path, nargs="?", help="a merged team log or one "
-                        "robot's bag (rosbag2 directory or .mcap file)")
+    parser.add_argument("log", nargs="*", metavar="[ROBOT=]LOG", help="a merged team log "
+                        "or one robot's bag (rosbag2 directory or .mcap file); or several "
+                        "robots' own bags, put on the team's time by the clock estimates "
+                        "each recorded (team_clock), each under ROBOT (default: the robot "
+                        "whose estimates it holds)")
     parser.add_argument("--generators", type=Path, action="append", default=[],
                         metavar="FILE", help="a Python file whose GENERATORS list more "
                         "event generators (may repeat)")
@@ -159,12 +168,17 @@ def events_main(argv: Sequence[str] | None = None) -> int:
                 doc = (factory.__doc__ or "").strip().splitlines()
                 print(f"{name:20} {doc[0] if doc else ''}")
             return 0
-        if args.log is None:
+        if not args.log:
             parser.error("give the LOG to analyse (or --list)")
+        team = len(args.log) > 1 or (not Path(args.log[0]).exists() and "=" in args.log[0])
+        if team and args.robot:
+            parser.error("--robot names the robot of one bag; with several, give each as "
+                         "ROBOT=LOG")
         if args.start is not None and args.end is not None and args.end <= args.start:
             parser.error(f"--end {args.end} is not after --start {args.start}")
         generators = load_generators(names=args.only, files=args.generators)
-        log = TeamLog(args.log, robot=args.robot)
+        log = (TeamLog.from_robot_logs([_robot_log(text) for text in args.log]) if team
+               else TeamLog(args.log[0], robot=args.robot))
         first, last = log.time_range()
         start_ns = None if args.start is None else first + int(args.start * 1e9)
         end_ns = None if args.end is None else first + int(args.end * 1e9)
@@ -172,7 +186,8 @@ def events_main(argv: Sequence[str] | None = None) -> int:
         with progress_line(hi - lo, lo, quiet=args.quiet, label="events") as progress:
             found = detect(log, generators, start_ns=start_ns, end_ns=end_ns,
                            progress=progress)
-        output = args.output or sidecar_path(args.log)
+        output = args.output or (log.path.parent / "team.events.mcap" if team
+                                 else sidecar_path(log.path))
         write_events(output, found.events)
     except LogAnalysisError as exc:
         print(f"events: error: {exc}", file=sys.stderr)
@@ -191,6 +206,12 @@ def events_main(argv: Sequence[str] | None = None) -> int:
         print(f"events: error: generator {name} failed and was left out: {failure}",
               file=sys.stderr)
     return 1 if found.failures else 0
+
+
+def _robot_log(text: str) -> RobotLog:
+    """``ROBOT=LOG`` or ``LOG``, as team_clock's merge takes them."""
+    robot, sep, path = text.partition("=")
+    return RobotLog(Path(path), namespace=robot) if sep else RobotLog(Path(text))
 
 
 def _anchor(text: str) -> tuple[float, float]:
