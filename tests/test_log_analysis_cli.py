@@ -6,11 +6,14 @@ from __future__ import annotations
 import json
 import os
 import pty
+import re
 import subprocess
 import tty
 from pathlib import Path
+from typing import Any
 
 import av
+from mcap.reader import make_reader
 from std_msgs.msg import String
 
 from log_analysis import read_events
@@ -279,3 +282,102 @@ def test_events_of_several_robots_bags_are_those_of_their_merged_log(tmp_path: P
         assert run.returncode == status, (args, run.stderr)
         assert says in run.stderr, (args, run.stderr)
         assert "Traceback" not in run.stderr
+
+
+def _cut_mid_chunk(log: Path, keep: float) -> tuple[Path, int]:
+    """Cut the log's MCAP file in the middle of the chunk ``keep`` of the way through it,
+    as a recorder killed while writing leaves it (no summary, a half-written chunk); the
+    log time the cut chunk starts at."""
+    (file,) = log.glob("*.mcap")
+    with open(file, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) >= 4
+    chunk = chunks[int(len(chunks) * keep)]
+    with open(file, "r+b") as f:
+        f.truncate(chunk.chunk_start_offset + chunk.chunk_length // 2)
+    return file, chunk.message_start_time
+
+
+def test_a_log_cut_mid_chunk_is_analysed_up_to_the_cut_with_one_warning(
+        tmp_path: Path) -> None:
+    """A recorder killed mid-chunk: ``events`` and ``compare`` say where the file ends, in
+    one line, and analyse everything before it."""
+    with LogBuilder(tmp_path / "match") as log:
+        for t in range(0, 60):
+            for robot in ("blue1", "red1"):
+                fallen = (t % 20) in (5, 6)
+                log.add(robot, "fall/state", String(data="fallen" if fallen else "standing"),
+                        t=t + (0.5 if robot == "red1" else 0.0))
+            log.add("blue1", "behaviour/state", String(data="search" * 200), t=t)  # bulk
+    file, cut_ns = _cut_mid_chunk(tmp_path / "match", keep=0.6)
+    run = _events(tmp_path / "match", "--only", "falls", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "Traceback" not in run.stderr
+    warnings = [line for line in run.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and f"{file}: readable up to byte" in warnings[0], run.stderr
+    found = read_events(tmp_path / "match.events.mcap")
+    # Every fall that began before the cut chunk is there, none after (a fall cut short
+    # ends where the readable log does).
+    before = [(e.robot, e.name, (e.start_ns - built_ns(0)) / 1e9) for e in found]
+    expected = [(robot, name, float(t + (0.5 if robot == "red1" else 0.0) + (2 if name ==
+                                                                            "got up" else 0)))
+                for t in (5, 25, 45) for robot in ("blue1", "red1")
+                for name in ("fell", "got up")]
+    expected = [e for e in expected if built_ns(e[2]) < cut_ns - 10**9]
+    assert len(expected) >= 4
+    assert [e for e in before if built_ns(e[2]) < cut_ns - 10**9] == sorted(
+        expected, key=lambda e: (e[2], e[0]))
+    assert all(built_ns(e[2]) <= cut_ns for e in before), before
+
+    frames = [(1.0 + k / 2, -10.0 + k / 3, False) for k in range(60)]
+    images = seen_ball(tmp_path / "images", robot="blue1", frames=frames)
+    file, image_cut_ns = _cut_mid_chunk(images, keep=0.5)
+    run = subprocess.run(
+        ["ros2", "run", "log_analysis", "compare", str(images), "--robot", "blue1", "--quiet",
+         "--a", "colour=humanoid_sim::BallDetector", "--b", "blob=humanoid_sim::BlobBallDetector",
+         "-o", str(tmp_path / "report")], cwd=tmp_path, capture_output=True, text=True,
+        timeout=90, check=False)
+    assert run.returncode == 0, run.stderr
+    (warning,) = run.stderr.splitlines()
+    assert warning.startswith(f"compare: warning: {file}: readable up to byte"), run.stderr
+    replayed = re.search(r": (\d+) images", run.stdout)
+    assert replayed, run.stdout
+    # The images before the cut chunk, all of them replayed.
+    assert sum(1 for t, _, _ in frames if t * 1e9 < image_cut_ns) <= int(replayed[1]) \
+        < len(frames), run.stdout
+
+
+def built_ns(t: float) -> int:
+    """The log time of ``t`` seconds in a LogBuilder log (epoch 1000 s)."""
+    return round((1000.0 + t) * 1e9)
+
+
+def test_a_video_without_frames_is_one_line_and_anchors_still_fit(tmp_path: Path) -> None:
+    """A video whose writer never got a frame (a camera that failed at once): the commands
+    that read its frames say so in one line; a fit by hand, which needs no frames, works."""
+    log, video = film_ball(tmp_path, _kicked, seconds=8, offset_s=0.5, drift_ppm=0)
+    empty = tmp_path / "empty.mp4"
+    with av.open(str(empty), "w") as container:
+        stream: Any = container.add_stream("libx264", rate=5)
+        stream.width, stream.height, stream.pix_fmt = 480, 270, "yuv420p"
+        container.start_encoding()  # the header, then nothing
+    Path(f"{empty}.json").write_text(Path(f"{video}.json").read_text())
+    anchored = _sync(log, empty, "--anchor", "1.0=0.5", "-o", tmp_path / "hand.json",
+                     cwd=tmp_path)
+    assert anchored.returncode == 0, anchored.stderr
+    # camera 0.5 s + 1.0 s = log 0.5 s: the camera 1 s ahead
+    assert json.loads((tmp_path / "hand.json").read_text())["offset_ns"] == 1_000_000_000
+    for command in ("sync-video", "augment"):
+        run = subprocess.run(["ros2", "run", "log_analysis", command, str(log), str(empty),
+                              *(["--fit", str(tmp_path / "hand.json")] if command == "augment"
+                                else [])],
+                             cwd=tmp_path, capture_output=True, text=True, timeout=90,
+                             check=False)
+        assert run.returncode == 1, (command, run.stderr)
+        assert "Traceback" not in run.stderr
+        lines = [line for line in run.stderr.splitlines() if line.strip()]
+        assert len(lines) == 1 and lines[0].startswith(f"{command}: error: "), run.stderr
+        assert lines[0].startswith(f"{command}: error: {empty} has no frames"), run.stderr
+    assert list(tmp_path.glob("*empty.augmented*")) == []  # nothing half-written left

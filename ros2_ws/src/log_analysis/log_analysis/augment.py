@@ -272,6 +272,9 @@ def augment_video(
             for packet in stream.encode():
                 out.mux(packet)
         partial.replace(target)
+    except LogSourceError:  # the video's own (no frames, undecodable): said as it is
+        partial.unlink(missing_ok=True)
+        raise
     except (OSError, av.FFmpegError) as exc:
         partial.unlink(missing_ok=True)
         raise LogSourceError(f"cannot write {target}: {exc}") from exc

@@ -364,6 +364,9 @@ def compare_main(argv: Sequence[str] | None = None) -> int:
     except LogAnalysisError as exc:
         print(f"compare: error: {exc}", file=sys.stderr)
         return 1
+    for problem in log.problems:
+        print(f"compare: warning: {problem}", file=sys.stderr)
+    sys.stderr.flush()
     print(report.read_text().split("![", 1)[0].rstrip())
     print(f"\nwritten to {report}")
     return 0

@@ -194,8 +194,10 @@ class TeamLog:
 
     @property
     def problems(self) -> list[str]:
-        """Where files of the log ended early (a killed recorder): read up to there."""
-        return [problem for part in self._parts for problem in part.reader.problems]
+        """Where files of the log ended early (a killed recorder): read up to there. Each
+        once (every pass over a file finds its end again)."""
+        return list(dict.fromkeys(problem for part in self._parts
+                                  for problem in part.reader.problems))
 
     def time_range(self) -> tuple[int, int]:
         """``(first, last)`` log time in ns over every file (0, 0 for an empty log)."""
