@@ -4,14 +4,20 @@ written beside it, a user's generator file taken, and bad input told in one line
 from __future__ import annotations
 
 import json
+import os
+import pty
+import re
 import subprocess
+import tty
 from pathlib import Path
+from typing import Any
 
 import av
+from mcap.reader import make_reader
 from std_msgs.msg import String
 
 from log_analysis import read_events
-from log_analysis.testing import LogBuilder, film_ball, seen_ball
+from log_analysis.testing import LogBuilder, RobotBag, film_ball, seen_ball
 
 
 def _events(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -179,3 +185,199 @@ def test_compare_two_ball_detectors_on_one_log_as_a_user_types_it(tmp_path: Path
          "--a", "colour=humanoid_sim::BallDetector", "--b", "blob", "-o", str(tmp_path / "x")],
         cwd=tmp_path, capture_output=True, text=True, timeout=90, check=False)
     assert bad.returncode == 2 and "a variant is LABEL=COMPONENT" in bad.stderr
+
+
+def _on_terminal(args: list[str], cwd: Path) -> tuple[int, str]:
+    """Run ``args`` with standard error on a terminal (a pty in raw mode, so what the
+    command writes arrives unchanged), as a user at a shell sees it; returns the status and
+    what it wrote there."""
+    master, slave = pty.openpty()
+    tty.setraw(slave)
+    with subprocess.Popen(args, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                          stderr=slave) as child:
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # EIO: the child closed its end
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        os.close(master)
+        status = child.wait(timeout=90)
+    return status, b"".join(chunks).decode()
+
+
+def _progress_lines(stderr: str, label: str) -> list[str]:
+    return [line for line in stderr.splitlines() if line.startswith(f"{label}: [")]
+
+
+def test_sync_video_and_compare_show_progress_to_100_percent_on_a_finished_line(
+        tmp_path: Path) -> None:
+    log, video = film_ball(tmp_path, _kicked, seconds=30, offset_s=-2.35, drift_ppm=0)
+    images = seen_ball(tmp_path / "images", robot="blue1",
+                       frames=[(1.0 + k / 4, -10.0 + k / 3, False) for k in range(60)])
+    commands = {
+        "sync-video": ["ros2", "run", "log_analysis", "sync-video", str(log), str(video),
+                       "-o", str(tmp_path / "fit.json")],
+        "compare": ["ros2", "run", "log_analysis", "compare", str(images), "--robot", "blue1",
+                    "--a", "colour=humanoid_sim::BallDetector",
+                    "--b", "blob=humanoid_sim::BlobBallDetector", "-o", str(tmp_path / "r")]}
+    for label, args in commands.items():
+        # Into a file or a CI log: a line per tenth, rising, the last at 100 %.
+        run = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=90,
+                             check=False)
+        assert run.returncode == 0, run.stderr
+        lines = _progress_lines(run.stderr, label)
+        assert len(lines) >= 3, run.stderr
+        percents = [int(line.split("]")[1].split("%")[0]) for line in lines]
+        assert percents == sorted(percents) and percents[-1] == 100, run.stderr
+        assert run.stderr.endswith("\n")
+        quiet = subprocess.run([*args, "--quiet"], cwd=tmp_path, capture_output=True,
+                               text=True, timeout=90, check=False)
+        assert quiet.returncode == 0, quiet.stderr
+        assert _progress_lines(quiet.stderr, label) == []
+        # On a terminal: one line redrawn in place, ending at 100 % with a newline.
+        status, shown = _on_terminal(args, tmp_path)
+        assert status == 0, shown
+        assert shown.count("\r") >= 3, shown
+        last = shown.rsplit("\r", 1)[1]
+        assert last.startswith(f"{label}: [{'#' * 30}] 100%"), shown
+        assert last.endswith("\n") and last.count("\n") == 1, shown
+
+
+def test_events_of_several_robots_bags_are_those_of_their_merged_log(tmp_path: Path) -> None:
+    """``events ROBOT=BAG ...`` puts each robot's own bag on the team's time by the clock
+    estimates it recorded, as team_clock's merge does, and prints what the merged log
+    gives (the last line names the sidecar, which differs)."""
+    with RobotBag(tmp_path / "b1", robot="blue1", ahead_s=2.5) as blue:
+        for t in range(12):
+            blue.add("fall/state", String(data="fallen" if 4 <= t < 6 else "standing"), t=t)
+    with RobotBag(tmp_path / "r1", robot="red1", ahead_s=-1.3, drift_ppm=100) as red:
+        for t in range(12):
+            red.add("fall/state", String(data="fallen" if t >= 8 else "standing"), t=t)
+    merged = subprocess.run(["ros2", "run", "team_clock", "team_clock", "merge", "-o",
+                             str(tmp_path / "merged"), f"blue1={tmp_path / 'b1'}",
+                             f"red1={tmp_path / 'r1'}"],
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert merged.returncode == 0, merged.stderr
+    from_merged = _events(tmp_path / "merged", "--only", "falls", cwd=tmp_path)
+    from_bags = _events(f"blue1={tmp_path / 'b1'}", tmp_path / "r1", "--only", "falls",
+                        cwd=tmp_path)
+    assert from_bags.returncode == 0, from_bags.stderr
+    assert from_bags.stdout.splitlines()[:-1] == from_merged.stdout.splitlines()[:-1]
+    assert [line.split()[:6] for line in from_bags.stdout.splitlines()[1:4]] == [
+        ["4.00", "s", "2.00", "s", "blue1", "fell"], ["6.00", "s", "0.00", "s", "blue1", "got"],
+        ["8.00", "s", "3.00", "s", "red1", "fell"]]
+    assert [e.name for e in read_events(tmp_path / "team.events.mcap")] == [
+        "fell", "got up", "fell"]
+    with LogBuilder(tmp_path / "plain") as plain:  # no clock estimates in it
+        plain.add("", "fall/state", String(data="standing"), t=1.0)
+    for args, status, says in (
+            ((tmp_path / "b1", tmp_path / "plain"), 1, "on the team's time"),
+            ((tmp_path / "b1", tmp_path / "r1", "--robot", "blue1"), 2, "give each as ROBOT=LOG")):
+        run = _events(*args, cwd=tmp_path)
+        assert run.returncode == status, (args, run.stderr)
+        assert says in run.stderr, (args, run.stderr)
+        assert "Traceback" not in run.stderr
+
+
+def _cut_mid_chunk(log: Path, keep: float) -> tuple[Path, int]:
+    """Cut the log's MCAP file in the middle of the chunk ``keep`` of the way through it,
+    as a recorder killed while writing leaves it (no summary, a half-written chunk); the
+    log time the cut chunk starts at."""
+    (file,) = log.glob("*.mcap")
+    with open(file, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) >= 4
+    chunk = chunks[int(len(chunks) * keep)]
+    with open(file, "r+b") as f:
+        f.truncate(chunk.chunk_start_offset + chunk.chunk_length // 2)
+    return file, chunk.message_start_time
+
+
+def test_a_log_cut_mid_chunk_is_analysed_up_to_the_cut_with_one_warning(
+        tmp_path: Path) -> None:
+    """A recorder killed mid-chunk: ``events`` and ``compare`` say where the file ends, in
+    one line, and analyse everything before it."""
+    with LogBuilder(tmp_path / "match") as log:
+        for t in range(0, 60):
+            for robot in ("blue1", "red1"):
+                fallen = (t % 20) in (5, 6)
+                log.add(robot, "fall/state", String(data="fallen" if fallen else "standing"),
+                        t=t + (0.5 if robot == "red1" else 0.0))
+            log.add("blue1", "behaviour/state", String(data="search" * 200), t=t)  # bulk
+    file, cut_ns = _cut_mid_chunk(tmp_path / "match", keep=0.6)
+    run = _events(tmp_path / "match", "--only", "falls", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "Traceback" not in run.stderr
+    warnings = [line for line in run.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and f"{file}: readable up to byte" in warnings[0], run.stderr
+    found = read_events(tmp_path / "match.events.mcap")
+    # Every fall that began before the cut chunk is there, none after (a fall cut short
+    # ends where the readable log does).
+    before = [(e.robot, e.name, (e.start_ns - built_ns(0)) / 1e9) for e in found]
+    expected = [(robot, name, float(t + (0.5 if robot == "red1" else 0.0) + (2 if name ==
+                                                                            "got up" else 0)))
+                for t in (5, 25, 45) for robot in ("blue1", "red1")
+                for name in ("fell", "got up")]
+    expected = [e for e in expected if built_ns(e[2]) < cut_ns - 10**9]
+    assert len(expected) >= 4
+    assert [e for e in before if built_ns(e[2]) < cut_ns - 10**9] == sorted(
+        expected, key=lambda e: (e[2], e[0]))
+    assert all(built_ns(e[2]) <= cut_ns for e in before), before
+
+    frames = [(1.0 + k / 2, -10.0 + k / 3, False) for k in range(60)]
+    images = seen_ball(tmp_path / "images", robot="blue1", frames=frames)
+    file, image_cut_ns = _cut_mid_chunk(images, keep=0.5)
+    run = subprocess.run(
+        ["ros2", "run", "log_analysis", "compare", str(images), "--robot", "blue1", "--quiet",
+         "--a", "colour=humanoid_sim::BallDetector", "--b", "blob=humanoid_sim::BlobBallDetector",
+         "-o", str(tmp_path / "report")], cwd=tmp_path, capture_output=True, text=True,
+        timeout=90, check=False)
+    assert run.returncode == 0, run.stderr
+    (warning,) = run.stderr.splitlines()
+    assert warning.startswith(f"compare: warning: {file}: readable up to byte"), run.stderr
+    replayed = re.search(r": (\d+) images", run.stdout)
+    assert replayed, run.stdout
+    # The images before the cut chunk, all of them replayed.
+    assert sum(1 for t, _, _ in frames if t * 1e9 < image_cut_ns) <= int(replayed[1]) \
+        < len(frames), run.stdout
+
+
+def built_ns(t: float) -> int:
+    """The log time of ``t`` seconds in a LogBuilder log (epoch 1000 s)."""
+    return round((1000.0 + t) * 1e9)
+
+
+def test_a_video_without_frames_is_one_line_and_anchors_still_fit(tmp_path: Path) -> None:
+    """A video whose writer never got a frame (a camera that failed at once): the commands
+    that read its frames say so in one line; a fit by hand, which needs no frames, works."""
+    log, video = film_ball(tmp_path, _kicked, seconds=8, offset_s=0.5, drift_ppm=0)
+    empty = tmp_path / "empty.mp4"
+    with av.open(str(empty), "w") as container:
+        stream: Any = container.add_stream("libx264", rate=5)
+        stream.width, stream.height, stream.pix_fmt = 480, 270, "yuv420p"
+        container.start_encoding()  # the header, then nothing
+    Path(f"{empty}.json").write_text(Path(f"{video}.json").read_text())
+    anchored = _sync(log, empty, "--anchor", "1.0=0.5", "-o", tmp_path / "hand.json",
+                     cwd=tmp_path)
+    assert anchored.returncode == 0, anchored.stderr
+    # camera 0.5 s + 1.0 s = log 0.5 s: the camera 1 s ahead
+    assert json.loads((tmp_path / "hand.json").read_text())["offset_ns"] == 1_000_000_000
+    for command in ("sync-video", "augment"):
+        run = subprocess.run(["ros2", "run", "log_analysis", command, str(log), str(empty),
+                              *(["--fit", str(tmp_path / "hand.json")] if command == "augment"
+                                else [])],
+                             cwd=tmp_path, capture_output=True, text=True, timeout=90,
+                             check=False)
+        assert run.returncode == 1, (command, run.stderr)
+        assert "Traceback" not in run.stderr
+        lines = [line for line in run.stderr.splitlines() if line.strip()]
+        assert len(lines) == 1 and lines[0].startswith(f"{command}: error: "), run.stderr
+        assert lines[0].startswith(f"{command}: error: {empty} has no frames"), run.stderr
+    assert list(tmp_path.glob("*empty.augmented*")) == []  # nothing half-written left

@@ -128,42 +128,54 @@ class _Painter:
         self.colours = {r: robot_colour(r, i) for i, r in enumerate(robots)}
         self.timeline_px = timeline_px
 
-    def _px(self, x: float, y: float) -> tuple[int, int] | None:
-        u, v = self.cal.project([(x, y, 0.0)])[0]
-        if not (np.isfinite(u) and np.isfinite(v)):
-            return None
-        return round(float(u)), round(float(v))
+    def _pixels(self, points: Sequence[tuple[float, float]]) -> list[tuple[int, int] | None]:
+        """Pixels of field points (on the ground), None for one the camera cannot see; one
+        projection for all of a robot's points (a call per point cost more than the
+        drawing)."""
+        uv = self.cal.project([(x, y, 0.0) for x, y in points])
+        return [(round(float(u)), round(float(v))) if np.isfinite(u) and np.isfinite(v)
+                else None for u, v in uv]
 
     def robot(self, img: npt.NDArray[np.uint8], name: str, pose: tuple[float, float, float],
               ball: tuple[float, float] | None, role: str | None) -> None:
         colour = self.colours.get(name, (255, 255, 255))
         x, y, yaw = pose
-        at = self._px(x, y)
+        half = math.radians(FOV_HALF_DEG)
+        at, left, right, nose, seen = self._pixels([
+            (x, y), *((x + FOV_M * math.cos(yaw + a), y + FOV_M * math.sin(yaw + a))
+                      for a in (-half, half)),
+            (x + 0.35 * math.cos(yaw), y + 0.35 * math.sin(yaw)), ball or (x, y)])
         if at is None:
             return
-        half = math.radians(FOV_HALF_DEG)
-        edges = [self._px(x + FOV_M * math.cos(yaw + a), y + FOV_M * math.sin(yaw + a))
-                 for a in (-half, half)]
-        if all(e is not None for e in edges):
-            wedge = np.array([at, *edges], np.int32)
-            overlay = img.copy()
-            cv2.fillPoly(overlay, [wedge], colour)
-            cv2.addWeighted(overlay, 0.25, img, 0.75, 0, dst=img)
-        nose = self._px(x + 0.35 * math.cos(yaw), y + 0.35 * math.sin(yaw))
+        if left is not None and right is not None:
+            self._wedge(img, np.array([at, left, right], np.int32), colour)
         if nose is not None:
             cv2.line(img, at, nose, colour, 2, cv2.LINE_AA)
         cv2.circle(img, at, 5, colour, -1, cv2.LINE_AA)
         cv2.circle(img, at, 5, (0, 0, 0), 1, cv2.LINE_AA)
-        if ball is not None:
-            seen = self._px(*ball)
-            if seen is not None:
-                cv2.line(img, at, seen, colour, 1, cv2.LINE_AA)
-                cv2.circle(img, seen, 4, colour, 2, cv2.LINE_AA)
+        if ball is not None and seen is not None:
+            cv2.line(img, at, seen, colour, 1, cv2.LINE_AA)
+            cv2.circle(img, seen, 4, colour, 2, cv2.LINE_AA)
         label = f"{name} {role}" if role else name
         cv2.putText(img, label, (at[0] + 7, at[1] - 7), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
                     (0, 0, 0), 2, cv2.LINE_AA)
         cv2.putText(img, label, (at[0] + 7, at[1] - 7), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
                     colour, 1, cv2.LINE_AA)
+
+    @staticmethod
+    def _wedge(img: npt.NDArray[np.uint8], corners: npt.NDArray[np.int32],
+               colour: tuple[int, int, int]) -> None:
+        """A quarter-opaque triangle, blended only within its bounding box (blending the
+        whole frame per robot cost more than decoding it)."""
+        h, w = img.shape[:2]
+        x0, y0 = np.clip(corners.min(axis=0), 0, (w, h))
+        x1, y1 = np.clip(corners.max(axis=0) + 1, 0, (w, h))
+        if x1 <= x0 or y1 <= y0:
+            return
+        box = img[y0:y1, x0:x1]
+        overlay = box.copy()
+        cv2.fillPoly(overlay, [corners - (x0, y0)], colour)
+        cv2.addWeighted(overlay, 0.25, box, 0.75, 0, dst=box)
 
     def captions(self, img: npt.NDArray[np.uint8], t: int) -> None:
         now = [e for e in self.events
@@ -260,6 +272,9 @@ def augment_video(
             for packet in stream.encode():
                 out.mux(packet)
         partial.replace(target)
+    except LogSourceError:  # the video's own (no frames, undecodable): said as it is
+        partial.unlink(missing_ok=True)
+        raise
     except (OSError, av.FFmpegError) as exc:
         partial.unlink(missing_ok=True)
         raise LogSourceError(f"cannot write {target}: {exc}") from exc

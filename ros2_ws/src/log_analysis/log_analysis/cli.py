@@ -5,9 +5,13 @@
     ros2 run log_analysis events merged_20261126_120000/
     ros2 run log_analysis events blue1_bag/ --robot blue1 --only falls ball_lost
     ros2 run log_analysis events LOG --generators my_generators.py -o LOG.events.mcap
+    ros2 run log_analysis events blue1=bags/blue1/ red1=bags/red1/ -o team.events.mcap
 
-Prints one line per event (seconds from the log's start, robot, what, details), writes
-them to a sidecar MCAP (``<log>.events.mcap`` unless ``-o``) as Foxglove events, and shows
+Several robots' own bags are read as one team log in team reference time, each moved by
+the clock estimates it recorded (team_clock; ``ROBOT=LOG`` as its merge takes them), without
+merging them first. Prints one line per event (seconds from the log's start, robot, what,
+details), writes them to a sidecar MCAP (``<log>.events.mcap``, for several bags
+``team.events.mcap`` beside the first, unless ``-o``) as Foxglove events, and shows
 its progress on standard error. A generator that raises is named with what it raised and
 the others finish; the exit status is then 1. A log or generator file that cannot be read
 is one line and exit 1; wrong arguments exit 2.
@@ -38,6 +42,11 @@ and the events of ``events`` (``LOG.events.mcap``, when there), and writes
 
 Writes ``report/report.md`` (figures, plots, the worst disagreements) and
 ``report/disagreements.events.mcap`` (those frames as events), and prints the table.
+
+Every command that reads a whole log or video (``events``, the ball-track fit of
+``sync-video``, ``augment``, ``compare``) shows its progress on standard error: redrawn in
+place on a terminal, a line per tenth elsewhere, always ending at 100 % on a finished line;
+``--quiet`` turns it off.
 """
 
 from __future__ import annotations
@@ -45,11 +54,14 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TextIO
 
 import yaml
+
+from team_clock import RobotLog
 
 from .augment import augment_video
 from .compare import Variant, compare_components, write_report
@@ -99,11 +111,40 @@ def progress_printer(total: int, start: int, *, stream: TextIO = sys.stderr,
     return show
 
 
+@contextmanager
+def progress_line(total: int, start: int, *, quiet: bool, label: str, unit: str = "s of log",
+                  scale: float = 1e-9) -> Iterator[Callable[[int], None] | None]:
+    """A :func:`progress_printer` for one piece of work (``None`` when ``quiet``) that
+    ends cleanly: at 100 % and a finished line when the work is done, and on a terminal a
+    finished line also when it failed, so that the error is a line of its own."""
+    if quiet:
+        yield None
+        return
+    printer = progress_printer(total, start, label=label, unit=unit, scale=scale)
+    shown = False
+
+    def show(reached: int) -> None:
+        nonlocal shown
+        shown = True
+        printer(reached)
+
+    try:
+        yield show
+        show(start + total)
+    finally:
+        if shown and sys.stderr.isatty():
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
 def events_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="events", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("log", type=Path, nargs="?", help="a merged team log or one "
-                        "robot's bag (rosbag2 directory or .mcap file)")
+    parser.add_argument("log", nargs="*", metavar="[ROBOT=]LOG", help="a merged team log "
+                        "or one robot's bag (rosbag2 directory or .mcap file); or several "
+                        "robots' own bags, put on the team's time by the clock estimates "
+                        "each recorded (team_clock), each under ROBOT (default: the robot "
+                        "whose estimates it holds)")
     parser.add_argument("--generators", type=Path, action="append", default=[],
                         metavar="FILE", help="a Python file whose GENERATORS list more "
                         "event generators (may repeat)")
@@ -127,23 +168,26 @@ def events_main(argv: Sequence[str] | None = None) -> int:
                 doc = (factory.__doc__ or "").strip().splitlines()
                 print(f"{name:20} {doc[0] if doc else ''}")
             return 0
-        if args.log is None:
+        if not args.log:
             parser.error("give the LOG to analyse (or --list)")
+        team = len(args.log) > 1 or (not Path(args.log[0]).exists() and "=" in args.log[0])
+        if team and args.robot:
+            parser.error("--robot names the robot of one bag; with several, give each as "
+                         "ROBOT=LOG")
         if args.start is not None and args.end is not None and args.end <= args.start:
             parser.error(f"--end {args.end} is not after --start {args.start}")
         generators = load_generators(names=args.only, files=args.generators)
-        log = TeamLog(args.log, robot=args.robot)
+        log = (TeamLog.from_robot_logs([_robot_log(text) for text in args.log]) if team
+               else TeamLog(args.log[0], robot=args.robot))
         first, last = log.time_range()
         start_ns = None if args.start is None else first + int(args.start * 1e9)
         end_ns = None if args.end is None else first + int(args.end * 1e9)
         lo, hi = start_ns or first, min(end_ns or last, last)
-        progress = None if args.quiet else progress_printer(hi - lo, lo)
-        found = detect(log, generators, start_ns=start_ns, end_ns=end_ns, progress=progress)
-        if progress is not None:
-            progress(hi)
-            if sys.stderr.isatty():
-                sys.stderr.write("\n")
-        output = args.output or sidecar_path(args.log)
+        with progress_line(hi - lo, lo, quiet=args.quiet, label="events") as progress:
+            found = detect(log, generators, start_ns=start_ns, end_ns=end_ns,
+                           progress=progress)
+        output = args.output or (log.path.parent / "team.events.mcap" if team
+                                 else sidecar_path(log.path))
         write_events(output, found.events)
     except LogAnalysisError as exc:
         print(f"events: error: {exc}", file=sys.stderr)
@@ -162,6 +206,12 @@ def events_main(argv: Sequence[str] | None = None) -> int:
         print(f"events: error: generator {name} failed and was left out: {failure}",
               file=sys.stderr)
     return 1 if found.failures else 0
+
+
+def _robot_log(text: str) -> RobotLog:
+    """``ROBOT=LOG`` or ``LOG``, as team_clock's merge takes them."""
+    robot, sep, path = text.partition("=")
+    return RobotLog(Path(path), namespace=robot) if sep else RobotLog(Path(text))
 
 
 def _anchor(text: str) -> tuple[float, float]:
@@ -191,6 +241,7 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
                         "fits on these instead of the ball")
     parser.add_argument("-o", "--output", type=Path, help="where to write the fit (default: "
                         "VIDEO.sync.json)")
+    parser.add_argument("--quiet", action="store_true", help="no progress line")
     args = parser.parse_args(argv)
     try:
         video = ExternalVideo(args.video)
@@ -201,8 +252,10 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
                                for c, t in args.anchor], start_ns=video.start_ns,
                               frame_period_ns=video.frame_period_ns)
         else:
-            fit = fit_video_clock(log, video, ball_topic=args.ball_topic,
-                                  max_offset_s=args.max_offset)
+            with progress_line(int(video.sidecar.get("frames") or 0), 0, quiet=args.quiet,
+                               label="sync-video", unit="frames", scale=1) as show:
+                fit = fit_video_clock(log, video, ball_topic=args.ball_topic,
+                                      max_offset_s=args.max_offset, progress=show)
         output = fit.save(args.output or Path(f"{args.video}.sync.json"))
     except LogAnalysisError as exc:
         print(f"sync-video: error: {exc}", file=sys.stderr)
@@ -245,13 +298,9 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
         output = args.output or args.video.with_name(
             f"{args.video.name.removesuffix('.mp4')}.augmented.mp4")
         total = int(video.sidecar.get("frames") or 0)
-        show = None if args.quiet else progress_printer(total, 0, label="augment",
-                                                        unit="frames", scale=1)
-        report = augment_video(log, video, fit, output, events=events, progress=show)
-        if show is not None:
-            show(total)
-            if sys.stderr.isatty():
-                sys.stderr.write("\n")
+        with progress_line(total, 0, quiet=args.quiet, label="augment", unit="frames",
+                           scale=1) as show:
+            report = augment_video(log, video, fit, output, events=events, progress=show)
     except LogAnalysisError as exc:
         print(f"augment: error: {exc}", file=sys.stderr)
         return 1
@@ -296,6 +345,7 @@ def compare_main(argv: Sequence[str] | None = None) -> int:
                         help="two detections within this many degrees agree")
     parser.add_argument("-o", "--output", type=Path, default=Path("comparison"),
                         help="the folder for report.md and its plots")
+    parser.add_argument("--quiet", action="store_true", help="no progress line")
     args = parser.parse_args(argv)
     params: dict[str, dict[str, Any]] = {"a": {}, "b": {}}
     for side, name, value in args.set:
@@ -304,13 +354,19 @@ def compare_main(argv: Sequence[str] | None = None) -> int:
         variants = [Variant(label, component, params[side])
                     for side, (label, component) in (("a", args.a), ("b", args.b))]
         log = TeamLog(args.log)
-        comparison = compare_components(log, *variants, robot=args.robot,
-                                        image_topic=args.images, agree_deg=args.agree_deg)
+        first, last = log.time_range()
+        with progress_line(last - first, first, quiet=args.quiet, label="compare") as show:
+            comparison = compare_components(log, *variants, robot=args.robot,
+                                            image_topic=args.images,
+                                            agree_deg=args.agree_deg, progress=show)
         report = write_report(comparison, args.output)
         write_events(args.output / "disagreements.events.mcap", comparison.disagreements())
     except LogAnalysisError as exc:
         print(f"compare: error: {exc}", file=sys.stderr)
         return 1
+    for problem in log.problems:
+        print(f"compare: warning: {problem}", file=sys.stderr)
+    sys.stderr.flush()
     print(report.read_text().split("![", 1)[0].rstrip())
     print(f"\nwritten to {report}")
     return 0

@@ -2,7 +2,8 @@
 ours and users'); a filmed ball: a log of a ball's track with a video of it on a camera
 clock of known offset and drift (for testing what puts a video on a log's time); and a
 seen ball: a robot's camera images of a ball at known bearings with the ground truth (for
-comparing detectors).
+comparing detectors); and a robot's own bag on its own clock, with its clock estimates (for
+reading several robots' bags on the team's time).
 
     with LogBuilder(tmp_path / "log") as log:
         log.add("blue1", "fall/state", String(data="fallen"), t=3.0)
@@ -35,10 +36,11 @@ from sensor_msgs.msg import CompressedImage, JointState
 from std_msgs.msg import String
 
 from rosbag2_layout import BagWriter, type_name
+from team_clock_interfaces.msg import ClockOffset
 
 from .video import SIDECAR_FORMAT, Calibration, video_sidecar_path
 
-__all__ = ["OVERHEAD", "LogBuilder", "film_ball", "seen_ball"]
+__all__ = ["OVERHEAD", "LogBuilder", "RobotBag", "film_ball", "seen_ball"]
 
 #: A camera above a KidSize field's long side, as humanoid_sim's match films (480 x 270).
 OVERHEAD = Calibration(width=480, height=270, fx=325.9, fy=325.9, cx=240.0, cy=135.0,
@@ -69,6 +71,65 @@ class LogBuilder:
         self._writer.close()
 
     def __enter__(self) -> LogBuilder:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+class RobotBag:
+    """One robot's own bag as its recorder writes it: topics without the robot's namespace,
+    log times on the robot's clock, and the clock estimates team_clock's ``ClockSync``
+    publishes (``/team_clock/offset``, once a second over the bag's span), so that
+    ``TeamLog.from_robot_logs`` and team_clock's ``merge`` put it on the team's time.
+
+    The robot's clock reads ``ahead_s`` seconds ahead of the team's reference at
+    ``epoch_s`` and runs ``drift_ppm`` fast. :meth:`add` takes reference seconds from
+    ``epoch_s`` (where the message belongs on the team's time) and writes the robot's
+    clock reading of that instant. A context manager (closes on exit).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *, robot: str, ahead_s: float,
+                 drift_ppm: float = 0.0, reference: str = "world", epoch_s: float = 1000.0
+                 ) -> None:
+        self.robot, self.reference = robot, reference
+        self._ahead_ns, self._rate = round(ahead_s * 1e9), drift_ppm * 1e-6
+        self._epoch_ns = int(epoch_s * 1e9)
+        self._writer = BagWriter(Path(path), min_free_bytes=0, chunk_bytes=4096)
+        self._span: list[float] = []
+
+    def local_ns(self, t: float) -> int:
+        """The robot's clock at ``t`` reference seconds from the epoch."""
+        return self._epoch_ns + self._ahead_ns + round(t * 1e9 * (1 + self._rate))
+
+    def ns(self, t: float) -> int:
+        """The reference time (ns) of ``t`` seconds from the epoch."""
+        return self._epoch_ns + round(t * 1e9)
+
+    def add(self, topic: str, msg: Any, *, t: float) -> None:
+        """``msg`` on ``/<topic>`` of the robot's bag, logged at ``t`` reference seconds."""
+        self._write(topic, msg, self.local_ns(t))
+        self._span.append(t)
+
+    def _write(self, topic: str, msg: Any, local_ns: int) -> None:
+        self._writer.write(f"/{topic}", type_name(type(msg)), bytes(serialize_message(msg)),
+                           local_ns)
+
+    def close(self) -> None:
+        """Write the clock estimates (every second over the bag's span) and close."""
+        if self._span:
+            for k in range(math.floor(min(self._span)), math.ceil(max(self._span)) + 1):
+                local = self.local_ns(k)
+                estimate = ClockOffset(robot=self.robot, reference=self.reference,
+                                       source=self.reference, offset_ns=self.ns(k) - local,
+                                       drift_ppm=(1 / (1 + self._rate) - 1) * 1e6,
+                                       uncertainty_ns=100_000, samples=8, valid=True)
+                estimate.stamp.sec, estimate.stamp.nanosec = divmod(local, 1_000_000_000)
+                self._write("team_clock/offset", estimate, local)
+        self._writer.close()
+
+    def __enter__(self) -> RobotBag:
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,

@@ -137,7 +137,7 @@ class ExternalVideo:
         try:
             with av.open(str(self.path)) as container:
                 if not container.streams.video:
-                    raise LogSourceError(f"{self.path} holds no video stream")
+                    raise LogSourceError(f"{self.path} has no frames (no video stream)")
                 for frame in container.decode(video=0):
                     if frame.pts is None:
                         continue
