@@ -218,3 +218,63 @@ def test_the_event_list_filters_and_navigates() -> None:
     ordered = filter_events(events)
     assert next_event(ordered, 3) is ordered[2] and next_event(ordered, 7) is None
     assert previous_event(ordered, 3) is ordered[0] and previous_event(ordered, 1) is None
+
+
+def test_the_views_models_show_the_instant_of_a_seek(tmp_path: Path) -> None:
+    """The world, logs and topics views' models, as live, on a Playback: after a seek they
+    hold the seek's instant (the same models the browser's views poll)."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+    from rcl_interfaces.msg import Log
+
+    from debug_gui.models.logs import LogsModel
+    from debug_gui.models.topics import TopicsModel
+    from debug_gui.models.world import WorldModel
+
+    path = tmp_path / "merged"
+    with LogBuilder(path, epoch_s=EPOCH) as b:
+        for i in range(41):
+            belief = PoseWithCovarianceStamped()
+            belief.pose.pose.position.x = i / 10
+            belief.pose.pose.orientation.w = 1.0
+            b.add("blue1", "localization/pose", belief, t=i / 10)
+        b.add("blue1", "role", String(data="striker"), t=1.0)
+        b.add("blue1", "role", String(data="goalie"), t=3.0)
+        b.add("blue1", "rosout", Log(name="blue1.kick", msg="kicked", level=20), t=2.0)
+    with Playback(path) as p:
+        world = WorldModel(p, p.robots(), clock=p.now)
+        logs = LogsModel(p, BLUE1)
+        topics = TopicsModel(p, BLUE1, clock=p.now)
+        world.activate()
+        logs.activate()
+        topics.echo("/blue1/role", "std_msgs/msg/String")
+        assert p.settle()
+        p.seek(EPOCH + 2.5)
+        assert p.settle()
+        state = next(s for s in world.states() if s.robot == BLUE1)
+        assert state.pose is not None and state.pose.x == pytest.approx(2.5)
+        assert state.role == "striker"
+        assert [e.text for e in logs.logs()][-1:] == ["kicked"]
+        assert topics.last()["data"] == "striker"
+        p.seek(EPOCH + 3.5)
+        assert p.settle()
+        state = next(s for s in world.states() if s.robot == BLUE1)
+        assert state.pose is not None and state.pose.x == pytest.approx(3.5)
+        assert state.role == "goalie" and topics.last()["data"] == "goalie"
+
+
+def test_the_command_refuses_a_bad_log_or_video_in_one_line(tmp_path: Path, log: Path) -> None:
+    """``debug_gui --log`` as a user types it: a damaged log, a missing video: one line,
+    no traceback, exit status 2 (it never starts serving)."""
+    import subprocess
+
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"\x89MCAP0\r\n" + b"garbage" * 50)
+    for args, reason in [(["--log", str(junk)], "cannot play back"),
+                         (["--log", str(log), "--video", str(tmp_path / "none.mp4")],
+                          "no video at")]:
+        done = subprocess.run(["ros2", "run", "debug_gui", "debug_gui", "--port", "0", *args],
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 2, done.stderr
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("debug_gui: error: "), done.stderr
+        assert reason in lines[0]
