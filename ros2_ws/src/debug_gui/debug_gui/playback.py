@@ -351,6 +351,10 @@ class Playback:
             self._cond.notify_all()
         return stream
 
+    def subscribed(self) -> list[str]:
+        """The log's names of the topics open streams read (what a seek reads)."""
+        return sorted({s.log_name for s in self._open_streams()})
+
     def _forget(self, stream: PlaybackStream) -> None:
         with self._cond, contextlib.suppress(ValueError):
             self._streams.remove(stream)
