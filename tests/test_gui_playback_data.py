@@ -278,3 +278,21 @@ def test_the_command_refuses_a_bad_log_or_video_in_one_line(tmp_path: Path, log:
         lines = done.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("debug_gui: error: "), done.stderr
         assert reason in lines[0]
+
+
+def test_the_image_view_shows_the_recorded_frame_of_the_instant(tmp_path: Path) -> None:
+    from debug_gui.models.image import ImageModel
+    from log_analysis.testing import seen_ball
+
+    # Ten JPEG images of blue1's camera at 2 Hz from 1 s, stamped with their time.
+    path = seen_ball(tmp_path / "seen", robot="blue1",
+                     frames=[(1 + k / 2, float(k), False) for k in range(10)])
+    with Playback(path) as p:
+        image = ImageModel(p, BLUE1, clock=p.now)
+        image.activate()
+        p.seek(3.2)
+        assert p.settle()
+        # The frame of the instant is the newest the view holds (which of its frames the
+        # view draws waits for its drawing or a grace period on the model's clock).
+        newest = image.frames()[-1]
+        assert newest.stamp_ns == 3_000_000_000 and newest.jpeg.startswith(b"\xff\xd8")
