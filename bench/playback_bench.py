@@ -37,14 +37,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-# events_bench's log (a sibling script: bench/ leads sys.path when a bench runs).
-from events_bench import NS, write_log
-
 from debug_gui import Playback
 from debug_gui.models.components import ComponentsModel
 from debug_gui.models.logs import LogsModel
 from debug_gui.models.world import WorldModel
 from log_analysis import TeamLog
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bench.events_bench import NS, write_log  # noqa: E402 (events_bench's match-sized log)
 
 TARGET_S = 0.5
 
@@ -52,7 +53,7 @@ TARGET_S = 0.5
 def expected_x(t_ns: int) -> float:
     """events_bench's robots believe x = (i % 40) / 10 at their i-th pose (10 Hz from 1 s)."""
     i = (t_ns - NS) // (NS // 10)
-    return (i % 40) / 10
+    return float(i % 40) / 10
 
 
 def run(path: Path, *, seeks: int, seed: int) -> dict[str, Any]:

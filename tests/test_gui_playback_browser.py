@@ -10,6 +10,8 @@ the GUI costs more than anything they do.
 from __future__ import annotations
 
 import re
+import urllib.error
+import urllib.request
 from collections.abc import Iterator
 from typing import Any
 
@@ -17,6 +19,7 @@ import pytest
 
 from debug_gui import RobotId
 from debug_gui.layout import Layout, Panel
+from debug_gui.ui.playback import ROUTE
 from efficient_comm.testing import isolated_domain_id
 from log_analysis import Event, VideoFit, sidecar_path, write_events
 from log_analysis.testing import film_ball
@@ -25,6 +28,9 @@ from ._gui import GuiProcess, by_testid, click, gui, text_of, wait_for
 from .test_gui_parameters_browser import enter
 
 BLUE1 = "0:/blue1"
+#: A 1 x 1 PNG: the report's plot.
+PNG = bytes.fromhex("89504e470d0a1a0a0000000d49484452000000010000000108060000001f15c489"
+                    "0000000b49444154789c6360000200000500017a5eab3f0000000049454e44ae426082")
 #: The events, by log time (s): what the list shows, in this order.
 EVENTS = [(0.5, "kick-off", ""), (1.5, "fell", "blue1"), (3.0, "fell", "red1")]
 
@@ -41,11 +47,17 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GuiProcess]:
         for t, name, robot in EVENTS])
     VideoFit(offset_ns=2_000_000_000, drift_ppm=0.0, start_ns=2_000_000_000, residual_ns=0,
              method="known", frame_period_ns=200_000_000).save(f"{video}.sync.json")
+    report = folder / "report"
+    report.mkdir()
+    (report / "report.md").write_text("# A/B report\n\nthe blob detector wins\n\n"
+                                      "![detections](detections.png)\n")
+    (report / "detections.png").write_bytes(PNG)
     layout = folder / "layout.json"
     # Saved live: the match's robots were in domain 13 (a log keeps their namespaces).
     layout.write_text(Layout((Panel(kind="world", robot=RobotId(13, "/blue1")),)).to_json())
     with gui(folder, domains=[isolated_domain_id()],
-             args=["--log", str(log), "--video", str(video), "--layout", str(layout)]) as g:
+             args=["--log", str(log), "--video", str(video), "--layout", str(layout),
+                   "--augmented", str(video), "--report", str(report)]) as g:
         yield g
 
 
@@ -57,6 +69,19 @@ def _time(browser: Any) -> float | None:
 def _at(browser: Any, seconds: float, server: GuiProcess, *, what: str) -> None:
     wait_for(lambda: _time(browser) == seconds, what=f"{what}: the time at {seconds:.2f} s "
              f"(shows {text_of(browser, 'playback-time')!r})", alive=[server])
+
+
+def _pause(browser: Any, server: GuiProcess) -> None:
+    """Pause unless the cursor already stopped (at the log's end it stops by itself, and a
+    click there would play again from the start)."""
+    def label() -> str:  # the button's words after its icon's name
+        words = text_of(browser, "playback-play").lower().split()
+        return words[-1] if words else ""
+
+    wait_for(lambda: label() in ("play", "pause"), what="the play button", alive=[server])
+    if label() == "pause":
+        click(browser, "playback-play")
+    wait_for(lambda: label() == "play", what="paused", alive=[server])
 
 
 def _blue1_x(browser: Any) -> str:
@@ -93,10 +118,7 @@ def test_play_and_seek_show_the_new_instant_in_every_view(server: GuiProcess,
              alive=[server])
     wait_for(lambda: float(_blue1_x(browser) or 0.0) > 1.5, what="blue1 moving on",
              alive=[server])
-    click(browser, "playback-play")  # pause
-    wait_for(lambda: "play" in text_of(browser, "playback-play").lower()
-             and "pause" not in text_of(browser, "playback-play").lower(),
-             what="paused", alive=[server])
+    _pause(browser, server)
 
 
 def test_the_event_list_jumps_filters_and_navigates(server: GuiProcess,
@@ -104,6 +126,7 @@ def test_the_event_list_jumps_filters_and_navigates(server: GuiProcess,
     browser.get(server.url)
     wait_for(lambda: "blue1: fell" in text_of(browser, "event-1"), what="the event list",
              alive=[server])
+    _pause(browser, server)  # the server is the file's: an earlier test may have left it playing
     click(browser, "event-1")
     _at(browser, 1.5, server, what="a click on blue1's fall")
     click(browser, "event-next")
@@ -117,3 +140,31 @@ def test_the_event_list_jumps_filters_and_navigates(server: GuiProcess,
              what="the list filtered to falls", alive=[server])
     click(browser, "event-1")
     _at(browser, 3.0, server, what="a click on red1's fall")
+
+
+def _get(url: str) -> tuple[int, str, bytes]:
+    try:
+        with urllib.request.urlopen(url, timeout=10) as response:
+            return int(response.status), str(response.headers["content-type"]), response.read()
+    except urllib.error.HTTPError as exc:
+        return exc.code, "", b""
+
+
+def test_the_video_frame_augmented_video_and_report_are_served(server: GuiProcess,
+                                                               browser: Any) -> None:
+    base = server.base_url.rstrip("/")
+    status, kind, data = _get(f"{base}{ROUTE}/frame.jpg?t=2500000000")
+    assert (status, kind) == (200, "image/jpeg") and data.startswith(b"\xff\xd8")
+    status, kind, data = _get(f"{base}{ROUTE}/augmented.mp4")
+    assert status == 200 and kind == "video/mp4" and len(data) > 1000
+    assert _get(f"{base}{ROUTE}/report/detections.png")[2] == PNG
+    assert _get(f"{base}{ROUTE}/report/..%2Flog.events.mcap")[0] == 404  # the folder only
+    browser.get(server.url)
+    wait_for(lambda: "A/B report" in text_of(browser, "playback-report"), what="the report",
+             alive=[server])
+    click(browser, "playback-report")
+    wait_for(lambda: "the blob detector wins" in text_of(browser, "playback-report"),
+             what="the report's text", alive=[server])
+    plot = by_testid(browser, "playback-report").find_element("css selector", "img")
+    assert f"{ROUTE}/report/detections.png" in str(plot.get_attribute("src"))
+    assert "augmented video" in text_of(browser, "playback-augmented")

@@ -114,7 +114,12 @@ def test_seek_resets_the_views_then_delivers_the_instant(log: Path) -> None:
         blue, red, roles = Recorder(p), Recorder(p), Recorder(p)
         p.subscribe(BLUE1, "ground_truth/pose", PoseStamped, blue)
         p.subscribe(RED1, "ground_truth/pose", PoseStamped, red)
-        p.subscribe(BLUE1, "role", String, lambda m: (order.append(m.data), roles(m)))
+
+        def on_role(msg: String) -> None:
+            order.append(msg.data)
+            roles(msg)
+
+        p.subscribe(BLUE1, "role", String, on_role)
         assert p.settle()
         assert order == []  # no role before 1.0 s
         p.seek(EPOCH + 2.55)

@@ -33,6 +33,7 @@ from log_analysis import (
     Event,
     ExternalVideo,
     LogAnalysisError,
+    TeamLog,
     VideoFit,
     VideoFrames,
     fit_anchors,
@@ -242,10 +243,13 @@ class PlaybackBar:
                         "the frame at the cursor plus this offset is the cursor's instant")
 
     async def _fit(self) -> None:
-        assert self.setup.video is not None
+        video = self.setup.video
+        assert video is not None
         ui.notify("fitting the video's clock from the ball's motion ...")
         try:
-            fit = await run.io_bound(fit_video_clock, self.playback.log, self.setup.video)
+            # A reader of its own: the playing thread reads the playback's meanwhile.
+            fit = await run.io_bound(lambda: fit_video_clock(TeamLog(self.playback.path),
+                                                             video))
             if fit is None:  # the server stops meanwhile
                 return
             self.setup.keep_fit(fit)
