@@ -301,3 +301,33 @@ def test_the_image_view_shows_the_recorded_frame_of_the_instant(tmp_path: Path) 
         # view draws waits for its drawing or a grace period on the model's clock).
         newest = image.frames()[-1]
         assert newest.stamp_ns == 3_000_000_000 and newest.jpeg.startswith(b"\xff\xd8")
+
+
+def test_a_video_without_a_fit_is_shown_from_the_log_start_and_anchored_by_hand(
+        tmp_path: Path) -> None:
+    from debug_gui.security import AccessPolicy
+    from debug_gui.ui.playback import PlaybackSetup, sync_path
+    from log_analysis import ExternalVideo, VideoFit
+    from log_analysis.testing import film_ball
+
+    # The camera's clock 2 s ahead of the log's; its first frame at camera time 2 s.
+    log, path = film_ball(tmp_path, lambda t: (t - 2.0, 0.5), seconds=4.0, offset_s=2.0,
+                          drift_ppm=0.0, fps=5)
+    video = ExternalVideo(path)
+    with Playback(log) as p:
+        setup = PlaybackSetup(playback=p, policy=AccessPolicy.for_server(host="127.0.0.1",
+                                                                          token=None),
+                              video=video)
+        try:
+            # No fit: the first frame at the log's start.
+            assert setup.camera_ns(p.start_ns + 10**9) == video.start_ns + 10**9
+            # The user sees, at log time 1 s, the frame of camera time 1.4 s later than
+            # the one shown (offset +0.4 s) is the right one.
+            fit = setup.anchor(p.start_ns + 10**9, offset_s=0.4)
+            assert setup.camera_ns(p.start_ns + 10**9) == video.start_ns + 1_400_000_000
+            kept = VideoFit.load(sync_path(path))  # kept beside the video
+            assert (kept.offset_ns, kept.method) == (fit.offset_ns, "anchors")
+            jpeg = setup.jpeg(p.start_ns + 10**9)
+            assert jpeg is not None and jpeg.startswith(b"\xff\xd8")
+        finally:
+            setup.close()

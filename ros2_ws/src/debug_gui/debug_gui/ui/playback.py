@@ -40,7 +40,7 @@ from log_analysis import (
     fit_video_clock,
 )
 
-from ..errors import DebugGuiError
+from ..errors import DebugGuiError, LogUnreadable
 from ..playback import Playback, filter_events, next_event, previous_event
 from ..security import AccessPolicy
 
@@ -97,6 +97,19 @@ class PlaybackSetup:
         fit.save(sync_path(self.video.path))
         self.fit = fit
         self.video_note = describe_fit(fit)
+
+    def anchor(self, log_ns: int, *, offset_s: float = 0.0) -> VideoFit:
+        """Fit the video's clock on one anchor picked by hand: the frame shown at
+        ``log_ns`` now, moved by ``offset_s`` on the camera's clock, was taken at
+        ``log_ns``. Kept as :meth:`keep_fit` keeps it."""
+        video = self.video
+        if video is None:
+            raise LogUnreadable("no video to anchor: start debug_gui with --video VIDEO")
+        camera = self.camera_ns(log_ns) + round(offset_s * 1e9)
+        fit = fit_anchors([(camera, log_ns)], start_ns=video.start_ns,
+                          frame_period_ns=video.frame_period_ns)
+        self.keep_fit(fit)
+        return fit
 
     def close(self) -> None:
         with self._lock:
@@ -260,14 +273,9 @@ class PlaybackBar:
         self._frame_t = None
 
     def _anchor(self, offset_s: Any) -> None:
-        assert self.setup.video is not None
-        video = self.setup.video
-        t = self.playback.cursor_ns
-        camera = self.setup.camera_ns(t) + round(float(offset_s or 0.0) * 1e9)
         try:
-            self.setup.keep_fit(fit_anchors([(camera, t)], start_ns=video.start_ns,
-                                            frame_period_ns=video.frame_period_ns))
-        except LogAnalysisError as exc:
+            self.setup.anchor(self.playback.cursor_ns, offset_s=float(offset_s or 0.0))
+        except (LogAnalysisError, DebugGuiError, OSError) as exc:
             ui.notify(f"no fit: {exc}", type="negative")
             return
         self.video_note.text = self.setup.video_note
