@@ -331,3 +331,19 @@ def test_a_video_without_a_fit_is_shown_from_the_log_start_and_anchored_by_hand(
             assert jpeg is not None and jpeg.startswith(b"\xff\xd8")
         finally:
             setup.close()
+
+
+def test_restoring_a_layout_saved_live_rebinds_it_to_the_log(tmp_path: Path, log: Path) -> None:
+    from debug_gui.security import AccessPolicy
+    from debug_gui.ui import registry
+    from debug_gui.ui.playback import PlaybackShell
+
+    registry.load_views()
+    saved = tmp_path / "layout.json"
+    saved.write_text(Layout((Panel(kind="world", robot=RobotId(13, "/red1")),)).to_json())
+    with Playback(log) as p:
+        shell = PlaybackShell(source=p, policy=AccessPolicy.for_server(host="127.0.0.1",
+                                                                       token=None),
+                              layout=Layout(), layout_path=saved)
+        assert [panel.robot for panel in shell.restore().panels] == [RED1]
+        assert shell.layout.panels[0].robot == RED1

@@ -192,7 +192,7 @@ def serve(options: Options, *, default_layout: Layout | None = None) -> int:
     source: Source
     bar: Callable[[str | None], None] | None = None
     if options.log is not None:
-        from .ui.playback import PlaybackBar
+        from .ui.playback import PlaybackBar, PlaybackShell
         from .ui.playback import install as install_playback
 
         setup = open_log(options)
@@ -214,8 +214,9 @@ def serve(options: Options, *, default_layout: Layout | None = None) -> int:
             if not isinstance(source, Hub):
                 raise InvalidInput("--foxglove-port serves live robots, not a log")
             closers.append(_start_foxglove(source, options))
-        shell = Shell(source=source, policy=options.policy, layout=Layout(),
-                      layout_path=options.layout_path, bar=bar)
+        shell = (Shell if bar is None else PlaybackShell)(
+            source=source, policy=options.policy, layout=Layout(),
+            layout_path=options.layout_path, bar=bar)
         shell.layout = (layout if layout is not None else default_layout
                         if default_layout is not None else shell.default_layout())
         if options.log is not None:  # a layout saved live: the match's robots, by namespace

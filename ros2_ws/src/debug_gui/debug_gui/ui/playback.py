@@ -41,8 +41,10 @@ from log_analysis import (
 )
 
 from ..errors import DebugGuiError, LogUnreadable
-from ..playback import Playback, filter_events, next_event, previous_event
+from ..layout import Layout
+from ..playback import Playback, filter_events, next_event, previous_event, rebind
 from ..security import AccessPolicy
+from .app import Shell
 
 _log = logging.getLogger(__name__)
 ROUTE = "/_debug_gui/playback"
@@ -115,6 +117,15 @@ class PlaybackSetup:
         with self._lock:
             if self._frames is not None:
                 self._frames.close()
+
+
+class PlaybackShell(Shell):
+    """The shell of ``debug_gui --log``: a layout restored from its file (saved live, on
+    the match's domains) is moved onto the log's robots by namespace, as at start."""
+
+    def restore(self) -> Layout:
+        self.layout = rebind(super().restore(), self.source.robots())
+        return self.layout
 
 
 def sync_path(video: Path) -> Path:
