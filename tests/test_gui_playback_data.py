@@ -347,3 +347,35 @@ def test_restoring_a_layout_saved_live_rebinds_it_to_the_log(tmp_path: Path, log
                               layout=Layout(), layout_path=saved)
         assert [panel.robot for panel in shell.restore().panels] == [RED1]
         assert shell.layout.panels[0].robot == RED1
+
+
+def test_recorded_parameters_are_answered_as_of_the_cursor(tmp_path: Path) -> None:
+    from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterValue
+
+    from debug_gui import params
+
+    def event(step: float, *, new: bool) -> ParameterEvent:
+        p = Parameter(name="step", value=ParameterValue(type=3, double_value=step))
+        return (ParameterEvent(node="/blue1/walk", new_parameters=[p]) if new
+                else ParameterEvent(node="/blue1/walk", changed_parameters=[p]))
+
+    path = tmp_path / "merged"
+    with LogBuilder(path, epoch_s=EPOCH) as b:
+        b.add("blue1", "parameter_events", event(0.1, new=True), t=0.5)
+        b.add("blue1", "parameter_events", event(0.2, new=False), t=2.0)
+        b.add("red1", "role", String(data="striker"), t=0.0)
+    with Playback(path) as p:
+        assert params.parameter_nodes(p, BLUE1) == ["/blue1/walk"]
+        assert params.parameter_nodes(p, RED1) == []
+        p.seek(EPOCH + 1.0)
+        assert p.settle()
+        (step,) = params.describe(p, BLUE1, "/blue1/walk")
+        assert (step.name, step.value) == ("step", 0.1)
+        p.seek(EPOCH + 3.0)
+        assert p.settle()
+        assert params.describe(p, BLUE1, "/blue1/walk")[0].value == 0.2
+        with pytest.raises(NotLive):
+            params.set_values(p, BLUE1, "/blue1/walk",
+                              {"step": ParameterValue(type=3, double_value=0.3)})
+        with pytest.raises(NotLive):
+            params.describe(p, RED1, "/red1/walk")
