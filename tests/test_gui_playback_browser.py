@@ -119,6 +119,20 @@ def test_play_and_seek_show_the_new_instant_in_every_view(server: GuiProcess,
     wait_for(lambda: float(_blue1_x(browser) or 0.0) > 1.5, what="blue1 moving on",
              alive=[server])
     _pause(browser, server)
+    # The timeline: a click a quarter along the slider seeks to about a quarter of the log
+    # (the track is inset in its element), and the world view follows.
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    slider = by_testid(browser, "playback-slider")
+    width = slider.size["width"]
+    ActionChains(browser).move_to_element_with_offset(slider, -width // 4, 0).click().perform()
+    wait_for(lambda: 0.4 <= (_time(browser) or -9.0) <= 1.6,
+             what=f"the slider's seek to about 1 s (shows {text_of(browser, 'playback-time')!r})",
+             alive=[server])
+    at = _time(browser) or 0.0
+    # blue1 believed x = t - 1 at 10 Hz: the last pose at or before the instant.
+    wait_for(lambda: abs(float(_blue1_x(browser) or 9.0) - (int(at * 10 + 1e-6) / 10 - 1.0))
+             < 1e-3, what=f"blue1's pose at {at} s", alive=[server])
 
 
 def test_the_event_list_jumps_filters_and_navigates(server: GuiProcess,
