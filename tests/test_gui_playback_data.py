@@ -379,3 +379,22 @@ def test_recorded_parameters_are_answered_as_of_the_cursor(tmp_path: Path) -> No
                               {"step": ParameterValue(type=3, double_value=0.3)})
         with pytest.raises(NotLive):
             params.describe(p, RED1, "/red1/walk")
+
+
+def test_an_event_at_a_wall_clock_epoch_is_sought_exactly(tmp_path: Path) -> None:
+    """Log times since 1970 (a real robot's clock): an event's start is reached to the
+    nanosecond, so its message is delivered and the next event is the next one."""
+    path = tmp_path / "merged"
+    epoch = 1_764_000_000.123456789
+    with LogBuilder(path, epoch_s=epoch) as b:
+        b.add("blue1", "role", String(data="striker"), t=0.0)
+        b.add("blue1", "role", String(data="goalie"), t=1.000000007)
+        start = b.ns(1.000000007)
+    events = [Event("role", start, start, "blue1")]
+    with Playback(path) as p:
+        roles: list[str] = []
+        p.subscribe(BLUE1, "role", String, lambda m: roles.append(m.data))
+        p.seek_ns(events[0].start_ns)
+        assert p.settle()
+        assert p.cursor_ns == start and roles[-1] == "goalie"
+        assert next_event(events, p.cursor_ns) is None

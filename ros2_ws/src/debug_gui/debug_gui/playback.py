@@ -253,8 +253,13 @@ class Playback:
         is reset and shown the instant ``t``. Returns at once (see :meth:`settle`)."""
         if not math.isfinite(t):
             raise InvalidInput(f"not a time to seek to: {t!r}")
+        self.seek_ns(_ns(t))
+
+    def seek_ns(self, t_ns: int) -> None:
+        """:meth:`seek` to exactly ``t_ns`` (an event's start: seconds as a float are
+        100 ns coarse at a wall-clock epoch, and would land before it)."""
         with self._cond:
-            self._seek_locked(min(max(_ns(t), self.start_ns), self.end_ns))
+            self._seek_locked(min(max(int(t_ns), self.start_ns), self.end_ns))
 
     def _seek_locked(self, t_ns: int) -> None:
         self._seek_to = t_ns

@@ -338,7 +338,7 @@ class PlaybackBar:
             for i, event in enumerate(self.shown[:MAX_ROWS]):
                 where = f" {event.robot}" if event.robot else ""
                 ui.button(f"{self._rel(event.start_ns):8.2f} s{where}: {event.name}",
-                          on_click=lambda e=event: self.playback.seek(e.start_ns / 1e9)).props(
+                          on_click=lambda e=event: self.playback.seek_ns(e.start_ns)).props(
                     f"flat dense no-caps align=left data-testid=event-{i}").classes(
                     "w-full").tooltip(event.description or event.name)
 
@@ -347,7 +347,7 @@ class PlaybackBar:
         if event is None:
             ui.notify("no further event")
             return
-        self.playback.seek(event.start_ns / 1e9)
+        self.playback.seek_ns(event.start_ns)
 
     def _extras(self) -> None:
         query = f"?token={self.token}" if self.token else ""
