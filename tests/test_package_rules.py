@@ -199,6 +199,7 @@ LAYERS: dict[str, frozenset[str]] = {
                                "team_clock_interfaces"}),
     "debug_gui": frozenset({"efficient_comm", "efficient_comm_interfaces",
                             "throttle_publisher", "debug_probes", "rosbag2_layout",
+                            "log_analysis",
                             "robot_recorder", "robot_recorder_interfaces", "soccer_field",
                             "soccer_interfaces"}),
 }

@@ -8,7 +8,8 @@ Tree (other views append their subclasses at the end, one class per block)::
     │   └── LayoutConflict                 the saved layout changed since this tab loaded it
     ├── RobotUnavailable(LookupError)      no such robot, service or domain (or it went away)
     ├── CallFailed                         a service call that timed out or failed
-    └── NotLive                            a call a recorded log cannot answer (playback)
+    ├── NotLive                            a call a recorded log cannot answer (playback)
+    └── LogUnreadable                      a log to play back that cannot be read (damaged)
 """
 
 from __future__ import annotations
@@ -42,3 +43,8 @@ class LayoutConflict(InvalidInput):
 class NotLive(DebugGuiError):  # noqa: N818 (the views' contract names them)
     """A service call (parameters, recorder control) made of a log played back: a log
     answers only with what it recorded."""
+
+
+class LogUnreadable(DebugGuiError):  # noqa: N818 (the views' contract names them)
+    """A log given to play back (``debug_gui --log``) that cannot be read: missing, not a
+    bag, damaged, empty. The message says which file and why."""

@@ -4,6 +4,11 @@
 [--layout FILE] [--foxglove-port P] [--plain-robots]`` prints the URL to open (with the
 token that gives write access) once it serves. Bad options end in one
 ``debug_gui: error: ...`` line.
+
+``debug_gui --log LOG [--video VIDEO] [--events FILE] [--augmented MP4] [--report DIR]``
+plays a merged team log back instead (``playback.py``; the bar: ``ui/playback.py``): the
+events sidecar beside the log (``<log>.events.mcap``) and the video's fit beside it
+(``<video>.sync.json``) are found by default.
 """
 
 from __future__ import annotations
@@ -13,16 +18,23 @@ import contextlib
 import os
 import socket
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rclpy.utilities import remove_ros_args
 
-from .errors import DebugGuiError, InvalidInput
+from log_analysis import ExternalVideo, LogAnalysisError, VideoFit, read_events, sidecar_path
+
+from .errors import DebugGuiError, InvalidInput, LogUnreadable
 from .hub import Hub
 from .layout import Layout, check_layout_path
+from .playback import Playback, rebind
 from .security import AccessPolicy, check_port, parse_domains
+from .source import Source
+
+if TYPE_CHECKING:
+    from .ui.playback import PlaybackSetup
 
 DEFAULT_PORT = 8080
 #: How long a tab whose connection dropped keeps its page (NiceGUI's default, 3 s, makes a
@@ -57,6 +69,17 @@ def _parser() -> argparse.ArgumentParser:
                         help="also show plain ROS 2 robots (no efficient_comm statistics): "
                              "every top-level namespace with running nodes, the root "
                              "namespace included")
+    log = parser.add_argument_group("playing a log back")
+    log.add_argument("--log", type=Path, default=None,
+                     help="play this merged team log back instead of joining domains")
+    log.add_argument("--video", type=Path, default=None,
+                     help="the external video of the match (its fit: VIDEO.sync.json)")
+    log.add_argument("--events", type=Path, default=None,
+                     help="events sidecar (default: LOG.events.mcap beside the log)")
+    log.add_argument("--augmented", type=Path, default=None,
+                     help="the augmented video (log_analysis augment) to show")
+    log.add_argument("--report", type=Path, default=None,
+                     help="an A/B report folder (log_analysis compare) to show")
     return parser
 
 
@@ -106,6 +129,19 @@ class Options:
         if port:
             _check_bindable(self.policy.host, port)
         self.port = port or free_port(self.policy.host)
+        self.log: Path | None = ns.log
+        self.video: Path | None = ns.video
+        self.events: Path | None = ns.events
+        self.augmented: Path | None = ns.augmented
+        self.report: Path | None = ns.report
+        if self.log is None and any(x is not None for x in (
+                self.video, self.events, self.augmented, self.report)):
+            raise InvalidInput("--video, --events, --augmented and --report go with --log LOG")
+        if self.report is not None and not (self.report / "report.md").is_file():
+            raise InvalidInput(f"--report {self.report}: no report.md in it "
+                               "(a folder log_analysis compare wrote)")
+        if self.augmented is not None and not self.augmented.is_file():
+            raise InvalidInput(f"--augmented {self.augmented}: no such file")
 
 
 def serving(options: Options) -> str:
@@ -116,6 +152,8 @@ def serving(options: Options) -> str:
         parts.append(f"domain(s) {', '.join(map(str, options.domains))}")
     if options.team_link_domains:
         parts.append(f"team-link domain(s) {', '.join(map(str, options.team_link_domains))}")
+    if options.log is not None:
+        return f"the log {options.log}"
     plain = " (plain ROS 2 robots too)" if options.plain_robots else ""
     return f"robots of {' and '.join(parts)}{plain}"
 
@@ -150,17 +188,39 @@ def serve(options: Options, *, default_layout: Layout | None = None) -> int:
     layout: Layout | None = None
     if options.layout_path is not None and options.layout_path.exists():
         layout = Layout.load(options.layout_path, known_kinds=known)
-    hub = Hub(domains=options.domains, team_link_domains=options.team_link_domains,
-              plain_robots=options.plain_robots)
-    hub.start()
-    closers: list[Any] = [hub.close]
+    closers: list[Any] = []
+    source: Source
+    bar: Callable[[str | None], None] | None = None
+    if options.log is not None:
+        from .ui.playback import PlaybackBar, PlaybackShell
+        from .ui.playback import install as install_playback
+
+        setup = open_log(options)
+        closers += [setup.playback.close, setup.close]
+        source = setup.playback
+        install_playback(setup)
+        print(f"debug_gui: {describe(setup)}", flush=True)
+
+        def bar(token: str | None) -> None:
+            PlaybackBar(setup, token).build()
+    else:
+        hub = Hub(domains=options.domains, team_link_domains=options.team_link_domains,
+                  plain_robots=options.plain_robots)
+        hub.start()
+        closers.append(hub.close)
+        source = hub
     try:
         if options.foxglove_port is not None:
-            closers.append(_start_foxglove(hub, options))
-        shell = Shell(source=hub, policy=options.policy, layout=Layout(),
-                      layout_path=options.layout_path)
+            if not isinstance(source, Hub):
+                raise InvalidInput("--foxglove-port serves live robots, not a log")
+            closers.append(_start_foxglove(source, options))
+        shell = (Shell if bar is None else PlaybackShell)(
+            source=source, policy=options.policy, layout=Layout(),
+            layout_path=options.layout_path, bar=bar)
         shell.layout = (layout if layout is not None else default_layout
                         if default_layout is not None else shell.default_layout())
+        if options.log is not None:  # a layout saved live: the match's robots, by namespace
+            shell.layout = rebind(shell.layout, source.robots())
         install(shell)
         address = url(options.policy, options.port)
 
@@ -178,6 +238,53 @@ def serve(options: Options, *, default_layout: Layout | None = None) -> int:
             with contextlib.suppress(Exception):
                 close()
     return 0
+
+
+def open_log(options: Options) -> PlaybackSetup:
+    """The log, its events and its video as ``--log`` and its options name them; what is
+    missing beside the log is said (in the notes), what is broken is LogUnreadable."""
+    from .ui.playback import PlaybackSetup, describe_fit, sync_path
+
+    assert options.log is not None
+    playback = Playback(options.log)
+    setup = PlaybackSetup(playback=playback, policy=options.policy,
+                          augmented=options.augmented, report=options.report)
+    try:
+        events_path = options.events or sidecar_path(options.log)
+        if events_path.exists():
+            setup.events = sorted(read_events(events_path), key=lambda e: e.start_ns)
+            setup.events_note = f"events from {events_path}"
+        elif options.events is not None:
+            raise LogUnreadable(f"--events {events_path}: no such file")
+        else:
+            setup.events_note = (f"no events beside the log ({events_path.name}): "
+                                 f"ros2 run log_analysis events {options.log} finds them")
+        if options.video is not None:
+            setup.video = ExternalVideo(options.video)
+            fit_path = sync_path(options.video)
+            if fit_path.exists():
+                setup.fit = VideoFit.load(fit_path)
+                setup.video_note = describe_fit(setup.fit)
+            else:
+                setup.video_note = (f"no {fit_path.name}: the video is not in sync (its first "
+                                    "frame is shown at the log's start); fit it here from "
+                                    "the ball, or pick an anchor")
+    except LogAnalysisError as exc:
+        playback.close()
+        raise LogUnreadable(str(exc)) from None
+    except LogUnreadable:
+        playback.close()
+        raise
+    return setup
+
+
+def describe(setup: PlaybackSetup) -> str:
+    p = setup.playback
+    parts = [f"playing back {p.path}: {len(p.robots())} robot(s), "
+             f"{(p.end_ns - p.start_ns) / 1e9:.1f} s", f"{len(setup.events)} event(s)"]
+    if setup.video is not None:
+        parts.append(setup.video_note)
+    return "; ".join(parts)
 
 
 def _start_foxglove(hub: Hub, options: Options) -> Any:

@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from .errors import LogSourceError
 
-__all__ = ["SIDECAR_FORMAT", "Calibration", "ExternalVideo", "VideoSidecar",
+__all__ = ["SIDECAR_FORMAT", "Calibration", "ExternalVideo", "VideoFrames", "VideoSidecar",
            "read_video_sidecar", "video_sidecar_path"]
 
 #: The sidecar's ``format`` field; a reader refuses other versions.
@@ -151,3 +151,66 @@ class ExternalVideo:
             raise LogSourceError(f"cannot decode {self.path}: {exc}") from exc
         if count == 0:
             raise LogSourceError(f"{self.path} has no frames")
+
+
+class VideoFrames:
+    """The frame of an :class:`ExternalVideo` shown at a camera time, for a player that
+    jumps about (the GUI's cursor): the file stays open, a jump back or far ahead seeks
+    to the key frame before, a step forward decodes on from the last frame. Not
+    thread-safe: one reader per thread. A context manager (closes the file)."""
+
+    #: Further ahead than this (ns), a seek is cheaper than decoding on.
+    SEEK_AHEAD_NS = 2_000_000_000
+
+    def __init__(self, video: ExternalVideo) -> None:
+        self.video = video
+        try:
+            self._container: Any = av.open(str(video.path))
+            if not self._container.streams.video:
+                raise LogSourceError(f"{video.path} holds no video stream")
+        except av.FFmpegError as exc:
+            raise LogSourceError(f"cannot decode {video.path}: {exc}") from exc
+        self._stream = self._container.streams.video[0]
+        self._decoded: Iterator[Any] | None = None
+        self._last: tuple[int, npt.NDArray[np.uint8]] | None = None
+        self._next: tuple[int, npt.NDArray[np.uint8]] | None = None
+
+    def _camera_ns(self, frame: Any) -> int:
+        base = frame.time_base or self.video._time_base
+        return int(self.video.start_ns + round(frame.pts * Fraction(base) * 1_000_000_000))
+
+    def _pull(self) -> tuple[int, npt.NDArray[np.uint8]] | None:
+        assert self._decoded is not None
+        for frame in self._decoded:
+            if frame.pts is not None:
+                return (self._camera_ns(frame),
+                        np.asarray(frame.to_ndarray(format="rgb24"), dtype=np.uint8))
+        return None
+
+    def at(self, camera_ns: int) -> tuple[int, npt.NDArray[np.uint8]] | None:
+        """``(camera_ns, rgb)`` of the last frame taken at or before ``camera_ns`` (the
+        first frame before the video starts); None for a video without frames. Raises
+        :class:`LogSourceError` for one that cannot be decoded."""
+        try:
+            last = self._last
+            if (self._decoded is None or last is None or camera_ns < last[0]
+                    or camera_ns - last[0] > self.SEEK_AHEAD_NS):
+                seconds = max(0, camera_ns - self.video.start_ns) * 1e-9
+                pts = int(seconds / float(self._stream.time_base or self.video._time_base))
+                self._container.seek(pts, stream=self._stream, backward=True, any_frame=False)
+                self._decoded = self._container.decode(self._stream)
+                self._last, self._next = None, self._pull()
+            while self._next is not None and (self._last is None or self._next[0] <= camera_ns):
+                self._last, self._next = self._next, self._pull()
+        except av.FFmpegError as exc:
+            raise LogSourceError(f"cannot decode {self.video.path}: {exc}") from exc
+        return self._last
+
+    def close(self) -> None:
+        self._container.close()
+
+    def __enter__(self) -> VideoFrames:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -54,6 +54,9 @@ class Shell:
     layout_path: Path | None = None
     #: The layout file's text when :attr:`layout` was read or written (None: no file).
     seen: str | None = None
+    #: Builds what goes above the views on each tab, given the tab's token (the playback
+    #: bar of ``debug_gui --log``); None live.
+    bar: Callable[[str | None], None] | None = None
 
     def __post_init__(self) -> None:
         if self.layout_path is not None:
@@ -169,6 +172,8 @@ class _Tab:
             ui.space()
             access = "write access" if self.shell.policy.valid(self.token) else "read-only"
             ui.label(access).props("data-testid=access")
+        if self.shell.bar is not None:
+            self.shell.bar(self.token)
         self.binding = ui.card().classes("w-full").props("data-testid=binding")
         self.panels = ui.column().classes("w-full gap-2")
         self._render_robots()
