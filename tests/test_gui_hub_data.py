@@ -10,12 +10,14 @@ from __future__ import annotations
 import re
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 from rcl_interfaces.srv import ListParameters
+from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
 from debug_gui import Hub, InvalidInput, RobotId, RobotUnavailable
@@ -206,6 +208,80 @@ def test_plain_publishers_are_rate_limited_locally(tmp_path: Path) -> None:
         start = feed.received
         wait_for(lambda: feed.received >= start + 20, what="every message", alive=[proc])
         feed.close()
+
+
+def _requests(robot: RobotProcess) -> str:
+    """The rates the robot's throttle-aware ``counter`` was asked for, as it last said."""
+    found = re.findall(r"counter requests (\[[^]]*\])", robot.output())
+    return found[-1] if found else ""
+
+
+def test_two_feeds_of_a_topic_share_one_stream_and_each_keeps_its_rate(
+    tmp_path: Path,
+) -> None:
+    """Two views of one plain topic: the link carries it once (the Hub's counters show one
+    stream's messages), one view gets every message, the other its 2 Hz."""
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/p") as proc:
+        robot = RobotId(domain, "/p")
+        _robots(hub, {robot}, [proc])
+        every: list[String] = []
+        start = time.monotonic()
+        all_feed = hub.subscribe(robot, "chatter", String, every.append)
+        slow = hub.subscribe(robot, "/p/chatter", String, lambda _m: None, rate_hz=2.0)
+        assert not all_feed.throttled and not slow.throttled
+        wait_for(lambda: all_feed.received >= 40, what="2 s of chatter", alive=[proc])
+        counted = hub.counters()[(robot, "/p/chatter")]
+        elapsed = time.monotonic() - start
+        # One stream crossed the link (two subscriptions would count each message twice).
+        assert all_feed.received <= counted.messages <= all_feed.received + 1
+        sizes = [len(serialize_message(m)) for m in every]
+        # One stream's bytes (CDR pads each a little on the wire), not two streams'.
+        assert sum(sizes) <= counted.bytes < 1.5 * sum(sizes)
+        # At most one per 0.5 s, each up to a quarter period early: 2 Hz, not 20.
+        assert 1 <= slow.received <= 2.0 * elapsed + 1.25
+        all_feed.close()  # the other feed's stream stays
+        before = slow.received
+        wait_for(lambda: slow.received >= before + 2, what="2 more at 2 Hz", alive=[proc])
+        slow.close()
+
+
+def test_throttled_feeds_of_a_topic_send_one_request_at_the_highest_rate(
+    tmp_path: Path,
+) -> None:
+    """The robot's throttle-aware publisher hears one subscriber asking for the fastest
+    feed's rate (not one per view), follows a feed's new rate and the last close."""
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/r") as proc:
+        robot = RobotId(domain, "/r")
+        _robots(hub, {robot}, [proc])
+        slow = hub.subscribe(robot, "counter", String, lambda _m: None, rate_hz=5.0)
+        fast = hub.subscribe(robot, "counter", String, lambda _m: None, rate_hz=10.0)
+        assert slow.throttled and fast.throttled
+        wait_for(lambda: _requests(proc) == "[10.0]", what="one request at 10 Hz",
+                 alive=[proc])
+        wait_for(lambda: fast.received >= 20, what="2 s at 10 Hz", alive=[proc])
+        counted = hub.counters()[(robot, "/r/counter")]
+        # What the robot sends at the fastest feed's rate reaches that feed whole; the
+        # slower one keeps about every other message.
+        assert fast.received <= counted.messages <= fast.received + 1
+        assert 0.3 * fast.received <= slow.received <= 0.6 * fast.received + 1
+        fast.set_rate(2.0)
+        wait_for(lambda: _requests(proc) == "[5.0]", what="the request down to 5 Hz",
+                 alive=[proc])
+        slow.close()
+        wait_for(lambda: _requests(proc) == "[2.0]", what="the request down to 2 Hz",
+                 alive=[proc])
+        fast.close()  # the last: the shared stream goes, the robot computes nothing more
+        reports = proc.output().count("computed ")
+        wait_for(lambda: proc.output().count("computed ") >= reports + 2,
+                 what="2 more reports", alive=[proc])
+        reports, after_close = proc.output().count("computed "), _computed(proc)
+        wait_for(lambda: proc.output().count("computed ") >= reports + 2,
+                 what="2 more reports", alive=[proc])
+        assert _computed(proc) == after_close
 
 
 def test_service_calls_answer_or_fail_clearly(tmp_path: Path) -> None:
