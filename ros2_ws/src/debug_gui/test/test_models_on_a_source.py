@@ -101,7 +101,7 @@ class Case:
 
 
 def _feed_params(source: FakeSource, model: ParametersModel) -> None:
-    with pytest.raises(NotLive, match="recorded, not live"):
+    with pytest.raises(NotLive, match="recorded: not live"):
         model.load("/robot1/detector")  # chosen all the same: its recorded events show
     source.publish(ROBOT, "/parameter_events", _event("/robot1/detector", "threshold", 7))
 
@@ -278,12 +278,12 @@ def test_calls_of_a_recorded_source_say_not_live_and_name_what_cannot_be_done() 
     # Were a call made, it would answer: the models must refuse before calling.
     source.answer(ROBOT, "recorder/start", Start.Response(success=True, bag="/bags/b"))
     image = ImageModel(source, ROBOT)
-    with pytest.raises(NotLive, match="cannot read the JPEG quality"):
+    with pytest.raises(NotLive, match="recorded: not live: a log cannot read the JPEG quality"):
         image.quality()
     with pytest.raises(NotLive, match="cannot set the JPEG quality"):
         image.set_quality(80)
     recorder = RecorderModel(source, ROBOT, policy=POLICY, token=POLICY.token)
-    with pytest.raises(NotLive, match="recorded, not live: a log's recorder cannot start"):
+    with pytest.raises(NotLive, match="recorded: not live: a log's recorder cannot start"):
         recorder.start()
     [result] = RecorderTeam([recorder]).for_all("stop")
     assert not result.success and "not live" in result.text
@@ -296,7 +296,7 @@ def test_calls_of_a_recorded_source_say_not_live_and_name_what_cannot_be_done() 
     [param] = params.parameters()
     assert (param.name, param.value) == ("threshold", 7)
     outcome = params.set("threshold", "9")
-    assert not outcome.ok and "recorded, not live: cannot set threshold" in outcome.message
+    assert not outcome.ok and "recorded: not live: a log cannot set threshold" in outcome.message
 
 
 def test_a_live_source_answers_the_same_calls() -> None:

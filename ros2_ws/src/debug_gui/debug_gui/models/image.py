@@ -30,7 +30,7 @@ from typing import Any
 from debug_probes import JPEG_QUALITY, Drawing, Shape, read_drawing
 from efficient_comm import from_msg
 
-from ..errors import CallFailed, InvalidInput, NotLive
+from ..errors import NOT_LIVE, CallFailed, InvalidInput, NotLive
 from ..robots import RobotId
 from ..source import Source, Stream
 from .ages import StampAges
@@ -318,7 +318,7 @@ class ImageModel:
 
     def _check_live(self, what: str) -> None:
         if not self.source.live:
-            raise NotLive(f"{self.robot.label}: recorded, not live: cannot {what} the JPEG "
+            raise NotLive(f"{self.robot.label}: {NOT_LIVE}: a log cannot {what} the JPEG "
                           f"quality of its {COMPRESSOR_NODE}")
 
     def quality(self, *, timeout_s: float = 5.0) -> int:

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .. import params
-from ..errors import DebugGuiError, InvalidInput, NotLive
+from ..errors import NOT_LIVE, DebugGuiError, InvalidInput, NotLive
 from ..robots import RobotId
 from ..security import AccessPolicy, check_name
 from ..source import Source, Stream
@@ -103,8 +103,8 @@ class ParametersModel:
 
     def _check_live(self, what: str) -> None:
         if not self.source.live:
-            raise NotLive(f"{self.robot.label}: recorded, not live: cannot {what} (a log "
-                          "holds only the parameter changes it recorded)")
+            raise NotLive(f"{self.robot.label}: {NOT_LIVE}: a log cannot {what} (it holds "
+                          "only the parameter changes it recorded)")
 
     @property
     def active(self) -> bool:

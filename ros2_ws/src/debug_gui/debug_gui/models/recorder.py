@@ -34,7 +34,7 @@ from typing import Any
 from efficient_comm import from_msg
 from robot_recorder import RecorderConfigError, TopicSelection, parse_selection
 
-from ..errors import DebugGuiError, InvalidInput, NotLive, RobotUnavailable
+from ..errors import NOT_LIVE, DebugGuiError, InvalidInput, NotLive, RobotUnavailable
 from ..robots import RobotId
 from ..security import AccessPolicy
 from ..source import Source, Stream
@@ -396,7 +396,7 @@ class RecorderModel:
     def _call(self, node: str | None, action: str, srv_type: type, request: Any
               ) -> ControlResult:
         if not self.source.live:
-            raise NotLive(f"{self.robot.label}: recorded, not live: a log's recorder cannot "
+            raise NotLive(f"{self.robot.label}: {NOT_LIVE}: a log's recorder cannot "
                           f"{action.replace('_', ' ')}")
         self._policy.check_write(self._token)
         node = self._one(node)
