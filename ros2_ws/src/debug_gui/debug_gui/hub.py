@@ -57,6 +57,8 @@ GONE_AFTER_S = 1.5
 #: Longest wait of the executor, so close() and new entities are noticed soon.
 SPIN_TIMEOUT_S = 0.05
 _THROTTLE_REQUEST = "_throttle"
+#: A feed dropping locally passes a message this fraction of its period after the last.
+MIN_INTERVAL = 0.9
 #: Nodes named so are debug_gui instances (this one's or another's), never a robot's.
 _OWN_NODE_PREFIX = "debug_gui"
 
@@ -247,7 +249,7 @@ class Feed:
         self._callback = callback
         self._hub = hub
         self._rate_hz = rate_hz
-        self._next_ns = 0
+        self._last_ns = 0
         self._closed = False
         self._stream: _SharedStream | None = None
 
@@ -271,19 +273,17 @@ class Feed:
         return self._rate_hz
 
     def _offer(self, msg: Any, now_ns: int, *, whole: bool) -> None:
-        """Hand ``msg`` to the callback unless this feed's rate drops it: at most one per
-        period on a schedule that allows a quarter period of jitter early (a robot sending
-        at exactly this rate passes whole; a slower feed of a faster stream keeps its
-        rate on average, not less)."""
+        """Hand ``msg`` to the callback unless this feed's rate drops it: one at least
+        :data:`MIN_INTERVAL` of a period after the last (a tenth of a period of jitter
+        tolerated, so a feed at half a stream's rate gets every other message, not every
+        third, and never more than a tenth above its rate)."""
         if self._closed:
             return
         rate = self._rate_hz
         if rate is not None and not whole:
-            period = int(1e9 / rate)
-            slack = period // 4
-            if now_ns + slack < self._next_ns:
+            if now_ns - self._last_ns < int(MIN_INTERVAL * 1e9 / rate):
                 return
-            self._next_ns = max(self._next_ns, now_ns - slack) + period
+            self._last_ns = now_ns
         self.received += 1
         try:
             self._callback(msg)
@@ -293,7 +293,6 @@ class Feed:
     def set_rate(self, rate_hz: float | None) -> None:
         """Display another rate from now on (None: every message)."""
         self._rate_hz = check_rate(rate_hz)
-        self._next_ns = 0
         stream = self._stream
         if stream is not None and not self._closed:
             stream.recompute()
