@@ -27,11 +27,12 @@ from debug_gui.models.components import ComponentsModel
 from debug_gui.models.parameters import ParametersModel
 from debug_gui.models.topics import TopicsModel
 from debug_gui.security import AccessPolicy
+from efficient_comm import latched_qos
 from efficient_comm.testing import isolated_domain_id, ros_env
 from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
 
 from ._gui import RobotProcess, fake_robot, started, wait_for
-from ._ros import Peer
+from ._ros import Peer, peer
 
 PLAIN_ROBOT = Path(__file__).with_name("_gui_plain_robot.py")
 
@@ -283,6 +284,28 @@ def test_throttled_feeds_of_a_topic_send_one_request_at_the_highest_rate(
         wait_for(lambda: proc.output().count("computed ") >= reports + 2,
                  what="2 more reports", alive=[proc])
         assert _computed(proc) == after_close
+
+
+def test_a_view_joining_a_latched_stream_gets_its_last_message() -> None:
+    """A latched topic (a robot's motion state) is sent once to the shared stream; a view
+    opened later still learns the current state at once, from the stream."""
+    domain = isolated_domain_id()
+    robot = RobotId(domain, "/l")
+    with Hub(domains=[domain]) as hub, peer(domain) as p:
+        state = p.node.create_publisher(String, "/l/motion/state", latched_qos())
+        state.publish(String(data="kick"))
+        first: list[str] = []
+        hub.subscribe(robot, "motion/state", String, lambda m: first.append(m.data),
+                      qos=latched_qos())
+        wait_for(lambda: first == ["kick"], what="the latched state")
+        later: list[str] = []
+        hub.subscribe(robot, "motion/state", String, lambda m: later.append(m.data),
+                      qos=latched_qos())
+        wait_for(lambda: later == ["kick"], what="the state for the later view")
+        state.publish(String(data="walk"))
+        wait_for(lambda: first[-1:] == later[-1:] == ["walk"], what="the next state")
+        assert later == ["kick", "walk"]
+        assert hub.counters()[(robot, "/l/motion/state")].messages == 2  # one stream
 
 
 def test_service_calls_answer_or_fail_clearly(tmp_path: Path) -> None:

@@ -25,6 +25,7 @@ import contextlib
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -33,7 +34,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.serialization import deserialize_message
 
 from efficient_comm.handle import MessageCallback, NodeHandle, Publisher, QoSLike, Subscription
@@ -121,6 +122,10 @@ class _SharedStream:
     them all), through throttle_publisher when the publisher understands it, and each feed
     drops locally what its own rate does not show. Created by the Hub's ``subscribe``,
     closed with its last feed.
+
+    A latched topic (transient local durability) gives a new subscription its last
+    messages; a feed joining a stream that already runs gets them from the stream instead
+    (it keeps the last ``depth``), on the domain's thread, before anything newer.
     """
 
     def __init__(self, hub: Hub, robot: RobotId, topic: str, msg_type: type, *,
@@ -139,6 +144,10 @@ class _SharedStream:
         self._handle = _CountingHandle(domain, hub._counter(robot, topic))
         self._throttled: ThrottledSubscription | None = None
         self._plain: Subscription | None = None
+        latched = isinstance(qos, QoSProfile) and \
+            qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        self._latched: deque[Any] | None = deque(maxlen=max(1, qos.depth)) \
+            if latched and isinstance(qos, QoSProfile) else None
 
     def open(self, first: Feed) -> None:
         """Subscribe for ``first`` (before anyone else can join: the Hub's lock is held)."""
@@ -177,7 +186,22 @@ class _SharedStream:
     def join(self, feed: Feed) -> None:
         with self._lock:
             self._feeds.append(feed)
+            feed._awaiting_replay = self._latched is not None
         self.recompute()
+        if self._latched is None:
+            return
+
+        def replay() -> None:
+            # On the domain's thread, as deliveries are (which skip the feed until now, and
+            # keep what they bring): nothing newer reaches the feed before the kept ones.
+            with self._lock:
+                kept = list(self._latched or ())
+            now = time.monotonic_ns()
+            for msg in kept:
+                feed._offer(msg, now, whole=True)
+            feed._awaiting_replay = False
+
+        self._domain.on_thread(replay)
 
     def recompute(self) -> None:
         """Ask the robot for the highest rate any feed wants now (after a join, a leave or
@@ -214,11 +238,15 @@ class _SharedStream:
 
     def _deliver(self, msg: Any) -> None:
         with self._lock:
+            if self._latched is not None:
+                self._latched.append(msg)
             feeds = list(self._feeds)
             robot_limits = self._throttled is not None
             sent_rate = self._rate_hz
         now = time.monotonic_ns()
         for feed in feeds:
+            if feed._awaiting_replay:
+                continue
             # What the robot already limits to a feed's rate passes whole; the rest is
             # dropped per feed, by each one's own rate.
             feed._offer(msg, now, whole=robot_limits and feed.rate_hz == sent_rate)
@@ -252,6 +280,8 @@ class Feed:
         self._last_ns = 0
         self._closed = False
         self._stream: _SharedStream | None = None
+        #: Joined a latched stream: its kept messages come first (see _SharedStream.join).
+        self._awaiting_replay = False
 
     def upgrade(self) -> bool:
         """Go through throttle_publisher if the topic now has a throttle-aware publisher.
