@@ -22,17 +22,20 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from efficient_comm.handle import QoSLike
 
 from .errors import InvalidInput, NotLive, RobotUnavailable
 from .robots import STATS_SUFFIX, RobotId
 from .security import check_name, check_rate
-from .source import Source
 
-#: A service's answer: the response itself, or a function of the request.
-Answer = Any | Callable[[Any], Any]
+if TYPE_CHECKING:
+    from .source import Source
+
+#: A service's answer: the response itself, or a function of the request (typed Any: a
+#: response is any service's Response class).
+Answer = Any
 
 
 class FakeStream:
@@ -315,4 +318,5 @@ class FakeSource:
 
 __all__ = ["FakeSource", "FakeStream"]
 
-_FAKE_IS_A_SOURCE: type[Source] = FakeSource
+if TYPE_CHECKING:
+    _FAKE_IS_A_SOURCE: type[Source] = FakeSource
