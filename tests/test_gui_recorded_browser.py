@@ -65,8 +65,10 @@ def test_views_that_call_services_say_recorded_not_live(tmp_path: Path, browser)
         # The parameters as the log's events tell them, read-only, said so.
         wait_for(lambda: "recorded: not live" in _text(browser, f"params-status-{KEY}"),
                  what="the parameters' not-live note", alive=alive)
-        wait_for(lambda: _text(browser, f"params-status-{KEY}").startswith(
-            "/rec1/detector: 1 parameters"), what="the recorded parameter", alive=alive)
+        wait_for(lambda: _text(browser, f"params-status-{KEY}").startswith("/rec1/detector ("),
+                 what="the layout's node chosen", alive=alive)
+        wait_for(lambda: "threshold" in _text(browser, f"params-{KEY}"),
+                 what="the recorded parameter", alive=alive)
         assert _disabled(by_testid(browser, f"param-{KEY}-threshold"))
         # The camera's JPEG quality: a log's cannot be set.
         wait_for(lambda: "recorded: not live" in _text(browser, f"image-quality-note-{KEY}"),

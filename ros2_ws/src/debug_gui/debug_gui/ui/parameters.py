@@ -103,8 +103,8 @@ def build(ctx: ViewContext) -> None:
         try:
             got = await run.io_bound(model.load, chosen)
             status.text = f"{chosen}: {len(got or [])} parameters" + read_only
-        except NotLive:  # chosen all the same: its recorded values show
-            status.text = f"{chosen}: {len(model.parameters())} parameters" + read_only
+        except NotLive:  # chosen all the same: its values show as the log's events come
+            status.text = chosen + read_only
         except DebugGuiError as exc:
             status.text = str(exc)
         finally:
