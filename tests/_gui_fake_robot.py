@@ -6,8 +6,9 @@ components named after the robot (``robot2_component0``), the last one slower th
 period (to be flagged).
 It also offers a plain topic ``<ns>/chatter`` (std_msgs/String, 20 Hz, not throttle-aware),
 a throttle-aware one ``<ns>/counter`` (std_msgs/String, 50 Hz, through a ThrottledPublisher;
-it prints ``computed N, stats readers M`` once a second: samples it computed because
-someone wanted them, and how many read its statistics) and
+it prints ``computed N, stats readers M, counter requests [R, ...]`` once a second:
+samples it computed because someone wanted them, how many read its statistics, and the
+rate each throttled subscriber of ``counter`` asks for) and
 a service ``<ns>/fake_robot/slow`` that never answers (rcl_interfaces' ListParameters).
 Runs until Ctrl-C or SIGTERM; prints ``ready`` once its publishers exist.
 """
@@ -82,7 +83,9 @@ def main() -> int:
 
     node.create_timer(0.02, publish_counter)
     node.create_timer(1.0, lambda: print(
-        f"computed {computed}, stats readers {stats.get_subscription_count()}", flush=True))
+        f"computed {computed}, stats readers {stats.get_subscription_count()}, "
+        f"counter requests {sorted(o.max_rate_hz for o in counter.requests().values())}",
+        flush=True))
     node.create_service(ListParameters, "~/slow", _never_answer)
     node.create_timer(args.period, publish_stats)
     node.create_timer(0.05, lambda: chatter.publish(String(data=f"{ns} {time.time_ns()}")))

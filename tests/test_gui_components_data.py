@@ -6,6 +6,7 @@ from pathlib import Path
 
 from debug_gui import Hub, RobotId
 from debug_gui.models.components import ComponentsModel
+from debug_gui.testing import FakeSource
 from efficient_comm.testing import isolated_domain_id
 
 from ._gui import fake_robot, wait_for
@@ -40,7 +41,7 @@ def test_the_status_line_changes_only_when_what_it_says_does() -> None:
     from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
 
     now = [100.0]
-    model = ComponentsModel(None, RobotId(0, "/s"), clock=lambda: now[0])  # type: ignore[arg-type]
+    model = ComponentsModel(FakeSource(), RobotId(0, "/s"), clock=lambda: now[0])
     model.on_stats(ExecutorStats(process_name="p", hostname="h", pid=1, callbacks=[
         CallbackStats(node="/s/a", kind="timer", name="/s/t", rate_hz=10.0, mean_ns=1000,
                       p95_ns=1000, max_ns=1000, period_ns=100_000_000)]))
@@ -79,7 +80,7 @@ def test_the_status_line_says_when_rates_are_in_the_robots_own_time() -> None:
         def wall_clock(now: list[float] = now) -> float:
             return epoch + now[0] - 100.0
 
-        model = ComponentsModel(None, RobotId(0, "/s"),  # type: ignore[arg-type]
+        model = ComponentsModel(FakeSource(), RobotId(0, "/s"),
                                 clock=gui_clock, wall_clock=wall_clock)
         for step in range(6):
             now[0] = 100.0 + step

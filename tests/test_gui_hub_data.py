@@ -10,25 +10,29 @@ from __future__ import annotations
 import re
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 from rcl_interfaces.srv import ListParameters
+from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
 from debug_gui import Hub, InvalidInput, RobotId, RobotUnavailable
 from debug_gui.errors import CallFailed
+from debug_gui.hub import MIN_INTERVAL
 from debug_gui.models.components import ComponentsModel
 from debug_gui.models.parameters import ParametersModel
 from debug_gui.models.topics import TopicsModel
 from debug_gui.security import AccessPolicy
+from efficient_comm import latched_qos
 from efficient_comm.testing import isolated_domain_id, ros_env
 from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
 
 from ._gui import RobotProcess, fake_robot, started, wait_for
-from ._ros import Peer
+from ._ros import Peer, peer
 
 PLAIN_ROBOT = Path(__file__).with_name("_gui_plain_robot.py")
 
@@ -206,6 +210,102 @@ def test_plain_publishers_are_rate_limited_locally(tmp_path: Path) -> None:
         start = feed.received
         wait_for(lambda: feed.received >= start + 20, what="every message", alive=[proc])
         feed.close()
+
+
+def _requests(robot: RobotProcess) -> str:
+    """The rates the robot's throttle-aware ``counter`` was asked for, as it last said."""
+    found = re.findall(r"counter requests (\[[^]]*\])", robot.output())
+    return found[-1] if found else ""
+
+
+def test_two_feeds_of_a_topic_share_one_stream_and_each_keeps_its_rate(
+    tmp_path: Path,
+) -> None:
+    """Two views of one plain topic: the link carries it once (the Hub's counters show one
+    stream's messages), one view gets every message, the other its 2 Hz."""
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/p") as proc:
+        robot = RobotId(domain, "/p")
+        _robots(hub, {robot}, [proc])
+        every: list[String] = []
+        start = time.monotonic()
+        all_feed = hub.subscribe(robot, "chatter", String, every.append)
+        slow = hub.subscribe(robot, "/p/chatter", String, lambda _m: None, rate_hz=2.0)
+        assert not all_feed.throttled and not slow.throttled
+        wait_for(lambda: all_feed.received >= 40, what="2 s of chatter", alive=[proc])
+        counted = hub.counters()[(robot, "/p/chatter")]
+        elapsed = time.monotonic() - start
+        # One stream crossed the link (two subscriptions would count each message twice).
+        assert all_feed.received <= counted.messages <= all_feed.received + 1
+        sizes = [len(serialize_message(m)) for m in every]
+        # One stream's bytes (CDR pads each a little on the wire), not two streams'.
+        assert sum(sizes) <= counted.bytes < 1.5 * sum(sizes)
+        # One at least 0.9 of 0.5 s after the last: 2 Hz, not 20.
+        assert 1 <= slow.received <= elapsed / (MIN_INTERVAL * 0.5) + 1
+        all_feed.close()  # the other feed's stream stays
+        before = slow.received
+        wait_for(lambda: slow.received >= before + 2, what="2 more at 2 Hz", alive=[proc])
+        slow.close()
+
+
+def test_throttled_feeds_of_a_topic_send_one_request_at_the_highest_rate(
+    tmp_path: Path,
+) -> None:
+    """The robot's throttle-aware publisher hears one subscriber asking for the fastest
+    feed's rate (not one per view), follows a feed's new rate and the last close."""
+    domain = isolated_domain_id()
+    with Hub(domains=[domain]) as hub, \
+            fake_robot(tmp_path, domain_id=domain, namespace="/r") as proc:
+        robot = RobotId(domain, "/r")
+        _robots(hub, {robot}, [proc])
+        slow = hub.subscribe(robot, "counter", String, lambda _m: None, rate_hz=5.0)
+        fast = hub.subscribe(robot, "counter", String, lambda _m: None, rate_hz=10.0)
+        assert slow.throttled and fast.throttled
+        wait_for(lambda: _requests(proc) == "[10.0]", what="one request at 10 Hz",
+                 alive=[proc])
+        wait_for(lambda: fast.received >= 20, what="2 s at 10 Hz", alive=[proc])
+        counted = hub.counters()[(robot, "/r/counter")]
+        # What the robot sends at the fastest feed's rate reaches that feed whole; the
+        # slower one keeps about every other message.
+        assert fast.received <= counted.messages <= fast.received + 1
+        assert 0.3 * fast.received <= slow.received <= 0.6 * fast.received + 1
+        fast.set_rate(2.0)
+        wait_for(lambda: _requests(proc) == "[5.0]", what="the request down to 5 Hz",
+                 alive=[proc])
+        slow.close()
+        wait_for(lambda: _requests(proc) == "[2.0]", what="the request down to 2 Hz",
+                 alive=[proc])
+        fast.close()  # the last: the shared stream goes, the robot computes nothing more
+        reports = proc.output().count("computed ")
+        wait_for(lambda: proc.output().count("computed ") >= reports + 2,
+                 what="2 more reports", alive=[proc])
+        reports, after_close = proc.output().count("computed "), _computed(proc)
+        wait_for(lambda: proc.output().count("computed ") >= reports + 2,
+                 what="2 more reports", alive=[proc])
+        assert _computed(proc) == after_close
+
+
+def test_a_view_joining_a_latched_stream_gets_its_last_message() -> None:
+    """A latched topic (a robot's motion state) is sent once to the shared stream; a view
+    opened later still learns the current state at once, from the stream."""
+    domain = isolated_domain_id()
+    robot = RobotId(domain, "/l")
+    with Hub(domains=[domain]) as hub, peer(domain) as p:
+        state = p.node.create_publisher(String, "/l/motion/state", latched_qos())
+        state.publish(String(data="kick"))
+        first: list[str] = []
+        hub.subscribe(robot, "motion/state", String, lambda m: first.append(m.data),
+                      qos=latched_qos())
+        wait_for(lambda: first == ["kick"], what="the latched state")
+        later: list[str] = []
+        hub.subscribe(robot, "motion/state", String, lambda m: later.append(m.data),
+                      qos=latched_qos())
+        wait_for(lambda: later == ["kick"], what="the state for the later view")
+        state.publish(String(data="walk"))
+        wait_for(lambda: first[-1:] == later[-1:] == ["walk"], what="the next state")
+        assert later == ["kick", "walk"]
+        assert hub.counters()[(robot, "/l/motion/state")].messages == 2  # one stream
 
 
 def test_service_calls_answer_or_fail_clearly(tmp_path: Path) -> None:

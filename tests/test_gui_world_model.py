@@ -12,14 +12,15 @@ from std_msgs.msg import String
 
 from debug_gui import RobotId
 from debug_gui.models.world import STALE_S, TEAM_COLOURS, WorldModel
+from debug_gui.testing import FakeSource
 from debug_gui.ui.world import ball_opacity, game_text, world_svg
 from soccer_interfaces.msg import GameState, TeamInfo
 
 
 def test_a_robot_keeps_its_colour_when_another_appears() -> None:
     r1, r2, r3 = (RobotId(5, f"/robot{k}") for k in (1, 2, 3))
-    before = {s.robot: s.colour for s in WorldModel(None, [r2, r3]).states()}  # type: ignore[arg-type]
-    after = {s.robot: s.colour for s in WorldModel(None, [r1, r2, r3]).states()}  # type: ignore[arg-type]
+    before = {s.robot: s.colour for s in WorldModel(FakeSource(), [r2, r3]).states()}
+    after = {s.robot: s.colour for s in WorldModel(FakeSource(), [r1, r2, r3]).states()}
     assert after[r2] == before[r2] and after[r3] == before[r3]
     assert len(set(after.values())) == 3
 
@@ -42,7 +43,7 @@ def test_a_ball_estimate_ages_by_the_robots_stamps_and_goes_when_stale() -> None
     """The GUI's clock says nothing here (it stands still): under lockstep the robot's
     time is not the GUI's, and what counts is how old the belief is on the robot."""
     robot = RobotId(5, "/robot1")
-    model = WorldModel(None, [robot], clock=lambda: 0.0)  # type: ignore[arg-type]
+    model = WorldModel(FakeSource(), [robot], clock=lambda: 0.0)
     model.on_ball(robot, _ball(0.5))
     model.on_odom(robot, _odom(1.0))
     [state] = model.states()
@@ -75,7 +76,7 @@ def _pose(cls: type, t: float, x: float, y: float) -> Any:
 
 def test_a_match_robot_is_drawn_in_its_teams_colour_where_it_localizes_with_its_role() -> None:
     blue1, blue2, red1 = RobotId(7, "/blue1"), RobotId(8, "/blue2"), RobotId(9, "/red1")
-    model = WorldModel(None, [red1, blue2, blue1], clock=lambda: 0.0)  # type: ignore[arg-type]
+    model = WorldModel(FakeSource(), [red1, blue2, blue1], clock=lambda: 0.0)
     model.on_odom(blue1, _odom(1.0))  # odometry says the origin ...
     model.on_localization(blue1, _pose(PoseWithCovarianceStamped, 1.0, -2.0, 1.5))
     model.on_true_robot(blue1, _pose(PoseStamped, 1.0, -2.1, 1.5))  # as the match names it
@@ -94,7 +95,7 @@ def test_ages_go_by_the_robots_own_clock_however_skewed_against_the_worlds() -> 
     """Ground truth and the game state are stamped by the world; a robot's clock runs 100 s
     behind it. Its fresh ball estimate and team ball are still fresh."""
     robot = RobotId(7, "/red1")
-    model = WorldModel(None, [robot], clock=lambda: 0.0)  # type: ignore[arg-type]
+    model = WorldModel(FakeSource(), [robot], clock=lambda: 0.0)
     model.on_localization(robot, _pose(PoseWithCovarianceStamped, 10.0, 1.0, 0.0))
     model.on_ball(robot, _ball(10.0))
     model.on_team_ball(robot, _pose(PoseWithCovarianceStamped, 10.0, 2.5, 0.5))
@@ -122,7 +123,7 @@ def _game(t: float, state: int, blue: int, red: int, packet: int) -> GameState:
 
 def test_the_game_is_the_newest_broadcast_any_robot_passed_on() -> None:
     blue1, red1 = RobotId(7, "/blue1"), RobotId(8, "/red1")
-    model = WorldModel(None, [blue1, red1])  # type: ignore[arg-type]
+    model = WorldModel(FakeSource(), [blue1, red1])
     assert model.game() is None
     model.on_game_state(red1, _game(20.0, GameState.STATE_READY, 1, 0, packet=41))
     model.on_game_state(blue1, _game(12.0, GameState.STATE_PLAYING, 0, 0, packet=30))  # late
@@ -134,7 +135,7 @@ def test_the_game_is_the_newest_broadcast_any_robot_passed_on() -> None:
 
 def test_the_drawing_names_each_robot_with_its_role_team_and_team_ball() -> None:
     blue1, red1 = RobotId(7, "/blue1"), RobotId(8, "/red1")
-    model = WorldModel(None, [blue1, red1], clock=lambda: 0.0)  # type: ignore[arg-type]
+    model = WorldModel(FakeSource(), [blue1, red1], clock=lambda: 0.0)
     for robot, x in ((blue1, -1.0), (red1, 1.0)):
         model.on_localization(robot, _pose(PoseWithCovarianceStamped, 5.0, x, 0.0))
     model.on_role(blue1, String(data="goalie"))

@@ -14,6 +14,9 @@ Tree (other views append their subclasses at the end, one class per block)::
 
 from __future__ import annotations
 
+#: What a view says where a log cannot do what the robot could (every NotLive names it).
+NOT_LIVE = "recorded: not live"
+
 
 class DebugGuiError(Exception):
     """Root of every error debug_gui raises on purpose."""

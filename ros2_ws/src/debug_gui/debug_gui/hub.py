@@ -25,6 +25,7 @@ import contextlib
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -33,7 +34,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.serialization import deserialize_message
 
 from efficient_comm.handle import MessageCallback, NodeHandle, Publisher, QoSLike, Subscription
@@ -57,6 +58,8 @@ GONE_AFTER_S = 1.5
 #: Longest wait of the executor, so close() and new entities are noticed soon.
 SPIN_TIMEOUT_S = 0.05
 _THROTTLE_REQUEST = "_throttle"
+#: A feed dropping locally passes a message this fraction of its period after the last.
+MIN_INTERVAL = 0.9
 #: Nodes named so are debug_gui instances (this one's or another's), never a robot's.
 _OWN_NODE_PREFIX = "debug_gui"
 
@@ -111,34 +114,29 @@ class _CountingHandle:
         self._domain.node.destroy_publisher(publisher)  # type: ignore[arg-type]
 
 
-class Feed:
-    """One subscription of a view to a robot's topic, at the rate the view displays.
+class _SharedStream:
+    """The one subscription to a (robot, topic, type, QoS) that all its feeds share.
 
-    ``throttled`` says whether the robot itself limits what it sends (throttle-aware
-    publisher) or the Hub drops the surplus locally. ``received`` counts the messages
-    handed to the callback.
+    Two views of one robot topic must not make the robot encode and send it twice: the
+    robot sends one stream at the highest rate any feed wants (every message if one wants
+    them all), through throttle_publisher when the publisher understands it, and each feed
+    drops locally what its own rate does not show. Created by the Hub's ``subscribe``,
+    closed with its last feed.
+
+    A latched topic (transient local durability) gives a new subscription its last
+    messages; a feed joining a stream that already runs gets them from the stream instead
+    (it keeps the last ``depth``), on the domain's thread, before anything newer.
     """
 
-    def __init__(
-        self,
-        hub: Hub,
-        robot: RobotId,
-        topic: str,
-        msg_type: type,
-        callback: Callable[[Any], None],
-        *,
-        rate_hz: float | None,
-        qos: QoSLike,
-    ) -> None:
+    def __init__(self, hub: Hub, robot: RobotId, topic: str, msg_type: type, *,
+                 qos: QoSLike) -> None:
         self.robot = robot
         self.topic = topic
-        self.received = 0
-        self._callback = callback
         self._hub = hub
         self._lock = threading.Lock()
-        self._rate_hz = rate_hz
-        self._last_ns = 0
-        self._closed = False
+        self._feeds: list[Feed] = []
+        self._rate_hz: float | None = None
+        self.closed = False
         domain = hub._domain(robot)
         self._domain = domain
         self._msg_type = msg_type
@@ -146,23 +144,35 @@ class Feed:
         self._handle = _CountingHandle(domain, hub._counter(robot, topic))
         self._throttled: ThrottledSubscription | None = None
         self._plain: Subscription | None = None
+        latched = isinstance(qos, QoSProfile) and \
+            qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        self._latched: deque[Any] | None = deque(maxlen=max(1, qos.depth)) \
+            if latched and isinstance(qos, QoSProfile) else None
+
+    def open(self, first: Feed) -> None:
+        """Subscribe for ``first`` (before anyone else can join: the Hub's lock is held)."""
+        self._feeds.append(first)
+        self._rate_hz = first.rate_hz
         if not self.upgrade():
             self._plain = self._handle.create_subscription(
-                msg_type, topic, self._deliver, qos=qos
-            )
+                self._msg_type, self.topic, self._deliver, qos=self._qos)
+
+    @property
+    def throttled(self) -> bool:
+        return self._throttled is not None
+
+    @property
+    def rate_hz(self) -> float | None:
+        """The rate asked of the robot: the highest of the feeds' (None: every message)."""
+        return self._rate_hz
 
     def upgrade(self) -> bool:
-        """Go through throttle_publisher if the topic now has a throttle-aware publisher.
-
-        Called at creation and by the Hub's discovery, so a feed made before the robot's
-        publisher was discovered moves to the robot-side rate as soon as it is. True if
-        the feed is throttled (now or already).
-        """
+        """Go through throttle_publisher if the topic now has a throttle-aware publisher
+        (see :meth:`Feed.upgrade`); True if throttled (now or already)."""
         with self._lock:
-            if self._throttled is not None or self._closed:
+            if self._throttled is not None or self.closed:
                 return self._throttled is not None
-            node = self._domain.node
-            if node.count_subscribers(f"{self.topic}/{_THROTTLE_REQUEST}") == 0:
+            if self._domain.node.count_subscribers(f"{self.topic}/{_THROTTLE_REQUEST}") == 0:
                 return False
             self._throttled = ThrottledSubscription(
                 self._handle, self._msg_type, self.topic,  # type: ignore[arg-type]
@@ -173,22 +183,137 @@ class Feed:
             self._domain.on_thread(lambda: self._handle.destroy_subscription(plain))
         return True
 
+    def join(self, feed: Feed) -> None:
+        with self._lock:
+            self._feeds.append(feed)
+            feed._awaiting_replay = self._latched is not None
+        self.recompute()
+        if self._latched is None:
+            return
+
+        def replay() -> None:
+            # On the domain's thread, as deliveries are (which skip the feed until now, and
+            # keep what they bring): nothing newer reaches the feed before the kept ones.
+            with self._lock:
+                kept = list(self._latched or ())
+            now = time.monotonic_ns()
+            for msg in kept:
+                feed._offer(msg, now, whole=True)
+            feed._awaiting_replay = False
+
+        self._domain.on_thread(replay)
+
+    def recompute(self) -> None:
+        """Ask the robot for the highest rate any feed wants now (after a join, a leave or
+        a feed's new rate); a throttle-aware publisher hears of a change only."""
+        with self._lock:
+            if self.closed:
+                return
+            rates = [f.rate_hz for f in self._feeds]
+            wanted = None if not rates or None in rates else max(
+                r for r in rates if r is not None)
+            if wanted == self._rate_hz:
+                return
+            self._rate_hz = wanted
+            if self._throttled is not None:
+                self._throttled.update(_options(wanted))
+
+    def leave(self, feed: Feed) -> None:
+        """``feed`` closed: with it the last, the subscription goes (on the domain's thread,
+        within a spin, about 50 ms) and a throttle-aware publisher stops sending then."""
+        with self._hub._lock, self._lock:
+            if feed in self._feeds:
+                self._feeds.remove(feed)
+            last = not self._feeds and not self.closed
+            if last:
+                self.closed = True
+                self._hub._forget_stream(self)
+            throttled, plain = self._throttled, self._plain
+        if not last:
+            self.recompute()
+        elif throttled is not None:
+            self._domain.on_thread(throttled.close)
+        elif plain is not None:
+            self._domain.on_thread(lambda: self._handle.destroy_subscription(plain))
+
+    def _deliver(self, msg: Any) -> None:
+        with self._lock:
+            if self._latched is not None:
+                self._latched.append(msg)
+            feeds = list(self._feeds)
+            robot_limits = self._throttled is not None
+            sent_rate = self._rate_hz
+        now = time.monotonic_ns()
+        for feed in feeds:
+            if feed._awaiting_replay:
+                continue
+            # What the robot already limits to a feed's rate passes whole; the rest is
+            # dropped per feed, by each one's own rate.
+            feed._offer(msg, now, whole=robot_limits and feed.rate_hz == sent_rate)
+
+
+class Feed:
+    """One subscription of a view to a robot's topic, at the rate the view displays.
+
+    Feeds of one robot topic (same type and QoS) share one stream from the robot: it sends
+    at the highest rate any of them asks for, and each feed drops locally what its own rate
+    does not show. ``throttled`` says whether the robot itself limits what it sends
+    (throttle-aware publisher) or the Hub drops the surplus locally. ``received`` counts
+    the messages handed to the callback.
+    """
+
+    def __init__(
+        self,
+        hub: Hub,
+        robot: RobotId,
+        topic: str,
+        callback: Callable[[Any], None],
+        *,
+        rate_hz: float | None,
+    ) -> None:
+        self.robot = robot
+        self.topic = topic
+        self.received = 0
+        self._callback = callback
+        self._hub = hub
+        self._rate_hz = rate_hz
+        self._last_ns = 0
+        self._closed = False
+        self._stream: _SharedStream | None = None
+        #: Joined a latched stream: its kept messages come first (see _SharedStream.join).
+        self._awaiting_replay = False
+
+    def upgrade(self) -> bool:
+        """Go through throttle_publisher if the topic now has a throttle-aware publisher.
+
+        Called at creation and by the Hub's discovery, so a feed made before the robot's
+        publisher was discovered moves to the robot-side rate as soon as it is. True if
+        the feed is throttled (now or already).
+        """
+        stream = self._stream
+        return stream is not None and not self._closed and stream.upgrade()
+
     @property
     def throttled(self) -> bool:
-        return self._throttled is not None
+        stream = self._stream
+        return stream is not None and stream.throttled
 
     @property
     def rate_hz(self) -> float | None:
         return self._rate_hz
 
-    def _deliver(self, msg: Any) -> None:
+    def _offer(self, msg: Any, now_ns: int, *, whole: bool) -> None:
+        """Hand ``msg`` to the callback unless this feed's rate drops it: one at least
+        :data:`MIN_INTERVAL` of a period after the last (a tenth of a period of jitter
+        tolerated, so a feed at half a stream's rate gets every other message, not every
+        third, and never more than a tenth above its rate)."""
         if self._closed:
             return
-        if self._throttled is None and self._rate_hz is not None:
-            now = time.monotonic_ns()
-            if now - self._last_ns < int(1e9 / self._rate_hz):
+        rate = self._rate_hz
+        if rate is not None and not whole:
+            if now_ns - self._last_ns < int(MIN_INTERVAL * 1e9 / rate):
                 return
-            self._last_ns = now
+            self._last_ns = now_ns
         self.received += 1
         try:
             self._callback(msg)
@@ -197,29 +322,34 @@ class Feed:
 
     def set_rate(self, rate_hz: float | None) -> None:
         """Display another rate from now on (None: every message)."""
-        rate_hz = check_rate(rate_hz)
-        with self._lock:
-            self._rate_hz = rate_hz
-            if self._throttled is not None and not self._closed:
-                self._throttled.update(_options(rate_hz))
+        self._rate_hz = check_rate(rate_hz)
+        stream = self._stream
+        if stream is not None and not self._closed:
+            stream.recompute()
 
     def close(self) -> None:
-        """Stop receiving at once; the subscription goes on the domain's thread (within a
-        spin, about 50 ms), and a throttle-aware publisher stops sending then."""
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-            throttled, plain = self._throttled, self._plain
-        if throttled is not None:
-            self._domain.on_thread(throttled.close)
-        elif plain is not None:
-            self._domain.on_thread(lambda: self._handle.destroy_subscription(plain))
+        """Stop receiving at once; the shared stream's subscription goes with its last feed
+        (see :meth:`_SharedStream.leave`)."""
+        if self._closed:
+            return
+        self._closed = True
+        stream = self._stream
+        if stream is not None:
+            stream.leave(self)
         self._hub._forget(self)
 
 
 def _options(rate_hz: float | None) -> ThrottleOptions:
     return ThrottleOptions(max_rate_hz=rate_hz or 0.0)
+
+
+def _qos_key(qos: QoSLike) -> object:
+    """What makes two QoS settings one subscription's (a QoSProfile is not hashable)."""
+    if isinstance(qos, QoSProfile):
+        return (qos.history, qos.depth, qos.reliability, qos.durability, qos.liveliness,
+                qos.deadline.nanoseconds, qos.lifespan.nanoseconds,
+                qos.liveliness_lease_duration.nanoseconds)
+    return int(qos)
 
 
 class _Domain:
@@ -326,6 +456,8 @@ class Hub:
         self._lock = threading.RLock()
         self._listeners: list[Callable[[], None]] = []
         self._feeds: set[Feed] = set()
+        #: The streams the feeds share, by (robot, absolute topic, type, QoS).
+        self._streams: dict[tuple[RobotId, str, type, object], _SharedStream] = {}
         self._counters: dict[tuple[RobotId, str], TopicCounter] = {}
         self._stop = threading.Event()
         self._started = False
@@ -408,9 +540,10 @@ class Hub:
             dom.robots = found
             self._notify()
         with self._lock:
-            plain = [f for f in self._feeds if not f.throttled and f.robot.domain == dom.domain]
-        for feed in plain:
-            feed.upgrade()
+            plain = [s for s in self._streams.values()
+                     if not s.throttled and s.robot.domain == dom.domain]
+        for stream in plain:
+            stream.upgrade()
 
     def _plain_robots_of(self, dom: _Domain) -> set[RobotId]:
         """One robot per top-level namespace with nodes other than debug_gui's or hidden ones."""
@@ -567,20 +700,39 @@ class Hub:
         """Receive ``topic`` (relative to the robot's namespace, or absolute) at ``rate_hz``.
 
         Through throttle_publisher when the topic has a throttle-aware publisher (the robot
-        then sends only this rate), else plainly with the surplus dropped here. ``callback``
-        runs on the domain's executor thread.
+        then sends only this rate), else plainly with the surplus dropped here. Feeds of
+        one topic (same type and QoS) share one stream from the robot, at the highest rate
+        any of them wants (see :class:`_SharedStream`). ``callback`` runs on the domain's
+        executor thread.
         """
         check_name(topic, what="topic name")
         rate_hz = check_rate(rate_hz)
         full = robot.resolve(topic)
-        feed = Feed(self, robot, full, msg_type, callback, rate_hz=rate_hz, qos=qos)
+        feed = Feed(self, robot, full, callback, rate_hz=rate_hz)
+        key = (robot, full, msg_type, _qos_key(qos))
+        # Under the Hub's lock: a stream's last feed closing meanwhile (which takes it
+        # first) must not leave this one joined to a closed stream.
         with self._lock:
+            stream = self._streams.get(key)
+            feed._stream = stream
+            if stream is None:
+                feed._stream = stream = _SharedStream(self, robot, full, msg_type, qos=qos)
+                stream.open(feed)
+                self._streams[key] = stream
+            else:
+                stream.join(feed)
             self._feeds.add(feed)
         return feed
 
     def _forget(self, feed: Feed) -> None:
         with self._lock:
             self._feeds.discard(feed)
+
+    def _forget_stream(self, stream: _SharedStream) -> None:
+        with self._lock:
+            for key, known in list(self._streams.items()):
+                if known is stream:
+                    del self._streams[key]
 
     def _counter(self, robot: RobotId, topic: str) -> TopicCounter:
         with self._lock:

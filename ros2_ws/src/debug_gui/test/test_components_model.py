@@ -6,6 +6,7 @@ import pytest
 
 from debug_gui import InvalidInput, RobotId
 from debug_gui.models.components import HISTORY, STALE_AFTER_S, ComponentsModel, sparkline
+from debug_gui.testing import FakeSource
 from efficient_comm_interfaces.msg import CallbackStats, ExecutorStats
 
 
@@ -31,7 +32,7 @@ def _cb(node: str, mean_ms: float, *, kind: str = "subscription", rate: float = 
 
 
 def _model(clock: _Clock) -> ComponentsModel:
-    return ComponentsModel(source=None, robot=RobotId(0, "/r"), clock=clock)  # type: ignore[arg-type]
+    return ComponentsModel(FakeSource(), robot=RobotId(0, "/r"), clock=clock)
 
 
 def test_rows_sort_flag_and_keep_a_short_history() -> None:

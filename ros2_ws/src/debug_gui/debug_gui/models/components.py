@@ -3,7 +3,9 @@
 Fed by the robot's ``<namespace>/efficient_comm/stats`` topic (ExecutorStats, one message
 per process and period: a robot may run several containers and standalone nodes). Rows are
 keyed by process and callback, so two processes with a node of the same name stay apart;
-a process not heard from for :data:`STALE_AFTER_S` drops out (it ended).
+a process not heard from for :data:`STALE_AFTER_S` drops out (it ended). Ages go by the
+messages' stamps on the source's clock (:mod:`.ages`): a paused playback keeps its rows, a
+seek (``reset``) forgets them.
 
 A callback is flagged when its own time exceeds its period: for a timer, its p95 longer
 than the timer's period; for anything else, its mean longer than the interval between its
@@ -24,6 +26,7 @@ from efficient_comm import from_msg
 from ..errors import DebugGuiError, InvalidInput
 from ..robots import STATS_SUFFIX, RobotId
 from ..source import Source, Stream
+from .ages import StampAges
 
 #: How many past values each row keeps (one per stats message: 30 s at the default 1 s).
 HISTORY = 30
@@ -91,22 +94,28 @@ class ComponentsModel:
         robot: RobotId,
         *,
         rate_hz: float = 1.0,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Callable[[], float] | None = None,
         wall_clock: Callable[[], float] = time.time,
     ) -> None:
         self.source = source
         self.robot = robot
         self.rate_hz = rate_hz
-        self._clock = clock
+        #: The source's clock (seconds): monotonic live, the log's time in a playback.
+        self._clock = clock or source.now
         self._wall_clock = wall_clock
         #: (GUI time, robot stamp in s) of the first and the latest statistics heard.
         self._first_stamp: tuple[float, float] | None = None
         self._last_stamp: tuple[float, float] | None = None
         self._lock = threading.Lock()
         self._feed: Stream | None = None
-        #: process key -> (time heard, {callback key -> series})
-        self._processes: dict[str, tuple[float, dict[tuple[str, str, str], _Series]]] = {}
+        self._ages = StampAges(self._clock)
+        self._unsubscribe_reset: Callable[[], None] | None = None
+        #: process key -> (time heard, its last stamp (ns), {callback key -> series})
+        self._processes: dict[
+            str, tuple[float, int, dict[tuple[str, str, str], _Series]]] = {}
+        self._last_stamp_ns = 0
         self.messages = 0
+        #: When (source's clock) the last statistics were delivered (None: none yet).
         self.last_heard: float | None = None
 
     # -- feed --------------------------------------------------------------------------
@@ -116,6 +125,7 @@ class ComponentsModel:
         from efficient_comm_interfaces.msg import ExecutorStats
 
         if self._feed is None:
+            self._unsubscribe_reset = self.source.on_reset(self.reset)
             self._feed = self.source.subscribe(
                 self.robot, STATS_SUFFIX, ExecutorStats, self.on_stats, rate_hz=self.rate_hz
             )
@@ -123,8 +133,21 @@ class ComponentsModel:
     def deactivate(self) -> None:
         """Close the feed: the robot stops computing snapshots for us."""
         feed, self._feed = self._feed, None
+        unsubscribe, self._unsubscribe_reset = self._unsubscribe_reset, None
         if feed is not None:
             feed.close()
+        if unsubscribe is not None:
+            unsubscribe()
+
+    def reset(self) -> None:
+        """Forget every process, history and stamp (the source moved to another instant)."""
+        with self._lock:
+            self._processes.clear()
+            self._first_stamp = self._last_stamp = None
+            self._last_stamp_ns = 0
+            self._ages.reset()
+            self.messages = 0
+            self.last_heard = None
 
     @property
     def active(self) -> bool:
@@ -133,9 +156,10 @@ class ComponentsModel:
     def on_stats(self, msg: Any) -> None:
         """One ExecutorStats message (called on the Hub's thread, or by tests)."""
         process = f"{msg.process_name} ({msg.hostname}:{msg.pid})"
-        now = self._clock()
+        stamp_ns = from_msg(msg.stamp)
         with self._lock:
-            _, series = self._processes.get(process, (now, {}))
+            now = self._ages.heard(stamp_ns)
+            _, _, series = self._processes.get(process, (now, 0, {}))
             seen = set()
             for cb in msg.callbacks:
                 key = (cb.node, cb.kind, cb.name)
@@ -145,10 +169,10 @@ class ComponentsModel:
                 s.history.append(int(cb.mean_ns))
             for key in set(series) - seen:
                 del series[key]  # destroyed (a component unloaded)
-            self._processes[process] = (now, series)
+            self._processes[process] = (now, stamp_ns, series)
             self.messages += 1
-            self.last_heard = now
-            stamp = from_msg(msg.stamp) / 1e9
+            self.last_heard, self._last_stamp_ns = now, stamp_ns
+            stamp = stamp_ns / 1e9
             if stamp > 0:
                 self._last_stamp = (now, stamp)
                 if self._first_stamp is None or stamp < self._first_stamp[1]:
@@ -160,11 +184,10 @@ class ComponentsModel:
         """Every callback of every live process, sorted."""
         if sort_by not in SORT_KEYS:
             raise InvalidInput(f"cannot sort by {sort_by!r}; one of {', '.join(SORT_KEYS)}")
-        now = self._clock()
         out: list[Row] = []
         with self._lock:
-            for process, (heard, series) in list(self._processes.items()):
-                if now - heard > STALE_AFTER_S:
+            for process, (heard, stamp_ns, series) in list(self._processes.items()):
+                if self._ages.age_s(stamp_ns, delivered_s=heard) > STALE_AFTER_S:
                     del self._processes[process]
                     continue
                 for s in series.values():
@@ -199,15 +222,21 @@ class ComponentsModel:
             last = self._last_stamp
         if factor is None or last is None:
             return ""
-        off_wall = abs(last[1] - self._wall_clock()) > WALL_CLOCK_TOLERANCE_S
+        # A log's stamps are far from today's wall clock whatever clock the robot ran on.
+        off_wall = (self.source.live
+                    and abs(last[1] - self._wall_clock()) > WALL_CLOCK_TOLERANCE_S)
         if not off_wall and abs(factor - 1.0) <= REAL_TIME_TOLERANCE:
             return ""
         return (f"rates in the robot's time: its clock runs at {factor:.1f}x real time "
                 "(simulated or lockstep)")
 
     def age_s(self) -> float | None:
-        """Seconds since the last stats message (None: none yet)."""
-        return None if self.last_heard is None else self._clock() - self.last_heard
+        """How old the last stats message is, by its stamp on the source's clock (None:
+        none yet)."""
+        with self._lock:
+            if self.last_heard is None:
+                return None
+            return self._ages.age_s(self._last_stamp_ns, delivered_s=self.last_heard)
 
     def statistics_published(self) -> bool:
         """False for a robot that publishes no statistics at all (a plain ROS 2 robot, found

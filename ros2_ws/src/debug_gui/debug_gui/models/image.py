@@ -10,6 +10,11 @@ The model keeps the last :data:`BUFFER_FRAMES` frames and drawings by stamp. Liv
 shown is the newest one whose drawing has arrived (or that waited :data:`GRACE_S` for one:
 a robot that draws nothing still shows images). Paused, the feeds close (a paused view costs
 the robot nothing) and :meth:`ImageModel.step` moves through the buffered frames.
+A frame's wait is judged by stamps on the source's clock (:mod:`.ages`): after a seek a
+playback delivers the frames leading up to the new instant at once, and the older ones have
+had their time. :meth:`ImageModel.reset` (a seek) forgets the buffers.
+The JPEG quality is a parameter of the robot's compressor: a log cannot change it
+(:class:`~debug_gui.errors.NotLive`).
 The overlay is SVG (:func:`svg_overlay`) in image pixels, drawn over the JPEG by the browser.
 """
 
@@ -17,7 +22,6 @@ from __future__ import annotations
 
 import html
 import threading
-import time
 from collections import OrderedDict, deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -26,9 +30,10 @@ from typing import Any
 from debug_probes import JPEG_QUALITY, Drawing, Shape, read_drawing
 from efficient_comm import from_msg
 
-from ..errors import CallFailed, InvalidInput
+from ..errors import NOT_LIVE, CallFailed, InvalidInput, NotLive
 from ..robots import RobotId
 from ..source import Source, Stream
+from .ages import StampAges
 
 IMAGE_TOPIC = "camera/image_raw/compressed"
 MARKERS_TOPIC = "ball/debug_markers"
@@ -62,7 +67,7 @@ class ImageModel:
         image_topic: str = IMAGE_TOPIC,
         markers_topic: str = MARKERS_TOPIC,
         buffer: int = BUFFER_FRAMES,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Callable[[], float] | None = None,
     ) -> None:
         if buffer < 1:
             raise InvalidInput(f"the frame buffer holds at least 1 frame, not {buffer}")
@@ -71,7 +76,10 @@ class ImageModel:
         self.image_topic = image_topic
         self.markers_topic = markers_topic
         self._rate_hz = rate_hz
-        self._clock = clock
+        #: The source's clock (seconds): monotonic live, the log's time in a playback.
+        self._clock = clock or source.now
+        self._ages = StampAges(self._clock)
+        self._unsubscribe_reset: Callable[[], None] | None = None
         self._lock = threading.Lock()  # the data; feeds' callbacks take it
         self._feeds_lock = threading.Lock()  # opening and closing the feeds
         self._frames: deque[Frame] = deque(maxlen=buffer)
@@ -102,6 +110,8 @@ class ImageModel:
         with self._feeds_lock:
             if self._feeds or self._paused_at is not None:
                 return
+            if self._unsubscribe_reset is None:
+                self._unsubscribe_reset = self.source.on_reset(self.reset)
             self._feeds = [
                 self.source.subscribe(self.robot, self.image_topic, CompressedImage,
                                    self.on_image, rate_hz=self._rate_hz, qos=2),
@@ -112,9 +122,28 @@ class ImageModel:
     def deactivate(self) -> None:
         """Close the feeds: the robot stops encoding and drawing for this view."""
         with self._feeds_lock:
+            unsubscribe, self._unsubscribe_reset = self._unsubscribe_reset, None
+        self._close_feeds()
+        if unsubscribe is not None:
+            unsubscribe()
+
+    def _close_feeds(self) -> None:
+        with self._feeds_lock:
             feeds, self._feeds = self._feeds, []
         for feed in feeds:
             feed.close()
+
+    def reset(self) -> None:
+        """Forget every frame and drawing, the frozen ones too (the source moved to
+        another instant); the layers seen and hidden stay (the user's choice)."""
+        with self._lock:
+            self._frames.clear()
+            self._drawings.clear()
+            self._frozen = []
+            if self._paused_at is not None:
+                self._paused_at = 0
+            self._ages.reset()
+        self._changed()
 
     @property
     def active(self) -> bool:
@@ -158,10 +187,11 @@ class ImageModel:
 
     def on_image(self, msg: Any) -> None:
         """A CompressedImage (on the Hub's thread, or from tests)."""
+        stamp_ns = from_msg(msg.header.stamp)
         with self._lock:
             self._seq += 1
-            self._frames.append(Frame(self._seq, from_msg(msg.header.stamp), bytes(msg.data),
-                                      self._clock()))
+            self._frames.append(Frame(self._seq, stamp_ns, bytes(msg.data),
+                                      self._ages.heard(stamp_ns)))
             self.received += 1
         self._changed()
 
@@ -201,10 +231,10 @@ class ImageModel:
                     return None
                 frame = self._frozen[self._paused_at]
                 return frame, self._drawings.get(frame.stamp_ns)
-            now = self._clock()
             for frame in reversed(self._frames):
                 drawing = self._drawings.get(frame.stamp_ns)
-                if drawing is not None or now - frame.received_s >= GRACE_S:
+                if drawing is not None or self._ages.age_s(
+                        frame.stamp_ns, delivered_s=frame.received_s) >= GRACE_S:
                     return frame, drawing
             return None
 
@@ -253,7 +283,7 @@ class ImageModel:
                 index = next((i for i, f in enumerate(self._frozen) if f.seq == shown[0].seq),
                              index)
             self._paused_at = max(index, 0)
-        self.deactivate()
+        self._close_feeds()  # still reset by a seek: its frozen frames are of this instant
         self._changed()
 
     def resume(self, *, shown: bool = True) -> None:
@@ -286,10 +316,16 @@ class ImageModel:
 
     # -- JPEG quality (a parameter of the robot's compressor) ------------------------------
 
+    def _check_live(self, what: str) -> None:
+        if not self.source.live:
+            raise NotLive(f"{self.robot.label}: {NOT_LIVE}: a log cannot {what} the JPEG "
+                          f"quality of its {COMPRESSOR_NODE}")
+
     def quality(self, *, timeout_s: float = 5.0) -> int:
         """The compressor's ``jpeg_quality`` (blocking: never on the UI's event loop)."""
         from rcl_interfaces.srv import GetParameters
 
+        self._check_live("read")
         response = self.source.call(self.robot, f"{COMPRESSOR_NODE}/get_parameters",
                                  GetParameters, GetParameters.Request(names=["jpeg_quality"]),
                                  timeout_s=timeout_s)
@@ -303,6 +339,7 @@ class ImageModel:
         from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
         from rcl_interfaces.srv import SetParameters
 
+        self._check_live("set")
         low, high = JPEG_QUALITY
         if isinstance(quality, bool) or not isinstance(quality, int) or not low <= quality <= high:
             raise InvalidInput(f"JPEG quality is an integer {low}..{high}, not {quality!r}")

@@ -9,7 +9,8 @@ node in the root namespace, a status named without its node) belongs to every ro
 domain, and is marked ``shared``: it is shown rather than lost.
 
 Buffers are bounded (:data:`CAPACITY` log records; the newest status per name), so a
-chatty node cannot grow the GUI's memory.
+chatty node cannot grow the GUI's memory. A seek of the source (``reset``) empties them:
+the playback then delivers the records leading up to the new instant.
 """
 
 from __future__ import annotations
@@ -92,6 +93,7 @@ class LogsModel:
         self._logs: deque[LogEntry] = deque(maxlen=capacity)
         self._statuses: dict[str, StatusEntry] = {}
         self._feeds: list[Stream] = []
+        self._unsubscribe_reset: Callable[[], None] | None = None
         self.received = 0
 
     def activate(self) -> None:
@@ -99,6 +101,7 @@ class LogsModel:
         from rcl_interfaces.msg import Log
 
         if not self._feeds:
+            self._unsubscribe_reset = self.source.on_reset(self.reset)
             self._feeds = [
                 self.source.subscribe(self.robot, "/rosout", Log, self.on_log, qos=100),
                 self.source.subscribe(self.robot, "/diagnostics", DiagnosticArray,
@@ -107,8 +110,18 @@ class LogsModel:
 
     def deactivate(self) -> None:
         feeds, self._feeds = self._feeds, []
+        unsubscribe, self._unsubscribe_reset = self._unsubscribe_reset, None
         for feed in feeds:
             feed.close()
+        if unsubscribe is not None:
+            unsubscribe()
+
+    def reset(self) -> None:
+        """Forget every record and status (the source moved to another instant)."""
+        with self._lock:
+            self._logs.clear()
+            self._statuses.clear()
+            self.received = 0
 
     @property
     def active(self) -> bool:

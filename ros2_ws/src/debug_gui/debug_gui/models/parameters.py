@@ -12,16 +12,22 @@ model's own set (published by the node before it answers) is recognised by its v
 never shown as ``changed elsewhere``.
 
 ``load`` and ``set`` block on service calls: a UI calls them off its event loop.
+
+A log played back answers no service: there the model shows the parameters as recorded,
+from the ``/parameter_events`` the log holds (nodes and values, without descriptors), and
+``load`` raises, ``set`` answers, :class:`~debug_gui.errors.NotLive`. A seek (``reset``)
+forgets the values; the playback then delivers the events leading up to the new instant.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from .. import params
-from ..errors import DebugGuiError, InvalidInput
+from ..errors import NOT_LIVE, DebugGuiError, InvalidInput, NotLive
 from ..robots import RobotId
 from ..security import AccessPolicy, check_name
 from ..source import Source, Stream
@@ -65,18 +71,40 @@ class ParametersModel:
         self.stale = False
         self._loading = 0
         self.events = 0
+        #: Nodes heard of in ``/parameter_events`` (what a log can tell of its nodes).
+        self._event_nodes: set[str] = set()
+        self._unsubscribe_reset: Callable[[], None] | None = None
 
     # -- feed --------------------------------------------------------------------------
 
     def activate(self) -> None:
         """Follow ``/parameter_events`` of the robot's domain (idempotent)."""
         if self._feed is None:
+            self._unsubscribe_reset = self.source.on_reset(self.reset)
             self._feed = params.watch(self.source, self.robot, self.on_event)
 
     def deactivate(self) -> None:
         feed, self._feed = self._feed, None
+        unsubscribe, self._unsubscribe_reset = self._unsubscribe_reset, None
         if feed is not None:
             feed.close()
+        if unsubscribe is not None:
+            unsubscribe()
+
+    def reset(self) -> None:
+        """Forget the values and outcomes (the source moved to another instant); the
+        chosen node stays chosen."""
+        with self._lock:
+            self._params, self._outcomes = {}, {}
+            self._event_nodes.clear()
+            self.stale = False
+            self.version += 1
+            self.shape += 1
+
+    def _check_live(self, what: str) -> None:
+        if not self.source.live:
+            raise NotLive(f"{self.robot.label}: {NOT_LIVE}: a log cannot {what} (it holds "
+                          "only the parameter changes it recorded)")
 
     @property
     def active(self) -> bool:
@@ -86,7 +114,10 @@ class ParametersModel:
         """One ParameterEvent (on the Hub's thread, or from tests): the chosen node's
         changes update its values; new parameters make the model stale (they need a
         describe, which cannot be called from here)."""
+        recorded = not self.source.live
         with self._lock:
+            if recorded and self.robot.contains(event.node):
+                self._event_nodes.add(event.node)
             if event.node != self.node:
                 return
             self.events += 1
@@ -94,6 +125,12 @@ class ParametersModel:
                 self.stale = True  # a load in flight may have read the value before this
             for p in [*event.new_parameters, *event.changed_parameters]:
                 known = self._params.get(p.name)
+                if known is None and recorded:  # as recorded: no descriptor to ask for
+                    self._params[p.name] = params.Described(
+                        p.name, p.value.type, params.python_value(p.value))
+                    self.version += 1
+                    self.shape += 1
+                    continue
                 if known is None:
                     self.stale = True
                     continue
@@ -113,7 +150,11 @@ class ParametersModel:
     # -- what the view reads ------------------------------------------------------------
 
     def nodes(self, text: str = "") -> list[str]:
-        """The robot's nodes with parameter services, those containing ``text``."""
+        """The robot's nodes with parameter services (recorded: those the log's parameter
+        events name), those containing ``text``."""
+        if not self.source.live:
+            with self._lock:
+                return sorted(n for n in self._event_nodes if text in n)
         return [n for n in params.parameter_nodes(self.source, self.robot) if text in n]
 
     def parameters(self, text: str = "") -> list[params.Described]:
@@ -132,10 +173,14 @@ class ParametersModel:
     # -- calls (blocking) ---------------------------------------------------------------
 
     def load(self, node: str) -> list[params.Described]:
-        """Choose ``node`` and read its parameters with their descriptors (blocking)."""
+        """Choose ``node`` and read its parameters with their descriptors (blocking).
+
+        Recorded (not live): ``node`` is chosen, its parameters show as the log's events
+        tell them, and NotLive says that nothing more can be read."""
         check_name(node, what="node name")
         if not self.robot.contains(node):
             raise InvalidInput(f"{node} is not a node of {self.robot.label}")
+        recorded = not self.source.live
         with self._lock:
             if node != self.node:
                 self.node = node
@@ -143,7 +188,10 @@ class ParametersModel:
                 self.version += 1
                 self.shape += 1
             self.stale = False
-            self._loading += 1
+            if not recorded:
+                self._loading += 1
+        if recorded:  # chosen: its recorded changes show; describing it needs the robot
+            self._check_live(f"describe the parameters of {node}")
         try:
             got = params.describe(self.source, self.robot, node)
         finally:
@@ -179,6 +227,7 @@ class ParametersModel:
         return outcome
 
     def _set(self, name: str, raw: object) -> Outcome:
+        self._check_live(f"set {name}")
         self._policy.check_write(self._token)
         with self._lock:
             node, param = self.node, self._params.get(name)

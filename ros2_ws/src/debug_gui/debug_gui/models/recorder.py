@@ -15,24 +15,30 @@ Every control call checks the token first, here and not only in the page: a writ
 the server's token is refused whatever a browser sends. Topic selections are parsed by
 robot_recorder's own :func:`robot_recorder.parse_selection`, so the GUI accepts exactly
 what the recorder does.
+
+A log played back holds the recorders' status topics but answers no service: there a
+recorder is found by its status alone, its status shows as recorded (its age by the
+status' stamp on the source's clock), a seek (``reset``) forgets it, and every control
+call is :class:`~debug_gui.errors.NotLive`.
 """
 
 from __future__ import annotations
 
 import functools
 import threading
-import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
+from efficient_comm import from_msg
 from robot_recorder import RecorderConfigError, TopicSelection, parse_selection
 
-from ..errors import DebugGuiError, InvalidInput, RobotUnavailable
+from ..errors import NOT_LIVE, DebugGuiError, InvalidInput, NotLive, RobotUnavailable
 from ..robots import RobotId
 from ..security import AccessPolicy
 from ..source import Source, Stream
+from .ages import StampAges
 
 STATUS_TYPE = "robot_recorder_interfaces/msg/RecorderStatus"
 START_TYPE = "robot_recorder_interfaces/srv/Start"
@@ -162,12 +168,13 @@ def check_bag(bag: object) -> str:
 
 
 class _Follow:
-    __slots__ = ("count", "feed", "heard", "last")
+    __slots__ = ("count", "feed", "heard", "last", "stamp_ns")
 
     def __init__(self) -> None:
         self.feed: Stream | None = None
         self.last: Any = None
         self.heard: float | None = None
+        self.stamp_ns = 0
         self.count = 0
 
 
@@ -186,14 +193,17 @@ class RecorderModel:
         policy: AccessPolicy,
         token: str | None,
         timeout_s: float = 10.0,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Callable[[], float] | None = None,
     ) -> None:
         self.source = source
         self.robot = robot
         self._policy = policy
         self._token = token
         self.timeout_s = timeout_s
-        self._clock = clock
+        #: The source's clock (seconds): monotonic live, the log's time in a playback.
+        self._clock = clock or source.now
+        self._ages = StampAges(self._clock)
+        self._unsubscribe_reset: Callable[[], None] | None = None
         self._lock = threading.Lock()
         self._active = False
         self._recorders: dict[str, _Follow] = {}
@@ -207,11 +217,12 @@ class RecorderModel:
         """The robot's recorders on the graph now (absolute node names, sorted); while
         active, a newly found one's status is followed at once."""
         services = self.source.services(self.robot)
+        recorded = not self.source.live  # a log holds no services: the status tells
         found = []
         for name, types in self.source.topics(self.robot).items():
             if STATUS_TYPE in types and name.endswith(STATUS_SUFFIX):
                 node = name[: -len(STATUS_SUFFIX)]
-                if START_TYPE in services.get(f"{node}/start", ()):
+                if recorded or START_TYPE in services.get(f"{node}/start", ()):
                     found.append(node)
         with self._lock:
             for node in found:
@@ -225,6 +236,8 @@ class RecorderModel:
         """Follow every known recorder's status (idempotent)."""
         with self._lock:
             self._active = True
+            if self._unsubscribe_reset is None:
+                self._unsubscribe_reset = self.source.on_reset(self.reset)
         self.discover()
 
     def deactivate(self) -> None:
@@ -234,8 +247,19 @@ class RecorderModel:
             feeds = [f.feed for f in self._recorders.values() if f.feed is not None]
             for follow in self._recorders.values():
                 follow.feed = None
+            unsubscribe, self._unsubscribe_reset = self._unsubscribe_reset, None
         for feed in feeds:
             feed.close()
+        if unsubscribe is not None:
+            unsubscribe()
+
+    def reset(self) -> None:
+        """Forget every recorder's status (the source moved to another instant); the
+        recorders stay known and followed."""
+        with self._lock:
+            for follow in self._recorders.values():
+                follow.last, follow.heard, follow.stamp_ns, follow.count = None, None, 0, 0
+            self._ages.reset()
 
     @property
     def active(self) -> bool:
@@ -260,20 +284,22 @@ class RecorderModel:
 
     def on_status(self, node: str, msg: Any) -> None:
         """One RecorderStatus of recorder ``node`` (on the Hub's thread, or by tests)."""
+        stamp_ns = from_msg(msg.stamp)
         with self._lock:
             follow = self._recorders.setdefault(node, _Follow())
             follow.last = msg
-            follow.heard = self._clock()
+            follow.heard, follow.stamp_ns = self._ages.heard(stamp_ns), stamp_ns
             follow.count += 1
 
     def states(self) -> list[RecorderState]:
         """Every recorder known, with its last status, sorted by node."""
-        now = self._clock()
         out = []
         with self._lock:
-            items = sorted(self._recorders.items())
-        for node, follow in items:
-            msg = follow.last
+            items = [(node, follow.last, follow.count,
+                      None if follow.heard is None
+                      else self._ages.age_s(follow.stamp_ns, delivered_s=follow.heard))
+                     for node, follow in sorted(self._recorders.items())]
+        for node, msg, count, age in items:
             if msg is None:
                 out.append(RecorderState(robot=self.robot, node=node))
                 continue
@@ -286,8 +312,7 @@ class RecorderModel:
                 topics=tuple(TopicFigures(name=str(t.name), type=str(t.type),
                                           messages=int(t.messages), bytes=int(t.bytes),
                                           drops=int(t.drops)) for t in msg.topics),
-                age_s=None if follow.heard is None else now - follow.heard,
-                statuses=follow.count,
+                age_s=age, statuses=count,
             ))
         return out
 
@@ -370,6 +395,9 @@ class RecorderModel:
 
     def _call(self, node: str | None, action: str, srv_type: type, request: Any
               ) -> ControlResult:
+        if not self.source.live:
+            raise NotLive(f"{self.robot.label}: {NOT_LIVE}: a log's recorder cannot "
+                          f"{action.replace('_', ' ')}")
         self._policy.check_write(self._token)
         node = self._one(node)
         response = self.source.call(self.robot, f"{node}/{action}", srv_type, request,

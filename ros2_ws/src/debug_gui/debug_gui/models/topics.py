@@ -13,22 +13,27 @@ Only the topic being echoed is subscribed to, through the Hub at :data:`ECHO_HZ`
 Messages are shown as the trees ``ros2 topic echo`` prints (efficient_comm's ``to_plain``),
 arrays cut at :data:`TRUNCATE`; numeric fields are named by dotted paths (``pose.position.x``,
 ``data.3``) for plotting over a rolling :data:`WINDOW_S`.
+
+Times are the source's (its clock, and a message's own ``header.stamp`` where it has one,
+see :mod:`.ages`): a playback that delivers a second of messages at once after a seek
+plots and measures them at the instants they were stamped. A seek (``reset``) forgets the
+echoed message, the plot and the rates.
 """
 
 from __future__ import annotations
 
 import threading
-import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from efficient_comm import UnknownTypeError, import_type, to_plain
+from efficient_comm import UnknownTypeError, from_msg, import_type, to_plain
 
 from ..errors import InvalidInput
 from ..hub import hidden
 from ..robots import STATS_SUFFIX, RobotId
 from ..source import Source, Stream
+from .ages import StampAges
 
 ECHO_HZ = 5.0
 PLOT_HZ = 20.0
@@ -79,10 +84,13 @@ class TopicsModel:
     """One robot's topic list, and the one topic being echoed (and maybe plotted)."""
 
     def __init__(self, source: Source, robot: RobotId, *,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] | None = None) -> None:
         self.source = source
         self.robot = robot
-        self._clock = clock
+        #: The source's clock (seconds): monotonic live, the log's time in a playback.
+        self._clock = clock or source.now
+        self._ages = StampAges(self._clock)
+        self._unsubscribe_reset: Callable[[], None] | None = None
         self._lock = threading.Lock()
         self._stats_feed: Stream | None = None
         self._stats_rates: dict[str, float] = {}
@@ -90,9 +98,11 @@ class TopicsModel:
         self.echo_topic: str | None = None
         self.echo_type: str | None = None
         self._last: Any = None
-        self._arrivals: deque[float] = deque(maxlen=RATE_SAMPLES)
+        #: (stamp ns or 0, delivered on the source's clock) of the echoed messages.
+        self._arrivals: deque[tuple[int, float]] = deque(maxlen=RATE_SAMPLES)
         self.plot_path: str | None = None
-        self._series: deque[tuple[float, float]] = deque()
+        #: (stamp ns or 0, delivered, value) of the plotted field.
+        self._series: deque[tuple[int, float, float]] = deque()
 
     # -- list ----------------------------------------------------------------------------
 
@@ -101,15 +111,29 @@ class TopicsModel:
         from efficient_comm_interfaces.msg import ExecutorStats
 
         if self._stats_feed is None:
+            self._unsubscribe_reset = self.source.on_reset(self.reset)
             self._stats_feed = self.source.subscribe(
                 self.robot, STATS_SUFFIX, ExecutorStats, self.on_stats, rate_hz=1.0)
 
     def deactivate(self) -> None:
         """Close every feed (the echo too): a hidden view costs the robot nothing."""
         feed, self._stats_feed = self._stats_feed, None
+        unsubscribe, self._unsubscribe_reset = self._unsubscribe_reset, None
         if feed is not None:
             feed.close()
         self.stop_echo()
+        if unsubscribe is not None:
+            unsubscribe()
+
+    def reset(self) -> None:
+        """Forget rates, the echoed message and the plot's series (the source moved to
+        another instant); the echoed topic and plotted field stay chosen."""
+        with self._lock:
+            self._stats_rates.clear()
+            self._last = None
+            self._arrivals.clear()
+            self._series.clear()
+            self._ages.reset()
 
     @property
     def active(self) -> bool:
@@ -166,6 +190,7 @@ class TopicsModel:
             self._last, self.plot_path = None, None
             self._arrivals.clear()
             self._series.clear()
+            self._ages.reset()  # another topic, stamped by another clock maybe
         self._echo_feed = self.source.subscribe(self.robot, full, cls, self.on_message,
                                              rate_hz=ECHO_HZ)
 
@@ -178,15 +203,17 @@ class TopicsModel:
 
     def on_message(self, msg: Any) -> None:
         tree = to_plain(msg, truncate_length=TRUNCATE)
-        now = self._clock()
+        stamp = getattr(getattr(msg, "header", None), "stamp", None)
+        stamp_ns = from_msg(stamp) if stamp is not None else 0
         with self._lock:
+            at = (stamp_ns, self._ages.heard(stamp_ns))
             self._last = tree
-            self._arrivals.append(now)
+            self._arrivals.append(at)
             if self.plot_path is not None:
                 value = value_at(tree, self.plot_path)
                 if value is not None:
-                    self._series.append((now, value))
-                while self._series and now - self._series[0][0] > WINDOW_S:
+                    self._series.append((*at, value))
+                while self._series and _seconds(at) - _seconds(self._series[0]) > WINDOW_S:
                     self._series.popleft()
 
     def last(self) -> Any:
@@ -211,13 +238,21 @@ class TopicsModel:
             self._echo_feed.set_rate(PLOT_HZ if path is not None else ECHO_HZ)
 
     def series(self) -> list[tuple[float, float]]:
-        """(seconds ago, value) of the plotted field, oldest first."""
-        now = self._clock()
+        """(seconds ago, value) of the plotted field, oldest first: by the messages'
+        stamps where they have them, on the source's clock."""
         with self._lock:
-            return [(t - now, v) for t, v in self._series]
+            return [(-self._ages.age_s(stamp, delivered_s=delivered), v)
+                    for stamp, delivered, v in self._series]
 
     def _measured_rate(self) -> float | None:
         a = self._arrivals
-        if len(a) < 2 or self._clock() - a[-1] > 5.0:
+        if len(a) < 2 or self._ages.age_s(a[-1][0], delivered_s=a[-1][1]) > 5.0:
             return None
-        return (len(a) - 1) / (a[-1] - a[0]) if a[-1] > a[0] else None
+        span = _seconds(a[-1]) - _seconds(a[0])
+        return (len(a) - 1) / span if span > 0 else None
+
+
+def _seconds(at: tuple[int, float] | tuple[int, float, float]) -> float:
+    """A sample's time: its stamp where it has one, else when it was delivered (one topic's
+    messages are all stamped or none)."""
+    return at[0] / 1e9 if at[0] else at[1]

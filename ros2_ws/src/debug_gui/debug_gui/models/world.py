@@ -19,11 +19,13 @@ Per robot it follows (relative to the robot's namespace):
 * ``game_state`` (soccer_interfaces/GameState, latched): the referee's broadcast as the
   robot received it: the view shows the newest any robot has (state, score, kick-off).
 
-Ages are judged on each robot's own clock: the robot's "now" is the newest stamp of the
-messages it stamps itself (odometry, localization, ball estimates, team ball), never of
-ground truth or the game state, which the world stamps: robots' clocks may be skewed
-against the world's (as separate computers' are), and a ball estimate must not look old
-because the world's clock runs ahead.
+Ages are judged on each robot's own clock, tied to the source's (:mod:`.ages`): the
+robot's "now" is the newest stamp of the messages it stamps itself (odometry,
+localization, ball estimates, team ball) plus the source's time since it was delivered,
+never a stamp of ground truth or the game state, which the world stamps: robots' clocks may
+be skewed against the world's (as separate computers' are), and a ball estimate must not
+look old because the world's clock runs ahead. So a paused playback keeps every belief as
+old as it was, a jump forward ages them all, and a seek (``reset``) forgets everything.
 
 Odometry starts where the robot started, not at the field's origin, so its frame is anchored
 where it agrees with ground truth the first time the view has both (a simulation: drift
@@ -47,7 +49,6 @@ import functools
 import math
 import re
 import threading
-import time
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -58,6 +59,7 @@ from soccer_field import KIDSIZE
 
 from ..robots import RobotId
 from ..source import Source, Stream
+from .ages import StampAges
 
 #: The field the view draws, by the names ui/world.py uses (metres); the dimensions are
 #: soccer_field's, the same the simulator builds and the referee judges with.
@@ -116,6 +118,14 @@ class RobotState:
     #: on the robot's clock (None: the robot tells none, or it is too old to be drawn).
     team_ball: tuple[float, float] | None = None
     team_ball_age_s: float | None = None
+    #: How old the pose is (the robot's belief by its stamp, ground truth since it was
+    #: delivered), on the source's clock; None without a pose.
+    pose_age_s: float | None = None
+
+    @property
+    def pose_stale(self) -> bool:
+        """The pose is older than :data:`STALE_S` (the robot stopped telling it)."""
+        return self.pose_age_s is not None and self.pose_age_s > STALE_S
 
     @property
     def team(self) -> str:
@@ -241,47 +251,51 @@ def ball_in_torso(estimate: Any) -> tuple[float, float] | None:
 class _Robot:
     """What one robot's feeds told (written on the Hub's thread, read under the lock)."""
 
-    def __init__(self, robot: RobotId, colour: str) -> None:
+    def __init__(self, robot: RobotId, colour: str, clock: Callable[[], float]) -> None:
         self.robot = robot
         self.colour = colour
+        self.ages = StampAges(clock)
+        self.feeds: list[Stream] = []
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything heard (a seek); the robot, its colour and feeds stay."""
+        self.ages.reset()
         self.odom: Pose2D | None = None
+        self.odom_at = (0, 0.0)  # (stamp ns, delivered on the source's clock)
         self.anchor: Pose2D | None = None
         self.ball: tuple[float, float] | None = None  # torso frame
         self.ball_heard: float | None = None
         self.ball_stamp_ns = 0
-        #: The newest stamp of any of the robot's messages: its "now", on its own clock
-        #: (simulated time under lockstep), against which the ball estimate ages.
-        self.newest_ns = 0
         self.true_pose: Pose2D | None = None
+        self.true_heard = 0.0
         self.true_ball: tuple[float, float] | None = None
         self.motion = ""
         self.role = ""
         #: The robot's localization (field frame): preferred to odometry once heard.
         self.localized: Pose2D | None = None
+        self.localized_at = (0, 0.0)
         self.team_ball: tuple[float, float] | None = None
-        self.team_ball_stamp_ns = 0
-        self.feeds: list[Stream] = []
+        self.team_ball_at = (0, 0.0)
 
-    def heard(self, stamp: Any) -> int:
+    def heard(self, stamp: Any) -> tuple[int, float]:
         """A stamp of the robot's own clock (never one the world stamped: see the module
-        docstring)."""
+        docstring), and when it was delivered on the source's clock."""
         ns = from_msg(stamp)
-        self.newest_ns = max(self.newest_ns, ns)
-        return ns
+        return ns, self.ages.heard(ns)
+
+    def age_s(self, at: tuple[int, float]) -> float:
+        return self.ages.age_s(at[0], delivered_s=at[1])
 
     def team_ball_age_s(self) -> float | None:
-        if self.team_ball is None:
-            return None
-        return max(0.0, (self.newest_ns - self.team_ball_stamp_ns) / 1e9)
+        return None if self.team_ball is None else self.age_s(self.team_ball_at)
 
-    def ball_age_s(self, now: float) -> float | None:
-        """By stamps where the robot stamps its messages (its clock, not the GUI's: under
-        lockstep they differ), else since the GUI heard it."""
+    def ball_age_s(self) -> float | None:
+        """By its stamp where the robot stamps its messages (its clock, not the GUI's:
+        under lockstep they differ), else since it was delivered."""
         if self.ball_heard is None:
             return None
-        if self.ball_stamp_ns:
-            return max(0.0, (self.newest_ns - self.ball_stamp_ns) / 1e9)
-        return now - self.ball_heard
+        return self.age_s((self.ball_stamp_ns, self.ball_heard))
 
     def anchor_if_possible(self) -> None:
         """Fix the odometry frame on the field where odometry and truth first meet."""
@@ -298,14 +312,16 @@ class WorldModel:
         robots: list[RobotId],
         *,
         rate_hz: float = 10.0,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Callable[[], float] | None = None,
     ) -> None:
         self.source = source
         self.rate_hz = rate_hz
-        self._clock = clock
+        #: The source's clock (seconds): monotonic live, the log's time in a playback.
+        self._clock = clock or source.now
         self._lock = threading.Lock()
         colours = colours_for(robots)
-        self._robots = [_Robot(r, colours[r]) for r in robots]
+        self._robots = [_Robot(r, colours[r], self._clock) for r in robots]
+        self._unsubscribe_reset: Callable[[], None] | None = None
         #: The newest game state any robot received, and its stamp (the world's clock).
         self._game: Game | None = None
         self._game_key = (-1, -1)
@@ -324,6 +340,7 @@ class WorldModel:
         if self.active:
             return
         self.active = True
+        self._unsubscribe_reset = self.source.on_reset(self.reset)
         for r in self._robots:
             handlers: list[tuple[str, type, Callable[[RobotId, Any], None]]] = [
                 ("odom", Odometry, self.on_odom),
@@ -353,10 +370,21 @@ class WorldModel:
     def deactivate(self) -> None:
         """Close every feed: the robots stop sending to this view."""
         self.active = False
+        unsubscribe, self._unsubscribe_reset = self._unsubscribe_reset, None
         for r in self._robots:
             feeds, r.feeds = r.feeds, []
             for feed in feeds:
                 feed.close()
+        if unsubscribe is not None:
+            unsubscribe()
+
+    def reset(self) -> None:
+        """Forget every pose, ball, state and the game (the source moved to another
+        instant: what it delivers next is the new instant's)."""
+        with self._lock:
+            for r in self._robots:
+                r.reset()
+            self._game, self._game_key = None, (-1, -1)
 
     # -- messages (Hub thread, or tests) -------------------------------------------------
 
@@ -369,7 +397,7 @@ class WorldModel:
     def on_odom(self, robot: RobotId, msg: Any) -> None:
         with self._lock:
             r = self._get(robot)
-            r.heard(msg.header.stamp)
+            r.odom_at = r.heard(msg.header.stamp)
             r.odom = pose_2d(msg.pose.pose)
             r.anchor_if_possible()
 
@@ -377,22 +405,22 @@ class WorldModel:
         pose = pose_2d(msg.pose.pose)
         with self._lock:
             r = self._get(robot)
-            r.heard(msg.header.stamp)
+            r.localized_at = r.heard(msg.header.stamp)
             r.localized = pose
 
     def on_team_ball(self, robot: RobotId, msg: Any) -> None:
         p = msg.pose.pose.position
         with self._lock:
             r = self._get(robot)
-            r.team_ball, r.team_ball_stamp_ns = (p.x, p.y), r.heard(msg.header.stamp)
+            r.team_ball, r.team_ball_at = (p.x, p.y), r.heard(msg.header.stamp)
 
     def on_ball(self, robot: RobotId, msg: Any) -> None:
         local = ball_in_torso(msg)
         with self._lock:
             r = self._get(robot)
-            stamp = r.heard(msg.header.stamp)
+            stamp, delivered = r.heard(msg.header.stamp)
             if local is not None:
-                r.ball, r.ball_heard, r.ball_stamp_ns = local, self._clock(), stamp
+                r.ball, r.ball_heard, r.ball_stamp_ns = local, delivered, stamp
 
     # Ground truth and the game state are the world's, stamped on its clock: they never
     # move the robot's "now" (see the module docstring).
@@ -401,7 +429,7 @@ class WorldModel:
         pose = pose_2d(msg.pose)
         with self._lock:
             r = self._get(robot)
-            r.true_pose = pose
+            r.true_pose, r.true_heard = pose, self._clock()
             r.anchor_if_possible()
 
     def on_true_ball(self, robot: RobotId, msg: Any) -> None:
@@ -430,22 +458,24 @@ class WorldModel:
 
     def states(self) -> list[RobotState]:
         """Every robot as it stands now, in binding order (colours stay with robots)."""
-        now = self._clock()
         out = []
         with self._lock:
+            now = self._clock()
             for r in self._robots:
+                pose_age: float | None = None
                 if r.localized is not None:
                     pose: Pose2D | None = r.localized
-                    source = "localization"
+                    source, pose_age = "localization", r.age_s(r.localized_at)
                 elif r.odom is not None:
                     pose = compose(r.anchor or Pose2D(0.0, 0.0, 0.0), r.odom)
-                    source = "odom"
+                    source, pose_age = "odom", r.age_s(r.odom_at)
                 elif r.true_pose is not None:
                     pose, source = r.true_pose, "ground truth"
+                    pose_age = max(0.0, now - r.true_heard)
                 else:
                     pose, source = None, ""
                 ball = None
-                age = r.ball_age_s(now)
+                age = r.ball_age_s()
                 if r.ball is not None and pose is not None and age is not None \
                         and age <= STALE_S:
                     b = compose(pose, Pose2D(r.ball[0], r.ball[1], 0.0))
@@ -456,7 +486,8 @@ class WorldModel:
                 out.append(RobotState(r.robot, r.colour, pose, source, ball, age,
                                       r.true_pose, r.true_ball, r.motion, role=r.role,
                                       team_ball=team_ball,
-                                      team_ball_age_s=team_age if team_ball else None))
+                                      team_ball_age_s=team_age if team_ball else None,
+                                      pose_age_s=pose_age))
         return out
 
     def game(self) -> Game | None:

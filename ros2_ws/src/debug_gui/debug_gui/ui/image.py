@@ -29,7 +29,7 @@ from nicegui.context import context
 
 from debug_probes import JPEG_QUALITY
 
-from ..errors import DebugGuiError
+from ..errors import NOT_LIVE, DebugGuiError
 from ..models.image import GRACE_S, ImageModel
 from .registry import ViewContext, register
 
@@ -202,7 +202,11 @@ def build(ctx: ViewContext) -> None:
         # would be a new element, which a background task cannot create.
         quality_note = ui.label("").classes("text-caption").props(
             f"data-testid=image-quality-note-{robot.key}")
-        if not ctx.can_write:
+        if not ctx.source.live:  # a log's quality is what it recorded
+            quality.disable()
+            apply.disable()
+            quality_note.text = f"{NOT_LIVE}: the JPEG quality cannot be set"
+        elif not ctx.can_write:
             quality.disable()
             apply.disable()
             apply.tooltip("changing the robot needs the server's token")
@@ -245,11 +249,11 @@ def build(ctx: ViewContext) -> None:
                            camera=bool(model.received) or model.has_camera())
         if online != counts["online"]:
             counts["online"] = online
-            if not online:
+            if not online and ctx.source.live:
                 quality.disable()
                 apply.disable()
                 quality_note.text = "JPEG quality cannot be set: the robot has gone"
-            elif ctx.can_write:
+            elif ctx.can_write and ctx.source.live:
                 background_tasks.create(read_quality(), name=f"image quality {key}")
         if model.received and placeholder.visible:
             placeholder.set_visibility(False)
@@ -332,7 +336,7 @@ def build(ctx: ViewContext) -> None:
         timer.activate()
         client.run_javascript(f"{_SCRIPT}; window.debugGuiImage.attach('{key}', "
                               f"'{ROUTE}/{key}');")
-        if ctx.can_write:
+        if ctx.can_write and ctx.source.live:
             background_tasks.create(read_quality(), name=f"image quality {key}")
 
     async def start_when_connected() -> None:

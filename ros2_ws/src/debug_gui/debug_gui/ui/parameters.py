@@ -22,7 +22,7 @@ from typing import Any
 from nicegui import background_tasks, run, ui
 from rcl_interfaces.msg import ParameterType as RosType
 
-from ..errors import DebugGuiError
+from ..errors import NOT_LIVE, DebugGuiError, NotLive
 from ..models.parameters import Outcome, ParametersModel
 from ..params import Described
 from .registry import ViewContext, register
@@ -86,9 +86,10 @@ def build(ctx: ViewContext) -> None:
             f"dense data-testid={_testid('params-node', key)}").classes("w-80")
         name_filter = ui.input("filter parameters", value=ctx.text("filter")).props(
             f"dense clearable data-testid={_testid('params-filter', key)}").classes("w-56")
-    status = ui.label("pick a node" + ("" if ctx.can_write else
-                                       " (read-only: changes need the server's token)")
-                      ).classes("text-caption").props(
+    read_only = ("" if ctx.can_write else " (read-only: changes need the server's token)")
+    if not ctx.source.live:  # a log: its parameter events, nothing to set or describe
+        read_only = f" ({NOT_LIVE}: the values as the log recorded them, read-only)"
+    status = ui.label("pick a node" + read_only).classes("text-caption").props(
         f"data-testid={_testid('params-status', key)}")
     box = ui.column().classes("w-full gap-1").props(f"data-testid={_testid('params', key)}")
     rows: dict[str, _Row] = {}
@@ -101,8 +102,9 @@ def build(ctx: ViewContext) -> None:
         status.text = f"reading {chosen}…"
         try:
             got = await run.io_bound(model.load, chosen)
-            status.text = f"{chosen}: {len(got or [])} parameters" + (
-                "" if ctx.can_write else " (read-only: changes need the server's token)")
+            status.text = f"{chosen}: {len(got or [])} parameters" + read_only
+        except NotLive:  # chosen all the same: its values show as the log's events come
+            status.text = chosen + read_only
         except DebugGuiError as exc:
             status.text = str(exc)
         finally:
@@ -158,7 +160,8 @@ def build(ctx: ViewContext) -> None:
             widget = ui.input(value=param.text).classes("w-72")
             widget.on("keydown.enter", lambda _e, n=param.name: submit(n))
         widget.props(f"dense data-testid={testid}")
-        if param.read_only or not ctx.can_write or param.type == RosType.PARAMETER_NOT_SET:
+        if param.read_only or not ctx.can_write or not ctx.source.live \
+                or param.type == RosType.PARAMETER_NOT_SET:
             widget.disable()
         return widget
 

@@ -20,7 +20,7 @@ from typing import Any
 
 from nicegui import run, ui
 
-from ..errors import DebugGuiError
+from ..errors import NOT_LIVE, DebugGuiError
 from ..models.recorder import (
     ControlResult,
     RecorderModel,
@@ -128,11 +128,13 @@ class _RecorderPanel:
                     self.reload = ui.button("reload topics", on_click=self.load_topics).props(
                         f"flat dense data-testid=recorder-reload-{key}")
         self.rows: dict[str, tuple[Any, Any, Any]] = {}
-        if not ctx.can_write:
+        if not ctx.source.live:  # a log's recorder status, nothing to command
+            self.result.text = f"{NOT_LIVE}: the recorder's status as the log recorded it"
+        if not ctx.can_write or not ctx.source.live:
             for element in (*self.buttons, self.bag_name, self.apply, self.entries):
                 element.disable()
             for button in (*self.buttons, self.apply):
-                button.tooltip(READ_ONLY)
+                button.tooltip(READ_ONLY if ctx.source.live else NOT_LIVE)
 
     def update(self, state: RecorderState) -> None:
         if self.badge.text != state.state:  # props() would resend the badge every poll
@@ -207,7 +209,7 @@ class _RecorderPanel:
                     nth = ui.number("every nth", value=chosen.every_nth if chosen and
                                     chosen.every_nth > 1 else None, min=1, precision=0).props(
                         "dense").classes("w-20")
-                    if not self.ctx.can_write:
+                    if not self.ctx.can_write or not self.ctx.source.live:
                         for element in (tick, rate, nth):
                             element.disable()
                 self.rows[name] = (tick, rate, nth)
@@ -274,10 +276,10 @@ def build(ctx: ViewContext) -> None:
                 "color=negative data-testid=recorder-start-all")
             stop_all = ui.button("stop all robots", icon="stop").props(
                 "data-testid=recorder-stop-all")
-            if not ctx.can_write:
+            if not ctx.can_write or not ctx.source.live:
                 for button in (start_all, stop_all):
                     button.disable()
-                    button.tooltip(READ_ONLY)
+                    button.tooltip(READ_ONLY if ctx.source.live else NOT_LIVE)
         all_result = ui.column().classes("gap-0 text-caption").props(
             "data-testid=recorder-all-result")
 
