@@ -80,7 +80,7 @@ def test_the_log_is_a_source_named_as_the_match_is_live(log: Path) -> None:
         assert p.publishes(BLUE1, "role") and not p.publishes(red1, "role")
         assert p.publishes(BLUE1, "/rosout")  # merged under the robot's namespace
         assert not p.publishes_statistics(BLUE1)
-        with pytest.raises(NotLive, match="not answered by a recorded log"):
+        with pytest.raises(NotLive, match="recorded: not live: a log does not answer"):
             p.call(BLUE1, "/blue1/x/get_parameters", GetParameters, GetParameters.Request())
 
 
@@ -349,36 +349,52 @@ def test_restoring_a_layout_saved_live_rebinds_it_to_the_log(tmp_path: Path, log
         assert shell.layout.panels[0].robot == RED1
 
 
-def test_recorded_parameters_are_answered_as_of_the_cursor(tmp_path: Path) -> None:
+def test_recorded_parameters_show_as_of_the_cursor_and_answer_no_call(tmp_path: Path) -> None:
+    """The parameters view's model on a log: after a seek, a node's parameters are all its
+    recorded events up to the instant (a parameter set once at the start is still there
+    after a later event changed another one); a call is NotLive."""
     from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterValue
 
-    from debug_gui import params
+    from debug_gui import AccessPolicy, params
+    from debug_gui.models.parameters import ParametersModel
 
-    def event(step: float, *, new: bool) -> ParameterEvent:
-        p = Parameter(name="step", value=ParameterValue(type=3, double_value=step))
-        return (ParameterEvent(node="/blue1/walk", new_parameters=[p]) if new
-                else ParameterEvent(node="/blue1/walk", changed_parameters=[p]))
+    def event(**changes: float) -> ParameterEvent:
+        ps = [Parameter(name=k, value=ParameterValue(type=3, double_value=v))
+              for k, v in changes.items()]
+        return ParameterEvent(node="/blue1/walk", changed_parameters=ps)
 
     path = tmp_path / "merged"
     with LogBuilder(path, epoch_s=EPOCH) as b:
-        b.add("blue1", "parameter_events", event(0.1, new=True), t=0.5)
-        b.add("blue1", "parameter_events", event(0.2, new=False), t=2.0)
+        b.add("blue1", "parameter_events", event(step=0.1, height=0.3), t=0.5)
+        b.add("blue1", "parameter_events", event(step=0.2), t=2.0)
         b.add("red1", "role", String(data="striker"), t=0.0)
     with Playback(path) as p:
-        assert params.parameter_nodes(p, BLUE1) == ["/blue1/walk"]
-        assert params.parameter_nodes(p, RED1) == []
-        p.seek(EPOCH + 1.0)
-        assert p.settle()
-        (step,) = params.describe(p, BLUE1, "/blue1/walk")
-        assert (step.name, step.value) == ("step", 0.1)
-        p.seek(EPOCH + 3.0)
-        assert p.settle()
-        assert params.describe(p, BLUE1, "/blue1/walk")[0].value == 0.2
+        assert p.nodes(BLUE1) == ["/blue1/walk"] and p.nodes(RED1) == []
+        assert p.services(BLUE1) == {}
+        model = ParametersModel(p, BLUE1, policy=AccessPolicy.for_server(token=None),
+                                token=None)
+        model.activate()
+        try:
+            with pytest.raises(NotLive):
+                model.load("/blue1/walk")  # chosen all the same: its recorded events show
+
+            def shown() -> dict[str, Any]:
+                return {d.name: d.value for d in model.parameters()}
+
+            p.seek(EPOCH + 1.0)
+            assert p.settle()
+            assert shown() == {"step": 0.1, "height": 0.3}
+            p.seek(EPOCH + 3.0)
+            assert p.settle()
+            assert shown() == {"step": 0.2, "height": 0.3}
+            assert model.nodes() == ["/blue1/walk"]
+            p.seek(EPOCH + 0.2)  # before the first event: nothing recorded yet
+            assert p.settle()
+            assert shown() == {} and model.nodes() == []
+        finally:
+            model.deactivate()
         with pytest.raises(NotLive):
-            params.set_values(p, BLUE1, "/blue1/walk",
-                              {"step": ParameterValue(type=3, double_value=0.3)})
-        with pytest.raises(NotLive):
-            params.describe(p, RED1, "/red1/walk")
+            params.describe(p, BLUE1, "/blue1/walk")
 
 
 def test_an_event_at_a_wall_clock_epoch_is_sought_exactly(tmp_path: Path) -> None:

@@ -21,9 +21,9 @@ last message of each subscribed topic at or before it, found by reading windows 
 back further and further (1 s, 4 s, 16 s, ...) from the instant, so a seek reads about one
 second of log for periodic topics, never the whole log.
 
-A log answers no service calls (:class:`~debug_gui.errors.NotLive`) but the parameter
-services of the nodes whose ``/parameter_events`` it recorded: list, get and describe
-answer with the values as recorded up to the cursor, so the parameters view shows them.
+A log answers no service call (:class:`~debug_gui.errors.NotLive`). The parameters view
+shows a node's parameters as recorded: its ``/parameter_events``, which a seek delivers
+whole up to the instant (each event tells only what changed).
 
 A log that cannot be read is :class:`~debug_gui.errors.LogUnreadable` when opened; one
 damaged further in stops the playback with :attr:`Playback.error` saying why.
@@ -45,7 +45,7 @@ from efficient_comm.handle import QoSLike
 from log_analysis import Event, LogAnalysisError, LogMessage, TeamLog
 from rosbag2_layout import Rosbag2Error, type_name
 
-from .errors import InvalidInput, LogUnreadable, NotLive
+from .errors import NOT_LIVE, InvalidInput, LogUnreadable, NotLive
 from .layout import Layout, Panel
 from .params import PARAMETER_EVENTS
 from .robots import STATS_SUFFIX, RobotId, check_domain
@@ -64,9 +64,6 @@ MAX_RATE = 100.0
 _PLAY_WINDOW_NS = 250_000_000
 #: The first look-back of a seek; each further one reaches back four times as far.
 _LOOKBACK_NS = 1_000_000_000
-#: The parameter services a log answers from recorded parameter events, by their types.
-_PARAMETER_SERVICES = {"list_parameters": "ListParameters", "get_parameters": "GetParameters",
-                       "describe_parameters": "DescribeParameters"}
 
 
 def _ns(seconds: float) -> int:
@@ -177,7 +174,7 @@ class Playback:
         self._closed = False
         self._error: str | None = None
         #: Each robot's recorded parameter events (by their name in the log), once read.
-        self._parameters: dict[str, list[tuple[int, Any]]] = {}
+        self._parameters: dict[str, list[LogMessage]] = {}
         self._thread = threading.Thread(target=self._run, daemon=True, name="playback")
         self._thread.start()
 
@@ -347,15 +344,14 @@ class Playback:
     def nodes(self, robot: RobotId) -> list[str]:
         """A log records topics, not nodes: the nodes it knows are those whose parameters
         it recorded (``/parameter_events``)."""
-        return sorted({event.node for _, event in self._parameter_events(robot)
-                       if robot.contains(event.node)})
+        return sorted({m.message.node for m in self._parameter_events(robot)
+                       if robot.contains(m.message.node)})
 
     def services(self, robot: RobotId) -> dict[str, list[str]]:
-        """The parameter services a log answers from what it recorded (see :meth:`call`)."""
-        return {f"{node}/{kind}": [f"rcl_interfaces/srv/{srv}"]
-                for node in self.nodes(robot) for kind, srv in _PARAMETER_SERVICES.items()}
+        """None: a log answers no service (see :meth:`call`)."""
+        return {}
 
-    def _parameter_events(self, robot: RobotId) -> list[tuple[int, Any]]:
+    def _parameter_events(self, robot: RobotId) -> list[LogMessage]:
         """The robot's recorded ``/parameter_events``, read once (a reader of its own: the
         playing thread reads the playback's meanwhile). One sparse topic over the log."""
         name = self._log_name(robot, PARAMETER_EVENTS)
@@ -363,32 +359,15 @@ class Playback:
             cached = self._parameters.get(name)
         if cached is not None:
             return cached
-        events: list[tuple[int, Any]] = []
+        events: list[LogMessage] = []
         if robot in self._robots and name in self._log.topics:
             try:
-                events = [(m.log_time_ns, m.message)
-                          for m in TeamLog(self._log.path).messages([name])]
+                events = list(TeamLog(self._log.path).messages([name]))
             except (LogAnalysisError, Rosbag2Error) as exc:
                 _log.warning("the recorded parameters of %s: %s", robot.label, exc)
         with self._cond:
             self._parameters[name] = events
         return events
-
-    def _parameters_at(self, robot: RobotId, node: str) -> dict[str, Any] | None:
-        """``node``'s parameters (name -> ParameterValue) as recorded up to the cursor;
-        None if the log recorded none of its parameters."""
-        cursor, found = self.cursor_ns, None
-        for t, event in self._parameter_events(robot):
-            if t > cursor:
-                break
-            if event.node != node:
-                continue
-            found = {} if found is None else found
-            for p in [*event.new_parameters, *event.changed_parameters]:
-                found[p.name] = p.value
-            for p in event.deleted_parameters:
-                found.pop(p.name, None)
-        return found
 
     def subscribe(self, robot: RobotId, topic: str, msg_type: type,
                   callback: Callable[[Any], None], *, rate_hz: float | None = None,
@@ -415,26 +394,9 @@ class Playback:
 
     def call(self, robot: RobotId, service: str, srv_type: type, request: Any, *,
              timeout_s: float = 5.0) -> Any:
-        """A log answers the parameter services of a node whose ``/parameter_events`` it
-        recorded (list, get, describe: the values at the cursor); anything else, and
-        every write, raises NotLive."""
-        from rcl_interfaces.msg import ListParametersResult, ParameterDescriptor, ParameterValue
-
-        node, _, kind = robot.resolve(service).rpartition("/")
-        known = self._parameters_at(robot, node) if kind in _PARAMETER_SERVICES else None
-        if known is None:
-            raise NotLive(f"{robot.label}: {service} is not answered by a recorded log")
-        response = srv_type.Response()  # type: ignore[attr-defined]
-        if kind == "list_parameters":
-            response.result = ListParametersResult(names=sorted(known))
-        elif kind == "get_parameters":
-            response.values = [known.get(n, ParameterValue()) for n in request.names]
-        else:
-            response.descriptors = [
-                ParameterDescriptor(name=n, type=known.get(n, ParameterValue()).type,
-                                    description="as recorded", read_only=True)
-                for n in request.names]
-        return response
+        """A log answers no service: NotLive. (The parameters view shows a node's parameters
+        as recorded from its ``/parameter_events``, which a seek delivers whole.)"""
+        raise NotLive(f"{robot.label}: {NOT_LIVE}: a log does not answer {service}")
 
     # -- the playing thread --------------------------------------------------------------
 
@@ -504,6 +466,16 @@ class Playback:
         return found
 
     def _deliver_instant(self, t_ns: int, streams: Sequence[PlaybackStream]) -> None:
+        """The instant ``t_ns`` to ``streams``: each topic's last message at or before it,
+        but every recorded parameter event up to it (each tells only what changed, so a
+        node's parameters at ``t_ns`` are the sum of them all)."""
+        events = [s for s in streams if s.log_name == self._log_name(s.robot, PARAMETER_EVENTS)]
+        for stream in events:
+            for m in self._parameter_events(stream.robot):
+                if m.log_time_ns > t_ns:
+                    break
+                stream.offer(m, instant=True)
+        streams = [s for s in streams if s not in events]
         last = self._last_before(t_ns, {s.log_name for s in streams})
         for m in sorted(last.values(), key=lambda m: m.log_time_ns):
             for stream in streams:
