@@ -12,7 +12,7 @@ import statistics
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import cv2
 import numpy as np
@@ -22,6 +22,7 @@ from sensor_msgs.msg import CompressedImage
 from debug_gui import Feed, Hub, RobotId
 from debug_gui.errors import InvalidInput
 from debug_gui.models.image import GRACE_S, IMAGE_TOPIC, MARKERS_TOPIC, ImageModel, svg_overlay
+from debug_gui.testing import FakeSource
 from debug_gui.ui.image import frame_message
 from debug_probes import DebugDrawing
 from efficient_comm import to_msg
@@ -65,7 +66,7 @@ def _drawings(stamps: list[int], text: str = "<b>&") -> list[Any]:
 
 
 def _model(clock: _Clock, buffer: int = 60) -> ImageModel:
-    return ImageModel(cast(Hub, None), RobotId(0, "/robot"), clock=clock, buffer=buffer)
+    return ImageModel(FakeSource(), RobotId(0, "/robot"), clock=clock, buffer=buffer)
 
 
 def test_the_frame_shown_carries_the_drawing_of_its_own_stamp() -> None:

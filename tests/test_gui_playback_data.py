@@ -297,10 +297,11 @@ def test_the_image_view_shows_the_recorded_frame_of_the_instant(tmp_path: Path) 
         image.activate()
         p.seek(3.2)
         assert p.settle()
-        # The frame of the instant is the newest the view holds (which of its frames the
-        # view draws waits for its drawing or a grace period on the model's clock).
-        newest = image.frames()[-1]
-        assert newest.stamp_ns == 3_000_000_000 and newest.jpeg.startswith(b"\xff\xd8")
+        # The frame of the instant is the one shown, paused, though it has no drawing
+        # (a live frame would wait for one; a recorded one's drawing never comes).
+        shown = image.current()
+        assert shown is not None and shown[1] is None
+        assert shown[0].stamp_ns == 3_000_000_000 and shown[0].jpeg.startswith(b"\xff\xd8")
 
 
 def test_a_video_without_a_fit_is_shown_from_the_log_start_and_anchored_by_hand(

@@ -22,7 +22,7 @@ from std_msgs.msg import String
 
 from debug_gui import AccessPolicy, InvalidInput, NotLive, RobotId
 from debug_gui.models.components import STALE_AFTER_S, ComponentsModel
-from debug_gui.models.image import GRACE_S, IMAGE_TOPIC, ImageModel
+from debug_gui.models.image import GRACE_S, IMAGE_TOPIC, MARKERS_TOPIC, ImageModel
 from debug_gui.models.logs import LogsModel
 from debug_gui.models.parameters import ParametersModel
 from debug_gui.models.recorder import RecorderModel, RecorderTeam
@@ -237,22 +237,42 @@ def test_recorder_status_ages_on_the_source_clock() -> None:
 
 
 def test_a_frame_waits_for_its_drawing_on_the_source_clock_and_by_stamps() -> None:
-    source = _source(live=False)
+    source = _source(live=True)
     model = ImageModel(source, ROBOT)
     model.activate()
     source.publish(ROBOT, IMAGE_TOPIC, _frame(T0))
-    assert model.current() is None  # waiting for its drawing; paused, it still waits
+    assert model.current() is None  # waiting for its drawing
     source.advance(GRACE_S + 0.01)
     shown = model.current()
     assert shown is not None and shown[0].stamp_ns == round(T0 * 1e9)
-    # A seek delivers the frames leading up to the instant in a burst: the older ones have
-    # had their time by their stamps, the newest still waits for its drawing.
-    source.reset()
+    # Frames delivered in a burst: the older ones have had their time by their stamps, the
+    # newest still waits for its drawing.
     for k in range(3):
         assert source.publish(ROBOT, IMAGE_TOPIC, _frame(T0 + 5 + k * 2 * GRACE_S)) == 1
         source.advance(1 / 25)  # within the burst, as fast as the view's 30 Hz lets it
     shown = model.current()
     assert shown is not None and shown[0].stamp_ns == round((T0 + 5 + 2 * GRACE_S) * 1e9)
+
+
+def test_a_recorded_frame_shows_paused_and_the_drawn_one_while_its_drawing_lags() -> None:
+    """Recorded, nothing waits on the clock (paused, it never moves): the frame of a seek's
+    instant shows at once; once frames have drawings, the newest drawn one shows rather
+    than a newer one whose drawing is still to come (the overlay does not blink)."""
+    from efficient_comm_interfaces.msg import ImageMarkerArray
+
+    source = _source(live=False)
+    model = ImageModel(source, ROBOT)
+    model.activate()
+    source.publish(ROBOT, IMAGE_TOPIC, _frame(T0))
+    shown = model.current()
+    assert shown is not None and shown == (model.frames()[-1], None)
+    assert source.publish(ROBOT, MARKERS_TOPIC, _stamp(ImageMarkerArray(), T0)) == 1
+    source.publish(ROBOT, IMAGE_TOPIC, _frame(T0 + 0.04))  # its drawing not yet there
+    shown = model.current()
+    assert shown is not None and shown[0].stamp_ns == round(T0 * 1e9)
+    assert shown[1] is not None and shown[1].stamp_ns == round(T0 * 1e9)
+    source.reset()  # a seek
+    assert model.current() is None
 
 
 def test_the_topics_plot_puts_messages_at_their_stamps() -> None:

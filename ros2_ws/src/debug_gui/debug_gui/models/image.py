@@ -10,9 +10,10 @@ The model keeps the last :data:`BUFFER_FRAMES` frames and drawings by stamp. Liv
 shown is the newest one whose drawing has arrived (or that waited :data:`GRACE_S` for one:
 a robot that draws nothing still shows images). Paused, the feeds close (a paused view costs
 the robot nothing) and :meth:`ImageModel.step` moves through the buffered frames.
-A frame's wait is judged by stamps on the source's clock (:mod:`.ages`): after a seek a
-playback delivers the frames leading up to the new instant at once, and the older ones have
-had their time. :meth:`ImageModel.reset` (a seek) forgets the buffers.
+A frame's wait is judged by stamps on the source's clock (:mod:`.ages`). Recorded (a
+source that is not live), the newest drawn frame is shown, or the newest frame when none
+held has a drawing: a paused playback's clock would never end a wait.
+:meth:`ImageModel.reset` (a seek) forgets the buffers.
 The JPEG quality is a parameter of the robot's compressor: a log cannot change it
 (:class:`~debug_gui.errors.NotLive`).
 The overlay is SVG (:func:`svg_overlay`) in image pixels, drawn over the JPEG by the browser.
@@ -231,12 +232,27 @@ class ImageModel:
                     return None
                 frame = self._frozen[self._paused_at]
                 return frame, self._drawings.get(frame.stamp_ns)
+            if not self.source.live:
+                return self._recorded_current()
             for frame in reversed(self._frames):
                 drawing = self._drawings.get(frame.stamp_ns)
                 if drawing is not None or self._ages.age_s(
                         frame.stamp_ns, delivered_s=frame.received_s) >= GRACE_S:
                     return frame, drawing
             return None
+
+    def _recorded_current(self) -> tuple[Frame, Drawing | None] | None:
+        """Recorded: the newest frame with its drawing if any frame held has one, else the
+        newest frame. A paused playback's clock never ends a wait, and a log's drawing is
+        there or never comes; playing, the drawn frame lags the newest by the drawing's
+        delay at most, instead of the overlay blinking off for each new frame."""
+        if not self._frames:
+            return None
+        for frame in reversed(self._frames):
+            drawing = self._drawings.get(frame.stamp_ns)
+            if drawing is not None:
+                return frame, drawing
+        return self._frames[-1], None
 
     def layers(self) -> list[str]:
         """Every layer seen so far, in order of first appearance."""
