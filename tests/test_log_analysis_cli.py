@@ -381,3 +381,53 @@ def test_a_video_without_frames_is_one_line_and_anchors_still_fit(tmp_path: Path
         assert len(lines) == 1 and lines[0].startswith(f"{command}: error: "), run.stderr
         assert lines[0].startswith(f"{command}: error: {empty} has no frames"), run.stderr
     assert list(tmp_path.glob("*empty.augmented*")) == []  # nothing half-written left
+
+
+def test_a_log_and_a_video_of_different_matches_are_refused_not_fitted(
+        tmp_path: Path) -> None:
+    """The newcomer's case: sync-video given one match's log and another's video found a
+    'best' offset on 2 frames at 12 px and said nothing; augment then reused a fit made on
+    another log. Both are one line and exit 1, saying what would help."""
+    log_a, video_a = film_ball(tmp_path / "a", _kicked, seconds=30, offset_s=-2.35,
+                               drift_ppm=0)
+    log_b, video_b = film_ball(tmp_path / "b", lambda t: (1.5 - 0.1 * (t % 20), -1.0),
+                               seconds=12, offset_s=5.0, drift_ppm=0)
+    for log, video in ((log_a, video_b), (log_b, video_a)):
+        run = _sync(log, video, "--quiet", cwd=tmp_path)
+        assert run.returncode == 1, run.stdout
+        lines = run.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("sync-video: error: "), run.stderr
+        assert "same match" in lines[0] and "--anchor" in lines[0], run.stderr
+        assert not Path(f"{video}.sync.json").exists()
+    # A fit on the right log records which log it was; augment refuses it for another.
+    run = _sync(log_a, video_a, "--quiet", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    fit = json.loads(Path(f"{video_a}.sync.json").read_text())
+    assert fit["log_path"] == str(log_a.resolve()) and fit["log_end_ns"] > 0
+    run = _augment(log_b, video_a, "--quiet", "-o", tmp_path / "x.mp4", cwd=tmp_path)
+    assert run.returncode == 1
+    assert run.stderr.strip().splitlines() == [
+        f"augment: error: the fit was made on another log ({log_a.resolve()}), not on "
+        f"{log_b}: run sync-video on this log and video again"], run.stderr
+    assert not (tmp_path / "x.mp4").exists()
+
+
+def test_drift_only_when_the_data_supports_it_and_an_implausible_one_refused(
+        tmp_path: Path) -> None:
+    """Two 20 s stretches cannot pin a drift (the newcomer got +1250 ppm for a true -14):
+    the fit is then the offset alone and says so; two anchors giving 62500 ppm are refused
+    unless --allow-drift."""
+    log, video = film_ball(tmp_path, _kicked, seconds=30, offset_s=-2.35, drift_ppm=0)
+    run = _sync(log, video, "--quiet", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "drift 0 (not fitted" in run.stdout
+    fit = json.loads(Path(f"{video}.sync.json").read_text())
+    assert fit["drift_ppm"] == 0 and fit["drift_fitted"] is False
+    hand = ("--anchor", "0=0", "--anchor", "8=7.5", "-o", tmp_path / "hand.json")
+    run = _sync(log, video, *hand, cwd=tmp_path)
+    assert run.returncode == 1
+    assert "a drift of +62500 ppm is implausible" in run.stderr and "--allow-drift" \
+        in run.stderr, run.stderr
+    run = _sync(log, video, *hand, "--allow-drift", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert re.search(r"drift \+62500\.0 ± \d+\.\d ppm", run.stdout), run.stdout

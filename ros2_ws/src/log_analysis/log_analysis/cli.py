@@ -70,7 +70,7 @@ from .events import detect
 from .registry import available_generators, load_generators
 from .sidecar import read_events, sidecar_path, write_events
 from .source import TeamLog
-from .sync import VideoFit, fit_anchors, fit_video_clock
+from .sync import MAX_DRIFT_PPM, VideoFit, check_fit, fit_anchors, fit_video_clock
 from .video import ExternalVideo
 
 __all__ = ["augment_main", "compare_main", "events_main", "sync_video_main"]
@@ -239,6 +239,8 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--anchor", type=_anchor, action="append", default=[],
                         metavar="CAMERA=LOG", help="a moment picked by hand (may repeat); "
                         "fits on these instead of the ball")
+    parser.add_argument("--allow-drift", action="store_true", help="keep a drift beyond "
+                        f"±{MAX_DRIFT_PPM:g} ppm (a camera's clock drifts by tens)")
     parser.add_argument("-o", "--output", type=Path, help="where to write the fit (default: "
                         "VIDEO.sync.json)")
     parser.add_argument("--quiet", action="store_true", help="no progress line")
@@ -256,12 +258,13 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
                                label="sync-video", unit="frames", scale=1) as show:
                 fit = fit_video_clock(log, video, ball_topic=args.ball_topic,
                                       max_offset_s=args.max_offset, progress=show)
-        output = fit.save(args.output or Path(f"{args.video}.sync.json"))
+        check_fit(fit, allow_drift=args.allow_drift)
+        output = fit.on_log(log).save(args.output or Path(f"{args.video}.sync.json"))
     except LogAnalysisError as exc:
         print(f"sync-video: error: {exc}", file=sys.stderr)
         return 1
     frames = f" ({fit.residual_frames:.2f} frames)" if fit.frame_period_ns else ""
-    print(f"offset {fit.offset_ns / 1e9:+.3f} s  drift {fit.drift_ppm:+.1f} ppm  residual "
+    print(f"offset {fit.offset_ns / 1e9:+.3f} s  {fit.describe_drift()}  residual "
           f"{fit.residual_ns / 1e6:.1f} ms{frames}  from the {fit.method}"
           + (f" ({len(fit.stretches)} stretches, {fit.frames_used} frames, "
              f"{fit.pixel_error_px:.1f} px)" if fit.method == "ball track" else
@@ -290,11 +293,17 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
         if args.fit is None and not fit_path.exists():
             print(f"augment: no {fit_path}: fitting the video's clock first", file=sys.stderr)
             fit = fit_video_clock(log, video)
+            check_fit(fit)
+            fit = fit.on_log(log)
             fit.save(fit_path)
         else:
             fit = VideoFit.load(fit_path)
+            fit.check_log(log)
         events_path = args.events or sidecar_path(args.log)
         events = read_events(events_path) if args.events or events_path.exists() else []
+        uses = (f"the video's clock from {fit_path}; "
+                + (f"events from {events_path}" if args.events or events_path.exists()
+                   else f"no events (no {events_path})"))
         output = args.output or args.video.with_name(
             f"{args.video.name.removesuffix('.mp4')}.augmented.mp4")
         total = int(video.sidecar.get("frames") or 0)
@@ -304,6 +313,7 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
     except LogAnalysisError as exc:
         print(f"augment: error: {exc}", file=sys.stderr)
         return 1
+    print(f"using {uses}")
     print(f"{report.frames} frames of {report.width}x{report.height} with "
           f"{', '.join(report.robots) or 'no robot'} and {len(events)} events in "
           f"{report.seconds:.1f} s ({report.frames_per_s / report.video_fps:.1f}x real time); "
