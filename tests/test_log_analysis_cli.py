@@ -66,7 +66,7 @@ def test_events_are_printed_written_beside_the_log_and_a_failing_generator_named
     assert lines[3][:6] == ["8.00", "s", "2.00", "s", "red1", "fell"]  # to the log's end
     assert "3 events from 1 generators" in run.stdout
     assert "100%" in run.stderr  # the progress line
-    sidecar = tmp_path / "match.events.mcap"
+    sidecar = tmp_path / "match.partial.events.mcap"  # --only: a partial run
     assert [e.name for e in read_events(sidecar)] == ["fell", "got up", "fell"]
 
     generators = tmp_path / "mine.py"
@@ -431,3 +431,60 @@ def test_drift_only_when_the_data_supports_it_and_an_implausible_one_refused(
     run = _sync(log, video, *hand, "--allow-drift", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     assert re.search(r"drift \+62500\.0 ± \d+\.\d ppm", run.stdout), run.stdout
+
+
+def test_robot_is_that_robots_part_and_partial_runs_leave_the_full_sidecar(
+        tmp_path: Path) -> None:
+    """``--robot NAME`` is NAME's part of the log (the newcomer's merged log and the demo's
+    /robot/... bag gave 0 messages); a run over no topic is an error naming the log's
+    robots; a partial run writes ``LOG.partial.events.mcap`` and leaves the full sidecar."""
+    _log(tmp_path / "match")
+    full = _events("match", "--quiet", cwd=tmp_path)
+    assert full.returncode == 0, full.stderr
+    sidecar = tmp_path / "match.events.mcap"
+    before = sidecar.read_bytes()
+    run = _events("match", "--robot", "red1", "--only", "falls", "--quiet", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "1 events from 1 generators over 2 messages" in run.stdout, run.stdout
+    assert "(partial: --only --robot; match.events.mcap is left as it was)" in run.stdout
+    assert [(e.robot, e.name) for e in read_events(tmp_path / "match.partial.events.mcap")] \
+        == [("red1", "fell")]
+    assert sidecar.read_bytes() == before
+    run = _events("match", "--start", "5", "--quiet", cwd=tmp_path)
+    assert "written to match.partial.events.mcap (partial: --start" in run.stdout
+    assert sidecar.read_bytes() == before
+    for args, says in (
+            (("--robot", "red9"), "for robot red9: the log's robots are blue1, red1"),
+            (("--only", "goals"), "no topic of match is one the generators read "
+                                  "(/world/game_state) for any robot")):
+        run = _events("match", *args, "--quiet", cwd=tmp_path)
+        assert run.returncode == 1, (args, run.stdout)
+        lines = run.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("events: error: "), run.stderr
+        assert says in run.stderr, (args, run.stderr)
+    typo = tmp_path / "typo.py"
+    typo.write_text(KICKS.replace('"behaviour/state"', '"behaviour/stat"'))
+    run = _events("match", "--generators", typo, "--quiet", "-o", tmp_path / "t.mcap",
+                  cwd=tmp_path)
+    assert "events: warning: kicks reads behaviour/stat, which no robot logged (the log's " \
+        "robots: blue1, red1): it finds nothing" in run.stderr, run.stderr
+
+
+def test_an_events_sidecar_given_as_the_log_is_refused(tmp_path: Path) -> None:
+    """``events match/`` one level too high read the sidecar beside the log as the log."""
+    _log(tmp_path / "match" / "merged")
+    assert _events("match/merged", "--quiet", cwd=tmp_path).returncode == 0
+    for log, says in (("match", "match holds only events sidecars (merged.events.mcap), no "
+                                "log: give the log's own folder"),
+                      ("match/merged.events.mcap", "match/merged.events.mcap is an events "
+                       "sidecar (what events writes), not a log")):
+        run = _events(log, "--quiet", cwd=tmp_path)
+        assert run.returncode == 1, run.stdout
+        assert run.stderr.startswith(f"events: error: {says}"), run.stderr
+        assert len(run.stderr.strip().splitlines()) == 1
+    # The log's own .mcap file: the sidecar goes beside the bag folder, not into it.
+    (file,) = (tmp_path / "match" / "merged").glob("*.mcap")
+    run = _events(file, "--quiet", "--only", "falls", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "match" / "merged.partial.events.mcap").exists()
+    assert list((tmp_path / "match" / "merged").glob("*events*")) == []

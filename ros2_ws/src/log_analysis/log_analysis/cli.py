@@ -11,7 +11,9 @@ Several robots' own bags are read as one team log in team reference time, each m
 the clock estimates it recorded (team_clock; ``ROBOT=LOG`` as its merge takes them), without
 merging them first. Prints one line per event (seconds from the log's start, robot, what,
 details), writes them to a sidecar MCAP (``<log>.events.mcap``, for several bags
-``team.events.mcap`` beside the first, unless ``-o``) as Foxglove events, and shows
+``team.events.mcap`` beside the first, unless ``-o``; a partial run, with ``--only``,
+``--robot``, ``--start`` or ``--end``, to ``<log>.partial.events.mcap``, leaving the full
+one as it was) as Foxglove events, and shows
 its progress on standard error. A generator that raises is named with what it raised and
 the others finish; the exit status is then 1. A log or generator file that cannot be read
 is one line and exit 1; wrong arguments exit 2.
@@ -66,7 +68,7 @@ from team_clock import RobotLog
 from .augment import augment_video
 from .compare import Variant, compare_components, write_report
 from .errors import LogAnalysisError
-from .events import detect
+from .events import detect, generator_name
 from .registry import available_generators, load_generators
 from .sidecar import read_events, sidecar_path, write_events
 from .source import TeamLog
@@ -152,8 +154,9 @@ def events_main(argv: Sequence[str] | None = None) -> int:
                         "or registered generators (none: all); --list names them")
     parser.add_argument("--list", action="store_true", help="list the registered "
                         "generators and exit")
-    parser.add_argument("--robot", help="the robot whose own bag LOG is (its topics are "
-                        "not under /ROBOT)")
+    parser.add_argument("--robot", help="only this robot's part: its topics (under "
+                        "/ROBOT/) of a merged log or of its own bag recorded in its namespace; "
+                        "a bag recorded without a namespace is read as ROBOT's")
     parser.add_argument("--start", type=_seconds, help="from this many seconds after the "
                         "log's start")
     parser.add_argument("--end", type=_seconds, help="up to this many seconds after the "
@@ -180,19 +183,23 @@ def events_main(argv: Sequence[str] | None = None) -> int:
         log = (TeamLog.from_robot_logs([_robot_log(text) for text in args.log]) if team
                else TeamLog(args.log[0], robot=args.robot))
         first, last = log.time_range()
+        unread = _unread_topics(log, generators, robot=args.robot)
         start_ns = None if args.start is None else first + int(args.start * 1e9)
         end_ns = None if args.end is None else first + int(args.end * 1e9)
         lo, hi = start_ns or first, min(end_ns or last, last)
         with progress_line(hi - lo, lo, quiet=args.quiet, label="events") as progress:
             found = detect(log, generators, start_ns=start_ns, end_ns=end_ns,
                            progress=progress)
-        output = args.output or (log.path.parent / "team.events.mcap" if team
-                                 else sidecar_path(log.path))
+        filters = [flag for flag, used in (("--only", args.only), ("--robot", args.robot),
+                                           ("--start", args.start is not None),
+                                           ("--end", args.end is not None)) if used]
+        full = _default_sidecar(log.path, team=team)
+        output = args.output or _default_sidecar(log.path, team=team, partial=bool(filters))
         write_events(output, found.events)
     except LogAnalysisError as exc:
         print(f"events: error: {exc}", file=sys.stderr)
         return 1
-    for problem in found.problems:
+    for problem in found.problems + unread:
         print(f"events: warning: {problem}", file=sys.stderr)
     sys.stderr.flush()
     print(f"{'start':>11}  {'length':>8}  {'robot':8} {'event':20} details")
@@ -201,11 +208,45 @@ def events_main(argv: Sequence[str] | None = None) -> int:
         print(f"{(event.start_ns - first) / 1e9:9.2f} s  {span:6.2f} s  "
               f"{event.robot or 'team':8} {event.name:20} {event.description}")
     print(f"{len(found.events)} events from {len(generators)} generators over "
-          f"{found.messages} messages; written to {output}")
+          f"{found.messages} messages; written to {output}"
+          + (f" (partial: {' '.join(filters)}; {full} is left as it was)"
+             if filters and not args.output else ""))
     for name, failure in found.failures.items():
         print(f"events: error: generator {name} failed and was left out: {failure}",
               file=sys.stderr)
     return 1 if found.failures else 0
+
+
+def _default_sidecar(path: Path, *, team: bool, partial: bool = False) -> Path:
+    """``LOG.events.mcap`` beside the log (beside its folder for a file of a rosbag2
+    folder, so that the bag stays as the recorder made it); ``team.events.mcap`` beside the
+    first of several bags."""
+    if team:
+        return sidecar_path(path.parent / "team", partial=partial)
+    if path.is_file() and (path.parent / "metadata.yaml").is_file():
+        path = path.parent
+    return sidecar_path(path, partial=partial)
+
+
+def _unread_topics(log: TeamLog, generators: Sequence[Any], *, robot: str | None
+                   ) -> list[str]:
+    """Warnings for generators that read no topic of ``log``; a :class:`LogAnalysisError`
+    when none does (an analysis over no message would say nothing happened)."""
+    missing = {generator_name(g): sorted(g.topics) for g in generators
+               if not log.names(g.topics)}
+    if not missing:
+        return []
+    # With --robot, the robots of the log as it is (not as read for that robot).
+    robots = ", ".join((TeamLog(log.path) if robot else log).robots) or "none"
+    whose = f"robot {robot}" if robot else "any robot"
+    if len(missing) == len(generators):
+        wanted = sorted({t for topics in missing.values() for t in topics})
+        raise LogAnalysisError(f"no topic of {log.path} is one the generators read "
+                               f"({', '.join(wanted)}) for {whose}: the log's robots are "
+                               f"{robots}")
+    nobody = f"robot {robot} did not log" if robot else "no robot logged"
+    return [f"{name} reads {', '.join(topics)}, which {nobody} (the log's robots: "
+            f"{robots}): it finds nothing" for name, topics in missing.items()]
 
 
 def _robot_log(text: str) -> RobotLog:
