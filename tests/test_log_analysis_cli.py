@@ -72,8 +72,8 @@ def test_events_are_printed_written_beside_the_log_and_a_failing_generator_named
     generators = tmp_path / "mine.py"
     generators.write_text(KICKS)
     out = tmp_path / "out.events.mcap"
-    run = _events(log, "--only", "falls", "--generators", generators, "-o", out,
-                  "--start", "2", "--end", "7.5", "--quiet", cwd=tmp_path)
+    run = _events(log, "--only", "falls", "kicks", "grumpy", "--generators", generators,
+                  "-o", out, "--start", "2", "--end", "7.5", "--quiet", cwd=tmp_path)
     # The failing generator is named with what it raised; the others' events are all there.
     assert run.returncode == 1
     assert "generator grumpy failed and was left out: RuntimeError: nothing suits me" \
@@ -317,7 +317,9 @@ def test_a_log_cut_mid_chunk_is_analysed_up_to_the_cut_with_one_warning(
     assert "Traceback" not in run.stderr
     warnings = [line for line in run.stderr.splitlines() if "warning" in line]
     assert len(warnings) == 1 and f"{file}: readable up to byte" in warnings[0], run.stderr
-    found = read_events(tmp_path / "match.events.mcap")
+    reason = warnings[0].rsplit(", then ", 1)[1]  # not an empty "EndOfFile: "
+    assert re.fullmatch(r"\w+: \S.*", reason), warnings[0]
+    found = read_events(tmp_path / "match.partial.events.mcap")
     # Every fall that began before the cut chunk is there, none after (a fall cut short
     # ends where the readable log does).
     before = [(e.robot, e.name, (e.start_ns - built_ns(0)) / 1e9) for e in found]
@@ -488,3 +490,69 @@ def test_an_events_sidecar_given_as_the_log_is_refused(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stderr
     assert (tmp_path / "match" / "merged.partial.events.mcap").exists()
     assert list((tmp_path / "match" / "merged").glob("*events*")) == []
+
+
+FINISH_NONE = """
+class Slow:
+    topics = ["fall/state"]
+    name = "slow"
+
+    def __call__(self, m):
+        return []
+
+    def finish(self, end_ns):
+        pass
+
+
+GENERATORS = [Slow()]
+"""
+
+
+def test_bad_options_and_generator_files_are_one_line_not_a_traceback(tmp_path: Path
+                                                                       ) -> None:
+    """The newcomer's tracebacks and silent surprises: -o to a missing directory or to a
+    directory, --start nan, a window past the log's end, a generators file given twice or
+    naming a built-in, --only ignoring files, a finish() returning None."""
+    _log(tmp_path / "match")
+    for args, status, says in (
+            (("-o", tmp_path / "no" / "x.mcap"), 1,
+             f"events: error: -o {tmp_path / 'no' / 'x.mcap'}: no directory"),
+            (("-o", tmp_path), 1, f"events: error: -o {tmp_path} is a directory"),
+            (("--start", "nan"), 2, "not a number of seconds: 'nan'")):
+        run = _events("match", "--quiet", *args, cwd=tmp_path)
+        assert run.returncode == status, (args, run.stdout)
+        assert says in run.stderr and "Traceback" not in run.stderr, (args, run.stderr)
+    assert not list(tmp_path.glob("*.partial"))
+    run = _events("match", "--quiet", "--start", "100", cwd=tmp_path)
+    assert "events: warning: the window 100..end s holds none of the log: the log spans " \
+        "0..10.0 s" in run.stderr, run.stderr
+    mine = tmp_path / "mine.py"
+    mine.write_text(KICKS.replace("GENERATORS = [kicks, grumpy]", "GENERATORS = [kicks]"))
+    run = _events("match", "--quiet", "--generators", mine, "--generators", f"./{mine.name}",
+                  "-o", tmp_path / "twice.mcap", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert [e.name for e in read_events(tmp_path / "twice.mcap")].count("kick") == 2
+    run = _events("match", "--quiet", "--generators", mine, "--only", "falls", "-o",
+                  tmp_path / "only.mcap", cwd=tmp_path)
+    assert "kick" not in [e.name for e in read_events(tmp_path / "only.mcap")]
+    other = tmp_path / "other.py"
+    other.write_text(mine.read_text())
+    run = _events("match", "--quiet", "--generators", mine, "--generators", other,
+                  cwd=tmp_path)
+    assert run.returncode == 1
+    assert run.stderr.strip() == (f"events: error: two generators are named 'kicks': in "
+                                  f"{mine} and in {other}; rename one"), run.stderr
+    mine.write_text(KICKS.replace("def kicks", "def falls").replace("[kicks, grumpy]",
+                                                                      "[falls]"))
+    run = _events("match", "--quiet", "--generators", mine, "--only", "falls", "-o",
+                  tmp_path / "own.mcap", cwd=tmp_path)  # the user's falls, not the built-in
+    assert run.returncode == 0, run.stderr
+    assert [e.name for e in read_events(tmp_path / "own.mcap")] == ["kick", "kick"]
+    slow = tmp_path / "slow.py"
+    slow.write_text(FINISH_NONE)
+    run = _events("match", "--quiet", "--generators", slow, "--only", "slow", "-o",
+                  tmp_path / "slow.mcap", cwd=tmp_path)
+    assert run.returncode == 1
+    assert run.stderr.strip() == ("events: error: generator slow failed and was left out: "
+                                  f"returned None, not a list of events (at {slow}:9)"), \
+        run.stderr

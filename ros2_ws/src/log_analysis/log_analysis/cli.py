@@ -54,6 +54,7 @@ place on a terminal, a line per tenth elsewhere, always ending at 100 % on a fin
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -83,9 +84,22 @@ def _seconds(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}")
     if value < 0:
         raise argparse.ArgumentTypeError(f"seconds from the log's start, >= 0: {text!r}")
     return value
+
+
+def _writable(path: Path | None) -> None:
+    """Refuse, before any work, an output that cannot be written: a directory, or one in
+    a directory that does not exist."""
+    if path is None:
+        return
+    if path.is_dir():
+        raise LogAnalysisError(f"-o {path} is a directory: give the file to write")
+    if not path.parent.is_dir():
+        raise LogAnalysisError(f"-o {path}: no directory {path.parent}")
 
 
 def progress_printer(total: int, start: int, *, stream: TextIO = sys.stderr,
@@ -150,8 +164,9 @@ def events_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--generators", type=Path, action="append", default=[],
                         metavar="FILE", help="a Python file whose GENERATORS list more "
                         "event generators (may repeat)")
-    parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these built-in "
-                        "or registered generators (none: all); --list names them")
+    parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these "
+                        "generators: built-in, registered or of --generators files (none: "
+                        "all); --list names the registered ones")
     parser.add_argument("--list", action="store_true", help="list the registered "
                         "generators and exit")
     parser.add_argument("--robot", help="only this robot's part: its topics (under "
@@ -179,15 +194,23 @@ def events_main(argv: Sequence[str] | None = None) -> int:
                          "ROBOT=LOG")
         if args.start is not None and args.end is not None and args.end <= args.start:
             parser.error(f"--end {args.end} is not after --start {args.start}")
+        _writable(args.output)
         generators = load_generators(names=args.only, files=args.generators)
         log = (TeamLog.from_robot_logs([_robot_log(text) for text in args.log]) if team
                else TeamLog(args.log[0], robot=args.robot))
         first, last = log.time_range()
-        unread = _unread_topics(log, generators, robot=args.robot)
+        # Warned of: a generator asked for by name or from a file that reads nothing (a
+        # typo); not a built-in that runs by default on a log without its topics.
+        builtin = set(available_generators()) - set(args.only or ())
+        unread = _unread_topics(log, generators, robot=args.robot, quiet_for=builtin)
         start_ns = None if args.start is None else first + int(args.start * 1e9)
         end_ns = None if args.end is None else first + int(args.end * 1e9)
         lo, hi = start_ns or first, min(end_ns or last, last)
-        with progress_line(hi - lo, lo, quiet=args.quiet, label="events") as progress:
+        if hi <= lo and (start_ns is not None or end_ns is not None):
+            unread.append(f"the window {args.start or 0:g}..{args.end or 'end'} s holds "
+                          f"none of the log: the log spans 0..{(last - first) / 1e9:.1f} s")
+        with progress_line(max(hi - lo, 0), lo, quiet=args.quiet,
+                           label="events") as progress:
             found = detect(log, generators, start_ns=start_ns, end_ns=end_ns,
                            progress=progress)
         filters = [flag for flag, used in (("--only", args.only), ("--robot", args.robot),
@@ -228,8 +251,8 @@ def _default_sidecar(path: Path, *, team: bool, partial: bool = False) -> Path:
     return sidecar_path(path, partial=partial)
 
 
-def _unread_topics(log: TeamLog, generators: Sequence[Any], *, robot: str | None
-                   ) -> list[str]:
+def _unread_topics(log: TeamLog, generators: Sequence[Any], *, robot: str | None,
+                   quiet_for: set[str]) -> list[str]:
     """Warnings for generators that read no topic of ``log``; a :class:`LogAnalysisError`
     when none does (an analysis over no message would say nothing happened)."""
     missing = {generator_name(g): sorted(g.topics) for g in generators
@@ -246,7 +269,8 @@ def _unread_topics(log: TeamLog, generators: Sequence[Any], *, robot: str | None
                                f"{robots}")
     nobody = f"robot {robot} did not log" if robot else "no robot logged"
     return [f"{name} reads {', '.join(topics)}, which {nobody} (the log's robots: "
-            f"{robots}): it finds nothing" for name, topics in missing.items()]
+            f"{robots}): it finds nothing" for name, topics in missing.items()
+            if name not in quiet_for]
 
 
 def _robot_log(text: str) -> RobotLog:
@@ -287,6 +311,7 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quiet", action="store_true", help="no progress line")
     args = parser.parse_args(argv)
     try:
+        _writable(args.output)
         video = ExternalVideo(args.video)
         log = TeamLog(args.log)
         if args.anchor:
