@@ -556,3 +556,25 @@ def test_bad_options_and_generator_files_are_one_line_not_a_traceback(tmp_path: 
     assert run.stderr.strip() == ("events: error: generator slow failed and was left out: "
                                   f"returned None, not a list of events (at {slow}:9)"), \
         run.stderr
+
+
+def test_ball_topic_must_be_a_field_frame_position(tmp_path: Path) -> None:
+    """``--ball-topic`` for a robot's belief: its ``ball/position`` is in base_footprint
+    (taken as field coordinates it fitted the newcomer's video 9 s off), its ``role`` no
+    position (a traceback); both refused in one line; a field-frame
+    PoseWithCovarianceStamped (``team_ball``, once an AttributeError) is fitted."""
+    log, video = film_ball(tmp_path, _kicked, seconds=30, offset_s=-2.35, drift_ppm=0,
+                           robots={"blue1": lambda t: (-2.0, 0.0, 0.3)})
+    for topic, says in (
+            ("/blue1/ball/position", "/blue1/ball/position is in the frame "
+                                     "'base_footprint', not the field's"),
+            ("/blue1/role", "/blue1/role is a std_msgs/msg/String, not a ball position")):
+        run = _sync(log, video, "--ball-topic", topic, "--quiet", cwd=tmp_path)
+        assert run.returncode == 1, run.stdout
+        lines = run.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"sync-video: error: {says}"), \
+            run.stderr
+    run = _sync(log, video, "--ball-topic", "/blue1/team_ball", "--quiet", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    fit = json.loads(Path(f"{video}.sync.json").read_text())
+    assert abs(fit["offset_ns"] + 2.35e9) < 100e6, fit  # half a frame at 5 fps

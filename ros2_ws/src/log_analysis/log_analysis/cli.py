@@ -297,8 +297,9 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
     parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
     parser.add_argument("--ball-topic", default="/world/ground_truth/ball",
-                        help="where the log has the ball (PoseStamped or PointStamped in "
-                        "the field frame; default: the world's ground truth)")
+                        help="where the log has the ball (PointStamped, PoseStamped or "
+                        "PoseWithCovarianceStamped in the field frame, e.g. /ROBOT/team_ball; "
+                        "default: the world's ground truth)")
     parser.add_argument("--max-offset", type=_seconds, default=30.0, metavar="S",
                         help="search the offset within ±S seconds of lining up the starts")
     parser.add_argument("--anchor", type=_anchor, action="append", default=[],

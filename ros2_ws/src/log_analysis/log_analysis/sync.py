@@ -49,6 +49,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -170,10 +171,34 @@ def ball_pixels(video: ExternalVideo, *, progress: Callable[[int], None] | None 
     return np.asarray(times, dtype=np.int64), np.asarray(found, dtype=float)
 
 
+#: The ball's message types a track is read from, and where each has the position.
+BALL_TYPES: dict[str, Callable[[Any], Any]] = {
+    "geometry_msgs/msg/PointStamped": lambda m: m.point,
+    "geometry_msgs/msg/PoseStamped": lambda m: m.pose.position,
+    "geometry_msgs/msg/PoseWithCovarianceStamped": lambda m: m.pose.pose.position,
+}
+#: Frames that are the field's (an empty frame_id, as a test double writes, is taken so).
+FIELD_FRAMES = ("field", "map", "world", "")
+
+
 def _track(log: TeamLog, topic: str) -> tuple[npt.NDArray[np.int64], FloatArray]:
+    """The ball's field positions on ``topic``; :class:`SyncError` for a type that has no
+    position or a frame that is not the field's (a robot's own ``ball/position`` is in its
+    ``base_footprint``: projected as field coordinates, it fits a wrong clock)."""
+    kind = log.topics.get(topic, "")
+    if kind and kind not in BALL_TYPES:
+        raise SyncError(f"{topic} is a {kind}, not a ball position ("
+                        f"{', '.join(t.rsplit('/', 1)[1] for t in BALL_TYPES)} in the field "
+                        "frame)")
+    where = BALL_TYPES.get(kind, BALL_TYPES["geometry_msgs/msg/PoseStamped"])
     times, points = [], []
     for m in log.messages([topic]):
-        p = m.message.pose.position if hasattr(m.message, "pose") else m.message.point
+        frame = m.message.header.frame_id
+        if frame not in FIELD_FRAMES:
+            raise SyncError(f"{topic} is in the frame {frame!r}, not the field's: the ball "
+                            "must be in field coordinates (the world's ground truth, or a "
+                            "robot's field-frame belief such as /ROBOT/team_ball)")
+        p = where(m.message)
         times.append(m.log_time_ns)
         points.append((p.x, p.y, p.z))
     if len(times) < 2:
