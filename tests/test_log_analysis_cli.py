@@ -175,8 +175,12 @@ def test_compare_two_ball_detectors_on_one_log_as_a_user_types_it(tmp_path: Path
          "--set", "b.min_fill=0.4", "-o", str(tmp_path / "report")],
         cwd=tmp_path, capture_output=True, text=True, timeout=90, check=False)
     assert run.returncode == 0, run.stderr
-    assert "| hits (ball in view) | 100% | 100% |" in run.stdout
+    # A hit needs the bearing within the tolerance: the colour detector's 4 bars are none.
+    assert "| hits (ball in view, within 2°) | 75% | 100% |" in run.stdout, run.stdout
+    assert "16 images (16 with the ball in view by the ground truth, 0 out of view, 0 " \
+        "without ground truth)" in run.stdout
     assert "They agree (both nothing, or within 2°) on 75% of the images" in run.stdout
+    assert "Callback times are single-shot" in run.stdout
     assert (tmp_path / "report" / "report.md").exists()
     disagreements = read_events(tmp_path / "report" / "disagreements.events.mcap")
     assert len(disagreements) == 4
@@ -185,6 +189,33 @@ def test_compare_two_ball_detectors_on_one_log_as_a_user_types_it(tmp_path: Path
          "--a", "colour=humanoid_sim::BallDetector", "--b", "blob", "-o", str(tmp_path / "x")],
         cwd=tmp_path, capture_output=True, text=True, timeout=90, check=False)
     assert bad.returncode == 2 and "a variant is LABEL=COMPONENT" in bad.stderr
+
+
+
+def test_compare_settings_are_checked_and_converted_and_no_disagreement_is_none(
+        tmp_path: Path) -> None:
+    """``--set b.no_such_param=1`` was taken silently and ``b.min_fill=1`` refused as not a
+    DOUBLE; a report without disagreements said "- nowhere"."""
+    log = seen_ball(tmp_path / "log", robot="blue1",
+                    frames=[(1.0 + k / 2, -4.0 + k, False) for k in range(6)])
+
+    def compare(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            ["ros2", "run", "log_analysis", "compare", str(log), "--robot", "blue1", "--a",
+             "one=humanoid_sim::BlobBallDetector", "--b", "two=humanoid_sim::BlobBallDetector",
+             "--quiet", *args], cwd=tmp_path, capture_output=True, text=True, timeout=90,
+            check=False)
+
+    run = compare("--set", "b.no_such_param=1", "-o", "x")
+    assert run.returncode == 1
+    assert re.fullmatch(r"compare: error: variant two \(humanoid_sim::BlobBallDetector\) has "
+                        r"no parameter no_such_param; its parameters: .*min_fill.*\n",
+                        run.stderr), run.stderr
+    run = compare("--set", "b.min_fill=0", "-o", "y")
+    assert run.returncode == 0, run.stderr
+    assert "(min_fill=0)" in run.stdout  # an int taken for the double, as ros2 param set
+    report = (tmp_path / "y" / "report.md").read_text()
+    assert report.endswith("## Where they disagree most\n\nnone: they agree on every image\n")
 
 
 def _on_terminal(args: list[str], cwd: Path) -> tuple[int, str]:
