@@ -609,3 +609,29 @@ def test_ball_topic_must_be_a_field_frame_position(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stderr
     fit = json.loads(Path(f"{video}.sync.json").read_text())
     assert abs(fit["offset_ns"] + 2.35e9) < 100e6, fit  # half a frame at 5 fps
+
+
+def test_each_commands_help_is_its_own_and_wrong_arguments_exit_2(tmp_path: Path) -> None:
+    """Every subcommand's --help began with the whole module's help (and compare's example
+    lost its line breaks); --only nosuch exited 1 though wrong arguments exit 2; -o x.avi
+    wrote MP4 bytes into an .avi; VideoFit was not importable from log_analysis."""
+    helps = {command: subprocess.run(["ros2", "run", "log_analysis", command, "--help"],
+                                     capture_output=True, text=True, timeout=60,
+                                     check=True).stdout
+             for command in ("events", "sync-video", "augment", "compare")}
+    for command, text in helps.items():
+        others = [c for c in helps if c != command]
+        assert f"``{command}``: " in text
+        assert not any(f"``{other}``: " in text for other in others), (command, text)
+        assert "--quiet`` turns it off" in text  # the paragraph they share
+    assert "compare LOG --robot blue1 \\\n" in helps["compare"]
+    assert "(default: 2)" in helps["compare"] and "(default: 30)" in helps["sync-video"]
+    _log(tmp_path / "match")
+    run = _events("match", "--only", "nosuch", cwd=tmp_path)
+    assert run.returncode == 2 and "unknown event generator(s) nosuch; known: " in run.stderr
+    run = _augment("match", "video.mp4", "-o", "x.avi", cwd=tmp_path)
+    assert run.returncode == 2, run.stderr
+    assert "augment: error: augment writes an MP4 (H.264): -o must end in .mp4, not x.avi" \
+        in run.stderr
+    assert not (tmp_path / "x.avi").exists()
+    from log_analysis import VideoFit, check_fit  # noqa: F401  (exported)

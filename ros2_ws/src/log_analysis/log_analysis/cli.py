@@ -1,4 +1,4 @@
-"""The command line: ``events`` and ``sync-video`` (``ros2 run log_analysis <command>``).
+r"""The command line: ``events`` and ``sync-video`` (``ros2 run log_analysis <command>``).
 
 ``events``: find the events of a team log and write them beside it.
 
@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -77,6 +78,15 @@ from .sync import MAX_DRIFT_PPM, VideoFit, check_fit, fit_anchors, fit_video_clo
 from .video import ExternalVideo
 
 __all__ = ["augment_main", "compare_main", "events_main", "sync_video_main"]
+
+
+def _help_of(command: str) -> str:
+    """The part of this module's help that is about ``command`` (and the closing paragraph
+    every command shares): ``events --help`` shows no other command's examples."""
+    text, _, shared = (__doc__ or "").partition("Every command that reads")
+    parts = re.split(r"^(?=``[a-z-]+``: )", text, flags=re.MULTILINE)
+    mine = "".join(p for p in parts if p.startswith(f"``{command}``: ")).strip()
+    return f"{mine}\n\nEvery command that reads{shared}".rstrip() if shared else mine
 
 
 def _seconds(text: str) -> float:
@@ -154,7 +164,7 @@ def progress_line(total: int, start: int, *, quiet: bool, label: str, unit: str 
 
 
 def events_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="events", description=__doc__,
+    parser = argparse.ArgumentParser(prog="events", description=_help_of("events"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", nargs="*", metavar="[ROBOT=]LOG", help="a merged team log "
                         "or one robot's bag (rosbag2 directory or .mcap file); or several "
@@ -195,7 +205,13 @@ def events_main(argv: Sequence[str] | None = None) -> int:
         if args.start is not None and args.end is not None and args.end <= args.start:
             parser.error(f"--end {args.end} is not after --start {args.start}")
         _writable(args.output)
-        generators = load_generators(names=args.only, files=args.generators)
+        generators = load_generators(files=args.generators)
+        if args.only:
+            by_name = {generator_name(g): g for g in generators}
+            if unknown := [n for n in args.only if n not in by_name]:
+                parser.error(f"unknown event generator(s) {', '.join(unknown)}; known: "
+                             f"{', '.join(sorted(by_name))}")
+            generators = [by_name[n] for n in dict.fromkeys(args.only)]
         log = (TeamLog.from_robot_logs([_robot_log(text) for text in args.log]) if team
                else TeamLog(args.log[0], robot=args.robot))
         first, last = log.time_range()
@@ -292,7 +308,7 @@ def _anchor(text: str) -> tuple[float, float]:
 
 
 def sync_video_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="sync-video", description=__doc__,
+    parser = argparse.ArgumentParser(prog="sync-video", description=_help_of("sync-video"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
     parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
@@ -301,7 +317,8 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
                         "PoseWithCovarianceStamped in the field frame, e.g. /ROBOT/team_ball; "
                         "default: the world's ground truth)")
     parser.add_argument("--max-offset", type=_seconds, default=30.0, metavar="S",
-                        help="search the offset within ±S seconds of lining up the starts")
+                        help="search the offset within ±S seconds of lining up the starts "
+                        "(default: 30)")
     parser.add_argument("--anchor", type=_anchor, action="append", default=[],
                         metavar="CAMERA=LOG", help="a moment picked by hand (may repeat); "
                         "fits on these instead of the ball")
@@ -341,7 +358,7 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
 
 
 def augment_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="augment", description=__doc__,
+    parser = argparse.ArgumentParser(prog="augment", description=_help_of("augment"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
     parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
@@ -353,7 +370,10 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
                         help="the MP4 to write (default: VIDEO.augmented.mp4)")
     parser.add_argument("--quiet", action="store_true", help="no progress line")
     args = parser.parse_args(argv)
+    if args.output is not None and args.output.suffix.lower() != ".mp4":
+        parser.error(f"augment writes an MP4 (H.264): -o must end in .mp4, not {args.output}")
     try:
+        _writable(args.output)
         video = ExternalVideo(args.video)
         log = TeamLog(args.log)
         fit_path = args.fit or Path(f"{args.video}.sync.json")
@@ -407,19 +427,24 @@ def _setting(text: str) -> tuple[str, str, Any]:
 
 
 def compare_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="compare", description=__doc__,
+    parser = argparse.ArgumentParser(prog="compare", description=_help_of("compare"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log with the robot's images")
     parser.add_argument("--robot", required=True, help="whose images (its namespace)")
-    parser.add_argument("--a", type=_variant, required=True, metavar="LABEL=COMPONENT")
-    parser.add_argument("--b", type=_variant, required=True, metavar="LABEL=COMPONENT")
+    parser.add_argument("--a", type=_variant, required=True, metavar="LABEL=COMPONENT",
+                        help="variant a: a label and an entry point such as "
+                        "humanoid_sim::BallDetector, or module:Class")
+    parser.add_argument("--b", type=_variant, required=True, metavar="LABEL=COMPONENT",
+                        help="variant b, as --a")
     parser.add_argument("--set", type=_setting, action="append", default=[],
                         metavar="a.NAME=VALUE", help="a parameter of variant a or b "
                         "(YAML value; may repeat)")
     parser.add_argument("--images", default="camera/image_raw/compressed",
-                        help="the robot's logged image topic (Image or CompressedImage)")
+                        help="the robot's logged image topic (Image or CompressedImage; "
+                        "default: camera/image_raw/compressed)")
     parser.add_argument("--agree-deg", type=float, default=2.0,
-                        help="two detections within this many degrees agree")
+                        help="two detections within this many degrees agree, and a "
+                        "detection this near the truth is a hit (default: 2)")
     parser.add_argument("-o", "--output", type=Path, default=Path("comparison"),
                         help="the folder for report.md and its plots")
     parser.add_argument("--quiet", action="store_true", help="no progress line")
