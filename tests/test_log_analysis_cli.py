@@ -94,7 +94,7 @@ def test_bad_input_is_one_line_and_a_clear_status(tmp_path: Path) -> None:
             ((tmp_path / "nothing",), 1, "no bag at"),
             ((junk,), 1, "junk.mcap"),
             ((log, "--generators", broken), 1, "broken.py does not run: SyntaxError"),
-            ((log, "--only", "nonsense"), 1, "unknown event generator(s) nonsense; known:"),
+            ((log, "--only", "nonsense"), 2, "unknown event generator(s) nonsense; known:"),
             ((log, "--start", "abc"), 2, "not a number of seconds"),
             ((log, "--start", "5", "--end", "3"), 2, "is not after --start"),
             ((), 2, "give the LOG")):
@@ -302,8 +302,8 @@ def test_events_of_several_robots_bags_are_those_of_their_merged_log(tmp_path: P
     assert [line.split()[:6] for line in from_bags.stdout.splitlines()[1:4]] == [
         ["4.00", "s", "2.00", "s", "blue1", "fell"], ["6.00", "s", "0.00", "s", "blue1", "got"],
         ["8.00", "s", "3.00", "s", "red1", "fell"]]
-    assert [e.name for e in read_events(tmp_path / "team.events.mcap")] == [
-        "fell", "got up", "fell"]
+    assert [e.name for e in read_events(tmp_path / "team.partial.events.mcap")] == [
+        "fell", "got up", "fell"]  # --only: a partial run
     with LogBuilder(tmp_path / "plain") as plain:  # no clock estimates in it
         plain.add("", "fall/state", String(data="standing"), t=1.0)
     for args, status, says in (
@@ -635,3 +635,5 @@ def test_each_commands_help_is_its_own_and_wrong_arguments_exit_2(tmp_path: Path
         in run.stderr
     assert not (tmp_path / "x.avi").exists()
     from log_analysis import VideoFit, check_fit  # noqa: F401  (exported)
+    listed = _events("--list", cwd=tmp_path).stdout.splitlines()
+    assert listed and all(line.endswith(".") for line in listed), listed  # whole sentences

@@ -80,6 +80,14 @@ from .video import ExternalVideo
 __all__ = ["augment_main", "compare_main", "events_main", "sync_video_main"]
 
 
+def _first_sentence(doc: str) -> str:
+    """A docstring's first sentence on one line (``--list``: not cut mid-sentence at the
+    first line's end)."""
+    paragraph = " ".join(doc.strip().split("\n\n", 1)[0].split())
+    match = re.match(r"(.+?\.)(\s|$)", paragraph)
+    return (match.group(1) if match else paragraph).replace("``", "")
+
+
 def _help_of(command: str) -> str:
     """The part of this module's help that is about ``command`` (and the closing paragraph
     every command shares): ``events --help`` shows no other command's examples."""
@@ -193,8 +201,7 @@ def events_main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.list:
             for name, factory in sorted(available_generators().items()):
-                doc = (factory.__doc__ or "").strip().splitlines()
-                print(f"{name:20} {doc[0] if doc else ''}")
+                print(f"{name:20} {_first_sentence(factory.__doc__ or '')}")
             return 0
         if not args.log:
             parser.error("give the LOG to analyse (or --list)")
