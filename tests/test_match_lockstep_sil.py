@@ -244,7 +244,7 @@ def _offline_tools_find_the_cut_and_the_cameras_clock(out: Path, cut_at: float) 
                           "team_link_silent", "--quiet"], capture_output=True, text=True,
                          timeout=120, check=False)
     assert run.returncode == 0, run.stdout + run.stderr
-    silent = {e.robot: e for e in read_events(sidecar_path(merged))}
+    silent = {e.robot: e for e in read_events(sidecar_path(merged, partial=True))}
     assert set(silent) == {"blue1", "blue2"}, run.stdout
     for robot, event in silent.items():
         assert cut_at - 0.6 <= event.start_ns / 1e9 <= cut_at + 0.05, (robot, run.stdout)

@@ -49,7 +49,7 @@ def _oscillations(out: Path) -> list[Event]:
                           "role_oscillation", "--quiet"], capture_output=True, text=True,
                          timeout=120, check=False)
     assert run.returncode == 0, run.stdout + run.stderr
-    return read_events(sidecar_path(merged))
+    return read_events(sidecar_path(merged, partial=True))
 
 
 @pytest.mark.timeout(1500)

@@ -137,11 +137,20 @@ def localization_choice(text: str) -> tuple[str | None, dict[str, str]]:
     return default, own
 
 
+def robot_seed(seed: int, robot: str) -> int:
+    """A seed of ``robot``'s own, stable for (``seed``, ``robot``): teammates given the
+    match's one seed drew the same noise sample for sample, so their localization errors
+    were perfectly correlated (and a shared world model averaged nothing out)."""
+    return random.Random(f"localization {seed} {robot}").getrandbits(31)
+
+
 def localization_plan(robot: str, source: str, *, start: tuple[float, float, float],
                       seed: int) -> dict[str, Any]:
     """The robot's localization: its source and that component's parameters (the
     particle filter starts where the robot was placed, knows its own half and its name, so
-    it follows the referee's placements; the truth-based ones read the world's truth)."""
+    it follows the referee's placements; the truth-based ones read the world's truth).
+    ``seed`` is the match's: each robot's noise is seeded by :func:`robot_seed`."""
+    seed = robot_seed(seed, robot)
     if source == PARTICLE_FILTER:
         parameters: dict[str, Any] = {
             "initial_pose": list(start), "robot": robot, "seed": seed,

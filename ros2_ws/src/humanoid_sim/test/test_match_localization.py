@@ -14,7 +14,14 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion
 
 from efficient_comm import to_msg
 from efficient_comm.testing import TestHandle
-from humanoid_sim.match import Child, localization_choice, report, robot_plan
+from humanoid_sim.match import (
+    Child,
+    localization_choice,
+    localization_plan,
+    report,
+    robot_plan,
+    robot_seed,
+)
 from humanoid_sim.soccer.laws import kickoff_pose, parse_robot
 from humanoid_sim.soccer.localization import (
     GROUND_TRUTH,
@@ -53,13 +60,14 @@ def test_each_robots_plan_names_its_source_and_a_red_filter_starts_in_the_plus_x
         ) -> None:
     red = _plan("red1", PARTICLE_FILTER, (2.0, 1.0, math.pi))
     assert red == {"source": PARTICLE_FILTER, "parameters": {
-        "initial_pose": [2.0, 1.0, math.pi], "own_half": "+x", "robot": "red1", "seed": 7}}
+        "initial_pose": [2.0, 1.0, math.pi], "own_half": "+x", "robot": "red1",
+        "seed": robot_seed(7, "red1")}}
     blue = _plan("blue2", PARTICLE_FILTER, (-2.0, 1.0, 0.0))
     assert blue["parameters"] == {"initial_pose": [-2.0, 1.0, 0.0], "own_half": "-x",
-                                  "robot": "blue2", "seed": 7}
+                                  "robot": "blue2", "seed": robot_seed(7, "blue2")}
     # The truth-based sources read the world's truth as the robot's domain carries it.
     assert _plan("red1", NOISY_GROUND_TRUTH, (2.0, 1.0, 0.0))["parameters"] == {
-        "truth_topic": "ground_truth/pose", "seed": 7}
+        "truth_topic": "ground_truth/pose", "seed": robot_seed(7, "red1")}
     assert _plan("red1", GROUND_TRUTH, (2.0, 1.0, 0.0))["parameters"] == {
         "truth_topic": "ground_truth/pose"}
 
@@ -150,3 +158,19 @@ def test_the_roles_hysteresis_reaches_each_robots_team_layer_only_when_given() -
     assert team(0.0, 0.0) == {
         "team_number": 1, "player_number": 2, "goalie_number": 0, "role_margin_s": 0.0,
         "role_min_hold_s": 0.0}
+
+
+def test_each_robots_localization_noise_has_a_seed_of_its_own_that_repeats() -> None:
+    """Teammates given the match's one seed drew identical noise, sample for sample (the
+    newcomer's blue1 and blue2 noisy_ground_truth errors): each robot's seed is its own,
+    and the same (seed, robot) gives the same seed in every run."""
+    seeds = {robot: localization_plan(robot, NOISY_GROUND_TRUTH, start=(0.0, 0.0, 0.0),
+                                      seed=7)["parameters"]["seed"]
+             for robot in ("blue1", "blue2", "red1")}
+    assert len(set(seeds.values())) == 3, seeds
+    assert seeds["blue1"] == robot_seed(7, "blue1") == 823673908  # in every process
+    assert robot_seed(8, "blue1") != seeds["blue1"]
+    filters = {robot: localization_plan(robot, PARTICLE_FILTER, start=(0.0, 0.0, 0.0),
+                                        seed=7)["parameters"]["seed"]
+               for robot in ("blue1", "blue2")}
+    assert filters["blue1"] != filters["blue2"]

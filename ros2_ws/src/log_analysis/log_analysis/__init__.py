@@ -41,6 +41,7 @@ from .sidecar import write_events as write_events
 from .source import LogMessage as LogMessage
 from .source import TeamLog as TeamLog
 from .sync import VideoFit as VideoFit
+from .sync import check_fit as check_fit
 from .sync import fit_anchors as fit_anchors
 from .sync import fit_video_clock as fit_video_clock
 from .video import ExternalVideo as ExternalVideo

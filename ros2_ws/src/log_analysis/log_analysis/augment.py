@@ -34,7 +34,7 @@ from .source import TeamLog
 from .sync import VideoFit
 from .video import Calibration, ExternalVideo
 
-__all__ = ["AugmentReport", "augment_video", "robot_colour"]
+__all__ = ["AugmentReport", "augment_video", "caption_text", "robot_colour"]
 
 #: What a belief may be old and still be drawn (s): a robot that stopped publishing fades out.
 FRESH_S = 1.5
@@ -178,15 +178,17 @@ class _Painter:
         cv2.addWeighted(overlay, 0.25, box, 0.75, 0, dst=box)
 
     def captions(self, img: npt.NDArray[np.uint8], t: int) -> None:
+        """The events of the moment, newest first, each on a dark semi-transparent box
+        (text with a dark outline ghosted over the turf and the robots)."""
         now = [e for e in self.events
                if e.start_ns <= t <= max(e.end_ns, e.start_ns + int(CAPTION_S * 1e9))]
         now.sort(key=lambda e: -e.start_ns)  # the newest first
         for row, e in enumerate(now[:4]):
-            text = e.description or f"{e.robot} {e.name}".strip()
+            text = caption_text(e, t)
             colour = self.colours.get(e.robot, (255, 255, 255))
-            y = 14 + 14 * row
-            cv2.putText(img, text, (6, y), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3,
-                        cv2.LINE_AA)
+            y = 14 + 16 * row
+            (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+            _shade(img, (2, y - h - 3, 10 + w, y + base + 1))
             cv2.putText(img, text, (6, y), cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1,
                         cv2.LINE_AA)
 
@@ -210,6 +212,31 @@ class _Painter:
         seconds = (t - first) / 1e9
         cv2.putText(img, f"{seconds:7.2f} s", (w - 70, top + 11), cv2.FONT_HERSHEY_SIMPLEX,
                     0.35, (255, 255, 255), 1, cv2.LINE_AA)
+        # The legend: whose colour an event's bar has.
+        x = 6
+        for name, colour in [*self.colours.items(), ("team", (255, 255, 255))]:
+            cv2.putText(img, name, (x, top + 9), cv2.FONT_HERSHEY_SIMPLEX, 0.3, colour, 1,
+                        cv2.LINE_AA)
+            x += cv2.getTextSize(name, cv2.FONT_HERSHEY_SIMPLEX, 0.3, 1)[0][0] + 8
+
+
+def caption_text(event: Event, t_ns: int) -> str:
+    """An event's caption at ``t_ns``: its name and description once it has ended; while
+    it is still going on, its name and its length so far (the description tells its final
+    length, which the moment does not know yet)."""
+    who = f"{event.robot} " if event.robot else ""
+    if t_ns < event.end_ns:
+        return f"{event.name}: {who}for {(t_ns - event.start_ns) / 1e9:.1f} s so far"
+    return f"{event.name}: {event.description or who.strip()}"
+
+
+def _shade(img: npt.NDArray[np.uint8], box: tuple[int, int, int, int]) -> None:
+    """Darken ``box`` (x0, y0, x1, y1) to a third, blended within the box only."""
+    h, w = img.shape[:2]
+    x0, y0, x1, y1 = max(box[0], 0), max(box[1], 0), min(box[2], w), min(box[3], h)
+    if x1 > x0 and y1 > y0:
+        region = img[y0:y1, x0:x1]
+        region[:] = (region.astype(np.uint16) * 85 // 256).astype(np.uint8)
 
 
 def augment_video(

@@ -1,4 +1,4 @@
-"""The command line: ``events`` and ``sync-video`` (``ros2 run log_analysis <command>``).
+r"""The command line: ``events`` and ``sync-video`` (``ros2 run log_analysis <command>``).
 
 ``events``: find the events of a team log and write them beside it.
 
@@ -11,7 +11,9 @@ Several robots' own bags are read as one team log in team reference time, each m
 the clock estimates it recorded (team_clock; ``ROBOT=LOG`` as its merge takes them), without
 merging them first. Prints one line per event (seconds from the log's start, robot, what,
 details), writes them to a sidecar MCAP (``<log>.events.mcap``, for several bags
-``team.events.mcap`` beside the first, unless ``-o``) as Foxglove events, and shows
+``team.events.mcap`` beside the first, unless ``-o``; a partial run, with ``--only``,
+``--robot``, ``--start`` or ``--end``, to ``<log>.partial.events.mcap``, leaving the full
+one as it was) as Foxglove events, and shows
 its progress on standard error. A generator that raises is named with what it raised and
 the others finish; the exit status is then 1. A log or generator file that cannot be read
 is one line and exit 1; wrong arguments exit 2.
@@ -52,6 +54,8 @@ place on a terminal, a line per tenth elsewhere, always ending at 100 % on a fin
 from __future__ import annotations
 
 import argparse
+import math
+import re
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -66,14 +70,31 @@ from team_clock import RobotLog
 from .augment import augment_video
 from .compare import Variant, compare_components, write_report
 from .errors import LogAnalysisError
-from .events import detect
+from .events import detect, generator_name
 from .registry import available_generators, load_generators
 from .sidecar import read_events, sidecar_path, write_events
 from .source import TeamLog
-from .sync import VideoFit, fit_anchors, fit_video_clock
+from .sync import MAX_DRIFT_PPM, VideoFit, check_fit, fit_anchors, fit_video_clock
 from .video import ExternalVideo
 
 __all__ = ["augment_main", "compare_main", "events_main", "sync_video_main"]
+
+
+def _first_sentence(doc: str) -> str:
+    """A docstring's first sentence on one line (``--list``: not cut mid-sentence at the
+    first line's end)."""
+    paragraph = " ".join(doc.strip().split("\n\n", 1)[0].split())
+    match = re.match(r"(.+?\.)(\s|$)", paragraph)
+    return (match.group(1) if match else paragraph).replace("``", "")
+
+
+def _help_of(command: str) -> str:
+    """The part of this module's help that is about ``command`` (and the closing paragraph
+    every command shares): ``events --help`` shows no other command's examples."""
+    text, _, shared = (__doc__ or "").partition("Every command that reads")
+    parts = re.split(r"^(?=``[a-z-]+``: )", text, flags=re.MULTILINE)
+    mine = "".join(p for p in parts if p.startswith(f"``{command}``: ")).strip()
+    return f"{mine}\n\nEvery command that reads{shared}".rstrip() if shared else mine
 
 
 def _seconds(text: str) -> float:
@@ -81,9 +102,22 @@ def _seconds(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}")
     if value < 0:
         raise argparse.ArgumentTypeError(f"seconds from the log's start, >= 0: {text!r}")
     return value
+
+
+def _writable(path: Path | None) -> None:
+    """Refuse, before any work, an output that cannot be written: a directory, or one in
+    a directory that does not exist."""
+    if path is None:
+        return
+    if path.is_dir():
+        raise LogAnalysisError(f"-o {path} is a directory: give the file to write")
+    if not path.parent.is_dir():
+        raise LogAnalysisError(f"-o {path}: no directory {path.parent}")
 
 
 def progress_printer(total: int, start: int, *, stream: TextIO = sys.stderr,
@@ -138,7 +172,7 @@ def progress_line(total: int, start: int, *, quiet: bool, label: str, unit: str 
 
 
 def events_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="events", description=__doc__,
+    parser = argparse.ArgumentParser(prog="events", description=_help_of("events"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", nargs="*", metavar="[ROBOT=]LOG", help="a merged team log "
                         "or one robot's bag (rosbag2 directory or .mcap file); or several "
@@ -148,12 +182,14 @@ def events_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--generators", type=Path, action="append", default=[],
                         metavar="FILE", help="a Python file whose GENERATORS list more "
                         "event generators (may repeat)")
-    parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these built-in "
-                        "or registered generators (none: all); --list names them")
+    parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these "
+                        "generators: built-in, registered or of --generators files (none: "
+                        "all); --list names the registered ones")
     parser.add_argument("--list", action="store_true", help="list the registered "
                         "generators and exit")
-    parser.add_argument("--robot", help="the robot whose own bag LOG is (its topics are "
-                        "not under /ROBOT)")
+    parser.add_argument("--robot", help="only this robot's part: its topics (under "
+                        "/ROBOT/) of a merged log or of its own bag recorded in its namespace; "
+                        "a bag recorded without a namespace is read as ROBOT's")
     parser.add_argument("--start", type=_seconds, help="from this many seconds after the "
                         "log's start")
     parser.add_argument("--end", type=_seconds, help="up to this many seconds after the "
@@ -165,8 +201,7 @@ def events_main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.list:
             for name, factory in sorted(available_generators().items()):
-                doc = (factory.__doc__ or "").strip().splitlines()
-                print(f"{name:20} {doc[0] if doc else ''}")
+                print(f"{name:20} {_first_sentence(factory.__doc__ or '')}")
             return 0
         if not args.log:
             parser.error("give the LOG to analyse (or --list)")
@@ -176,23 +211,41 @@ def events_main(argv: Sequence[str] | None = None) -> int:
                          "ROBOT=LOG")
         if args.start is not None and args.end is not None and args.end <= args.start:
             parser.error(f"--end {args.end} is not after --start {args.start}")
-        generators = load_generators(names=args.only, files=args.generators)
+        _writable(args.output)
+        generators = load_generators(files=args.generators)
+        if args.only:
+            by_name = {generator_name(g): g for g in generators}
+            if unknown := [n for n in args.only if n not in by_name]:
+                parser.error(f"unknown event generator(s) {', '.join(unknown)}; known: "
+                             f"{', '.join(sorted(by_name))}")
+            generators = [by_name[n] for n in dict.fromkeys(args.only)]
         log = (TeamLog.from_robot_logs([_robot_log(text) for text in args.log]) if team
                else TeamLog(args.log[0], robot=args.robot))
         first, last = log.time_range()
+        # Warned of: a generator asked for by name or from a file that reads nothing (a
+        # typo); not a built-in that runs by default on a log without its topics.
+        builtin = set(available_generators()) - set(args.only or ())
+        unread = _unread_topics(log, generators, robot=args.robot, quiet_for=builtin)
         start_ns = None if args.start is None else first + int(args.start * 1e9)
         end_ns = None if args.end is None else first + int(args.end * 1e9)
         lo, hi = start_ns or first, min(end_ns or last, last)
-        with progress_line(hi - lo, lo, quiet=args.quiet, label="events") as progress:
+        if hi <= lo and (start_ns is not None or end_ns is not None):
+            unread.append(f"the window {args.start or 0:g}..{args.end or 'end'} s holds "
+                          f"none of the log: the log spans 0..{(last - first) / 1e9:.1f} s")
+        with progress_line(max(hi - lo, 0), lo, quiet=args.quiet,
+                           label="events") as progress:
             found = detect(log, generators, start_ns=start_ns, end_ns=end_ns,
                            progress=progress)
-        output = args.output or (log.path.parent / "team.events.mcap" if team
-                                 else sidecar_path(log.path))
+        filters = [flag for flag, used in (("--only", args.only), ("--robot", args.robot),
+                                           ("--start", args.start is not None),
+                                           ("--end", args.end is not None)) if used]
+        full = _default_sidecar(log.path, team=team)
+        output = args.output or _default_sidecar(log.path, team=team, partial=bool(filters))
         write_events(output, found.events)
     except LogAnalysisError as exc:
         print(f"events: error: {exc}", file=sys.stderr)
         return 1
-    for problem in found.problems:
+    for problem in found.problems + unread:
         print(f"events: warning: {problem}", file=sys.stderr)
     sys.stderr.flush()
     print(f"{'start':>11}  {'length':>8}  {'robot':8} {'event':20} details")
@@ -201,11 +254,46 @@ def events_main(argv: Sequence[str] | None = None) -> int:
         print(f"{(event.start_ns - first) / 1e9:9.2f} s  {span:6.2f} s  "
               f"{event.robot or 'team':8} {event.name:20} {event.description}")
     print(f"{len(found.events)} events from {len(generators)} generators over "
-          f"{found.messages} messages; written to {output}")
+          f"{found.messages} messages; written to {output}"
+          + (f" (partial: {' '.join(filters)}; {full} is left as it was)"
+             if filters and not args.output else ""))
     for name, failure in found.failures.items():
         print(f"events: error: generator {name} failed and was left out: {failure}",
               file=sys.stderr)
     return 1 if found.failures else 0
+
+
+def _default_sidecar(path: Path, *, team: bool, partial: bool = False) -> Path:
+    """``LOG.events.mcap`` beside the log (beside its folder for a file of a rosbag2
+    folder, so that the bag stays as the recorder made it); ``team.events.mcap`` beside the
+    first of several bags."""
+    if team:
+        return sidecar_path(path.parent / "team", partial=partial)
+    if path.is_file() and (path.parent / "metadata.yaml").is_file():
+        path = path.parent
+    return sidecar_path(path, partial=partial)
+
+
+def _unread_topics(log: TeamLog, generators: Sequence[Any], *, robot: str | None,
+                   quiet_for: set[str]) -> list[str]:
+    """Warnings for generators that read no topic of ``log``; a :class:`LogAnalysisError`
+    when none does (an analysis over no message would say nothing happened)."""
+    missing = {generator_name(g): sorted(g.topics) for g in generators
+               if not log.names(g.topics)}
+    if not missing:
+        return []
+    # With --robot, the robots of the log as it is (not as read for that robot).
+    robots = ", ".join((TeamLog(log.path) if robot else log).robots) or "none"
+    whose = f"robot {robot}" if robot else "any robot"
+    if len(missing) == len(generators):
+        wanted = sorted({t for topics in missing.values() for t in topics})
+        raise LogAnalysisError(f"no topic of {log.path} is one the generators read "
+                               f"({', '.join(wanted)}) for {whose}: the log's robots are "
+                               f"{robots}")
+    nobody = f"robot {robot} did not log" if robot else "no robot logged"
+    return [f"{name} reads {', '.join(topics)}, which {nobody} (the log's robots: "
+            f"{robots}): it finds nothing" for name, topics in missing.items()
+            if name not in quiet_for]
 
 
 def _robot_log(text: str) -> RobotLog:
@@ -227,23 +315,28 @@ def _anchor(text: str) -> tuple[float, float]:
 
 
 def sync_video_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="sync-video", description=__doc__,
+    parser = argparse.ArgumentParser(prog="sync-video", description=_help_of("sync-video"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
     parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
     parser.add_argument("--ball-topic", default="/world/ground_truth/ball",
-                        help="where the log has the ball (PoseStamped or PointStamped in "
-                        "the field frame; default: the world's ground truth)")
+                        help="where the log has the ball (PointStamped, PoseStamped or "
+                        "PoseWithCovarianceStamped in the field frame, e.g. /ROBOT/team_ball; "
+                        "default: the world's ground truth)")
     parser.add_argument("--max-offset", type=_seconds, default=30.0, metavar="S",
-                        help="search the offset within ±S seconds of lining up the starts")
+                        help="search the offset within ±S seconds of lining up the starts "
+                        "(default: 30)")
     parser.add_argument("--anchor", type=_anchor, action="append", default=[],
                         metavar="CAMERA=LOG", help="a moment picked by hand (may repeat); "
                         "fits on these instead of the ball")
+    parser.add_argument("--allow-drift", action="store_true", help="keep a drift beyond "
+                        f"±{MAX_DRIFT_PPM:g} ppm (a camera's clock drifts by tens)")
     parser.add_argument("-o", "--output", type=Path, help="where to write the fit (default: "
                         "VIDEO.sync.json)")
     parser.add_argument("--quiet", action="store_true", help="no progress line")
     args = parser.parse_args(argv)
     try:
+        _writable(args.output)
         video = ExternalVideo(args.video)
         log = TeamLog(args.log)
         if args.anchor:
@@ -256,12 +349,13 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
                                label="sync-video", unit="frames", scale=1) as show:
                 fit = fit_video_clock(log, video, ball_topic=args.ball_topic,
                                       max_offset_s=args.max_offset, progress=show)
-        output = fit.save(args.output or Path(f"{args.video}.sync.json"))
+        check_fit(fit, allow_drift=args.allow_drift)
+        output = fit.on_log(log).save(args.output or Path(f"{args.video}.sync.json"))
     except LogAnalysisError as exc:
         print(f"sync-video: error: {exc}", file=sys.stderr)
         return 1
     frames = f" ({fit.residual_frames:.2f} frames)" if fit.frame_period_ns else ""
-    print(f"offset {fit.offset_ns / 1e9:+.3f} s  drift {fit.drift_ppm:+.1f} ppm  residual "
+    print(f"offset {fit.offset_ns / 1e9:+.3f} s  {fit.describe_drift()}  residual "
           f"{fit.residual_ns / 1e6:.1f} ms{frames}  from the {fit.method}"
           + (f" ({len(fit.stretches)} stretches, {fit.frames_used} frames, "
              f"{fit.pixel_error_px:.1f} px)" if fit.method == "ball track" else
@@ -271,7 +365,7 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
 
 
 def augment_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="augment", description=__doc__,
+    parser = argparse.ArgumentParser(prog="augment", description=_help_of("augment"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
     parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
@@ -283,18 +377,27 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
                         help="the MP4 to write (default: VIDEO.augmented.mp4)")
     parser.add_argument("--quiet", action="store_true", help="no progress line")
     args = parser.parse_args(argv)
+    if args.output is not None and args.output.suffix.lower() != ".mp4":
+        parser.error(f"augment writes an MP4 (H.264): -o must end in .mp4, not {args.output}")
     try:
+        _writable(args.output)
         video = ExternalVideo(args.video)
         log = TeamLog(args.log)
         fit_path = args.fit or Path(f"{args.video}.sync.json")
         if args.fit is None and not fit_path.exists():
             print(f"augment: no {fit_path}: fitting the video's clock first", file=sys.stderr)
             fit = fit_video_clock(log, video)
+            check_fit(fit)
+            fit = fit.on_log(log)
             fit.save(fit_path)
         else:
             fit = VideoFit.load(fit_path)
+            fit.check_log(log)
         events_path = args.events or sidecar_path(args.log)
         events = read_events(events_path) if args.events or events_path.exists() else []
+        uses = (f"the video's clock from {fit_path}; "
+                + (f"events from {events_path}" if args.events or events_path.exists()
+                   else f"no events (no {events_path})"))
         output = args.output or args.video.with_name(
             f"{args.video.name.removesuffix('.mp4')}.augmented.mp4")
         total = int(video.sidecar.get("frames") or 0)
@@ -304,6 +407,7 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
     except LogAnalysisError as exc:
         print(f"augment: error: {exc}", file=sys.stderr)
         return 1
+    print(f"using {uses}")
     print(f"{report.frames} frames of {report.width}x{report.height} with "
           f"{', '.join(report.robots) or 'no robot'} and {len(events)} events in "
           f"{report.seconds:.1f} s ({report.frames_per_s / report.video_fps:.1f}x real time); "
@@ -330,19 +434,24 @@ def _setting(text: str) -> tuple[str, str, Any]:
 
 
 def compare_main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="compare", description=__doc__,
+    parser = argparse.ArgumentParser(prog="compare", description=_help_of("compare"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log with the robot's images")
     parser.add_argument("--robot", required=True, help="whose images (its namespace)")
-    parser.add_argument("--a", type=_variant, required=True, metavar="LABEL=COMPONENT")
-    parser.add_argument("--b", type=_variant, required=True, metavar="LABEL=COMPONENT")
+    parser.add_argument("--a", type=_variant, required=True, metavar="LABEL=COMPONENT",
+                        help="variant a: a label and an entry point such as "
+                        "humanoid_sim::BallDetector, or module:Class")
+    parser.add_argument("--b", type=_variant, required=True, metavar="LABEL=COMPONENT",
+                        help="variant b, as --a")
     parser.add_argument("--set", type=_setting, action="append", default=[],
                         metavar="a.NAME=VALUE", help="a parameter of variant a or b "
                         "(YAML value; may repeat)")
     parser.add_argument("--images", default="camera/image_raw/compressed",
-                        help="the robot's logged image topic (Image or CompressedImage)")
+                        help="the robot's logged image topic (Image or CompressedImage; "
+                        "default: camera/image_raw/compressed)")
     parser.add_argument("--agree-deg", type=float, default=2.0,
-                        help="two detections within this many degrees agree")
+                        help="two detections within this many degrees agree, and a "
+                        "detection this near the truth is a hit (default: 2)")
     parser.add_argument("-o", "--output", type=Path, default=Path("comparison"),
                         help="the folder for report.md and its plots")
     parser.add_argument("--quiet", action="store_true", help="no progress line")

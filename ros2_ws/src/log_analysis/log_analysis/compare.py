@@ -91,6 +91,12 @@ class Comparison:
             return f.a is None and f.b is None
         return abs(_deg(f.a[0] - f.b[0])) <= self.agree_deg
 
+    def hit(self, d: tuple[float, float, float] | None, f: FrameResult) -> bool:
+        """A detection within ``agree_deg`` of the true bearing (a detection of something
+        else, 35° off, is no hit)."""
+        return (d is not None and f.truth_yaw is not None
+                and abs(_deg(math.remainder(d[0] - f.truth_yaw, math.tau))) <= self.agree_deg)
+
     def disagreement(self, f: FrameResult) -> float:
         """Degrees between the two (180 when only one saw a ball)."""
         if f.a is None or f.b is None:
@@ -112,7 +118,7 @@ class Comparison:
             times = sorted(getattr(f, f"{side}_ms") for f in self.frames)
             out[variant.label] = {
                 "detection_rate": sum(s is not None for s in seen) / max(len(seen), 1),
-                "hit_rate": (sum(getattr(f, side) is not None for f in in_view)
+                "hit_rate": (sum(self.hit(getattr(f, side), f) for f in in_view)
                              / len(in_view)) if in_view else float("nan"),
                 "false_rate": (sum(getattr(f, side) is not None for f in out_view)
                                / len(out_view)) if out_view else float("nan"),
@@ -123,7 +129,7 @@ class Comparison:
             }
         out["both"] = {"agreement": sum(map(self.agrees, self.frames)) / max(len(self.frames), 1),
                        "frames": float(len(self.frames)), "judged": float(len(judged)),
-                       "in_view": float(len(in_view))}
+                       "in_view": float(len(in_view)), "out_view": float(len(out_view))}
         return out
 
     def disagreements(self, worst: int = 10) -> list[Event]:
@@ -162,15 +168,18 @@ class _Runner:
         spec = ComponentSpec(variant.component, name=variant.label, source=variant.label)
         try:
             factory = resolve_factory(spec)
+            parameters = _checked_parameters(variant, factory, robot)
             # No mutation guard (a test handle's default): it fingerprints every message
             # before and after each callback, which cost more than the detectors and was
             # counted in their callback times; no statistics publisher either.
             self.handle = TestHandle(variant.label, namespace=f"/{robot}",
-                                     parameters=dict(variant.parameters),
+                                     parameters=parameters,
                                      container=test_container(guard_mutation=False,
                                                               stats_period_s=0))
             self.component = factory(self.handle)
             self.handle.published(output_topic)  # it must publish there
+        except CompareError:
+            raise
         except (EfficientCommError, LookupError) as exc:
             raise CompareError(f"variant {variant.label} ({variant.component}): {exc}") from exc
         except Exception as exc:  # the component's constructor: its own error, told
@@ -189,6 +198,37 @@ class _Runner:
         took = (time.perf_counter() - start) * 1e3
         out = self.handle.published(self.output_topic)
         return (out[-1] if out else None), took
+
+
+class _Probe(TestHandle):
+    """A test handle that notes what the component declares (name -> default)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.declared: dict[str, Any] = {}
+
+    def declare_parameter(self, name: str, default: Any, **kwargs: Any) -> Any:
+        self.declared[name] = default
+        return super().declare_parameter(name, default, **kwargs)
+
+
+def _checked_parameters(variant: Variant, factory: Callable[[Any], Any], robot: str
+                        ) -> dict[str, Any]:
+    """``variant``'s parameters checked against those its component declares (made once
+    on a probe handle): one it does not declare is refused naming those it does, and an
+    int given for a double is converted, as ``ros2 param set`` takes ``5`` for ``5.0``."""
+    if not variant.parameters:
+        return {}
+    probe = _Probe(variant.label, namespace=f"/{robot}",
+                   container=test_container(guard_mutation=False, stats_period_s=0))
+    factory(probe)
+    if unknown := sorted(set(variant.parameters) - set(probe.declared)):
+        raise CompareError(f"variant {variant.label} ({variant.component}) has no parameter "
+                           f"{', '.join(unknown)}; its parameters: "
+                           f"{', '.join(sorted(probe.declared)) or 'none'}")
+    return {name: float(value) if isinstance(probe.declared[name], float)
+            and isinstance(value, int) and not isinstance(value, bool) else value
+            for name, value in variant.parameters.items()}
 
 
 def _image(m: LogMessage) -> Image | None:
@@ -335,17 +375,23 @@ def write_report(comparison: Comparison, folder: str | os.PathLike[str]) -> Path
     fig.savefig(out / "callbacks.png", dpi=100)
     plt.close(fig)
     s = c.summary()
-    rows = [("detection rate", "detection_rate", "{:.0%}"), ("hits (ball in view)",
-            "hit_rate", "{:.0%}"), ("false detections (out of view)", "false_rate", "{:.0%}"),
+    rows = [("detection rate", "detection_rate", "{:.0%}"),
+            (f"hits (ball in view, within {c.agree_deg:g}°)", "hit_rate", "{:.0%}"),
+            ("false detections (out of view)", "false_rate", "{:.0%}"),
             ("yaw error median (deg)", "error_median_deg", "{:.2f}"),
             ("yaw error p95 (deg)", "error_p95_deg", "{:.2f}"),
             ("callback median (ms)", "callback_median_ms", "{:.2f}"),
             ("callback p95 (ms)", "callback_p95_ms", "{:.2f}")]
     lines = [f"# {c.a.label} vs {c.b.label} on {c.robot}'s images", "",
              f"{_named(c.a)} against {_named(c.b)}: {len(c.frames)} images "
-             f"({int(s['both']['in_view'])} with the ball in view by the ground truth), "
+             f"({int(s['both']['in_view'])} with the ball in view by the ground truth, "
+             f"{int(s['both']['out_view'])} out of view, "
+             f"{int(s['both']['frames'] - s['both']['judged'])} without ground truth), "
              f"replayed in {c.seconds:.1f} s. They agree (both nothing, or within "
-             f"{c.agree_deg:g}°) on {s['both']['agreement']:.0%} of the images.", "",
+             f"{c.agree_deg:g}°) on {s['both']['agreement']:.0%} of the images. A hit is "
+             f"a detection within {c.agree_deg:g}° of the true bearing. Callback times are "
+             "single-shot (one call per image, no warm-up: the first calls may include "
+             "first-use costs).", "",
              f"| | {c.a.label} | {c.b.label} |", "|---|---|---|"]
     for title, key, fmt in rows:
         lines.append(f"| {title} | {_fmt(fmt, s[c.a.label][key])} | "
@@ -354,7 +400,7 @@ def write_report(comparison: Comparison, folder: str | os.PathLike[str]) -> Path
               "", "## Where they disagree most", ""]
     worst = c.disagreements()
     lines += [f"- {(e.start_ns - t0) / 1e9:7.2f} s: {e.description}" for e in worst] or [
-        "- nowhere"]
+        "none: they agree on every image"]
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path

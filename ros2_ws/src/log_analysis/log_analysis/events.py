@@ -19,6 +19,7 @@ the others go on.
 
 from __future__ import annotations
 
+import inspect
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -138,7 +139,13 @@ def detect(
 
     def run(i: int, call: Callable[[], Iterable[Event]]) -> None:
         try:
-            found: list[object] = list(call())
+            result: Iterable[Event] | None = call()  # a user's method may return None
+            if result is None:  # pointed at the user's method, not at this list()
+                alive[i] = False
+                failures[names[i]] = (f"returned None, not a list of events "
+                                      f"({_where(call)})")
+                return
+            found: list[object] = list(result)
         except Exception as exc:  # a user's generator: reported, the others go on
             alive[i] = False
             where = traceback.extract_tb(exc.__traceback__)[-1]
@@ -170,6 +177,16 @@ def detect(
             run(i, partial(g.finish, finish_at))
     events.sort(key=lambda e: (e.start_ns, e.end_ns, e.robot, e.name))
     return Detection(events, failures, count, log.problems)
+
+
+def _where(call: Callable[[], object]) -> str:
+    """``at FILE:LINE`` of the method ``call`` (a partial of it) runs."""
+    target = call.func if isinstance(call, partial) else call
+    target = getattr(target, "_fn", None) or target  # a function made a generator
+    try:
+        return f"at {inspect.getsourcefile(target)}:{inspect.getsourcelines(target)[1]}"
+    except (TypeError, OSError):
+        return f"in {target!r}"
 
 
 def _named(event: Event, generator: str) -> Event:

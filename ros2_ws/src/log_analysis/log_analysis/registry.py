@@ -75,14 +75,23 @@ def generators_from_file(path: str | os.PathLike[str]) -> list[EventGenerator]:
 
 def load_generators(*, names: Sequence[str] | None = None,
                     files: Sequence[str | os.PathLike[str]] = ()) -> list[EventGenerator]:
-    """The registered generators (``names`` of them; all when ``None``) and those of
-    ``files``. An unknown name raises :class:`GeneratorError` listing the known ones."""
+    """The registered generators and those of ``files`` (``names`` of them; all when
+    ``None``). A file's generator named like a registered one replaces it (the user's
+    wins); a file given twice is read once; two files' generators of one name, or an
+    unknown name, raise :class:`GeneratorError` naming them."""
     registered = available_generators()
-    chosen = list(registered) if names is None else list(names)
-    if unknown := [n for n in chosen if n not in registered]:
+    mine: dict[str, tuple[EventGenerator, Path]] = {}
+    for file in dict.fromkeys(Path(f).resolve() for f in files):
+        for generator in generators_from_file(file):
+            name = generator_name(generator)
+            if name in mine:
+                raise GeneratorError(f"two generators are named {name!r}: in {mine[name][1]} "
+                                     f"and in {file}; rename one")
+            mine[name] = (generator, file)
+    chosen = ([n for n in registered if n not in mine] + list(mine) if names is None
+              else list(dict.fromkeys(names)))
+    if unknown := [n for n in chosen if n not in registered and n not in mine]:
         raise GeneratorError(f"unknown event generator(s) {', '.join(unknown)}; known: "
-                             f"{', '.join(sorted(registered))}")
-    made = [_checked(registered[n](), f"entry point {n}") for n in chosen]
-    for file in files:
-        made += generators_from_file(file)
-    return made
+                             f"{', '.join(sorted({*registered, *mine}))}")
+    return [mine[n][0] if n in mine else _checked(registered[n](), f"entry point {n}")
+            for n in chosen]

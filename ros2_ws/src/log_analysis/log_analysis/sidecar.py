@@ -46,10 +46,13 @@ _SCHEMA = {
 }
 
 
-def sidecar_path(log: str | os.PathLike[str]) -> Path:
-    """Where a log's events go by default: ``<log>.events.mcap`` beside it."""
+def sidecar_path(log: str | os.PathLike[str], *, partial: bool = False) -> Path:
+    """Where a log's events go by default: ``<log>.events.mcap`` beside it; those of a
+    ``partial`` run (some generators, one robot, a window) ``<log>.partial.events.mcap``,
+    so that they never replace the full set that other tools read."""
     path = Path(log)
-    return path.with_name(f"{path.name.removesuffix('.mcap')}.events.mcap")
+    kind = ".partial" if partial else ""
+    return path.with_name(f"{path.name.removesuffix('.mcap')}{kind}.events.mcap")
 
 
 def _time(ns: int) -> dict[str, int]:

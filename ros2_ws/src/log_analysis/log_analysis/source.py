@@ -107,12 +107,26 @@ def _namespaced(robot: str, topic: str) -> str:
         else prefix + absolute
 
 
-def _open(path: Path, robot: str | None, model: OffsetModel | None) -> _Part:
+def _open(path: Path, robot: str | None, model: OffsetModel | None, *,
+          only_own: bool = False) -> _Part:
+    """A bag of a log. With ``only_own`` a bag that has topics under ``/robot`` (a merged
+    log, or a robot's bag recorded in its namespace) is read as that robot's part alone;
+    one that has none as ``robot``'s own bag recorded without its namespace."""
+    if path.name.endswith(".events.mcap"):
+        raise LogSourceError(f"{path} is an events sidecar (what events writes), not a log: "
+                             "give the log it sits beside")
     try:
         reader = BagReader(path)
+        if reader.files and all(f.name.endswith(".events.mcap") for f in reader.files):
+            raise LogSourceError(f"{path} holds only events sidecars "
+                                 f"({reader.files[0].name}), no log: give the log's own "
+                                 "folder")
         records = reader.topic_records()
     except Rosbag2Error as exc:
         raise LogSourceError(f"cannot read {path}: {exc}") from exc
+    prefix = f"/{(robot or '').strip('/')}/"
+    if robot and only_own and any(stored.startswith(prefix) for stored in records):
+        records = {k: v for k, v in records.items() if k.startswith(prefix)}
     names = {stored: _namespaced(robot or "", stored) for stored in records}
     return _Part(path, reader, names, {names[stored]: r.type for stored, r in records.items()},
                  model)
@@ -126,7 +140,7 @@ class TeamLog:
     """
 
     def __init__(self, path: str | os.PathLike[str], *, robot: str | None = None) -> None:
-        self._setup([_open(Path(path), robot, None)])
+        self._setup([_open(Path(path), robot, None, only_own=True)])
 
     @classmethod
     def from_robot_logs(cls, logs: Sequence[RobotLog]) -> TeamLog:

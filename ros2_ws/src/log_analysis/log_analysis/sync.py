@@ -25,6 +25,16 @@ A stationary ball carries no timing, so a video in which the ball never moves is
 with that reason. Anchors picked by hand (``camera time = log time`` pairs, e.g. in the
 GUI) fit the same line without the video's pixels.
 
+A fit is only as good as what it saw, and a log and a video of different matches still
+have a "best" offset: :func:`check_fit` refuses one the data does not support (too few
+frames matched, the projected ball far from the seen one, stretches that disagree by more
+than a frame). Drift is fitted only from :data:`MIN_DRIFT_STRETCHES` stretches spread over
+:data:`MIN_DRIFT_SPAN_S` (two 20 s stretches pin it to no better than about a thousand ppm
+at 5 fps); otherwise the fit is the offset alone, drift 0, and says so. A real camera's
+clock drifts by tens of ppm, so one beyond :data:`MAX_DRIFT_PPM` is refused unless
+allowed. The fit records the log it was made on (path and time range), so that a tool
+given another log can refuse it (:meth:`VideoFit.check_log`).
+
 The model: ``log_ns = camera_ns - offset_ns - drift_ppm * 1e-6 * (camera_ns - start_ns)``,
 ``start_ns`` the first frame's camera time (to first order, the camera runs ``drift_ppm``
 fast and ``offset_ns`` ahead of the log).
@@ -36,9 +46,10 @@ import itertools
 import json
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -48,7 +59,8 @@ from .errors import SyncError
 from .source import TeamLog
 from .video import Calibration, ExternalVideo
 
-__all__ = ["SyncError", "VideoFit", "ball_pixels", "fit_anchors", "fit_video_clock"]
+__all__ = ["SyncError", "VideoFit", "ball_pixels", "check_fit", "fit_anchors",
+           "fit_video_clock"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -70,6 +82,34 @@ class VideoFit:
     pixel_error_px: float = float("nan")
     frames_used: int = 0
     stretches: list[tuple[int, int]] = field(default_factory=list)
+    #: Whether the drift was fitted (else 0 by assumption), and its standard error.
+    drift_fitted: bool = False
+    drift_sigma_ppm: float = 0.0
+    #: The log it was fitted on: its path and first and last log time (ns).
+    log_path: str = ""
+    log_start_ns: int = 0
+    log_end_ns: int = 0
+
+    def on_log(self, log: TeamLog) -> VideoFit:
+        """This fit, recording that it was made on ``log``."""
+        first, last = log.time_range()
+        return replace(self, log_path=str(Path(log.path).resolve()), log_start_ns=first,
+                       log_end_ns=last)
+
+    def check_log(self, log: TeamLog) -> None:
+        """Raise :class:`SyncError` when this fit was made on another log than ``log``
+        (another time range: a path can move, a match's times do not)."""
+        if not self.log_path:
+            return  # a fit from before fits recorded their log: nothing to check
+        if (self.log_start_ns, self.log_end_ns) != log.time_range():
+            raise SyncError(f"the fit was made on another log ({self.log_path}), not on "
+                            f"{log.path}: run sync-video on this log and video again")
+
+    def describe_drift(self) -> str:
+        """``drift +12.0 ± 3.0 ppm``, or that it was not fitted."""
+        if not self.drift_fitted:
+            return "drift 0 (not fitted: too few stretches or too short a span)"
+        return f"drift {self.drift_ppm:+.1f} ± {self.drift_sigma_ppm:.1f} ppm"
 
     def to_log(self, camera_ns: int) -> int:
         """The log time of a frame taken at ``camera_ns``."""
@@ -131,10 +171,34 @@ def ball_pixels(video: ExternalVideo, *, progress: Callable[[int], None] | None 
     return np.asarray(times, dtype=np.int64), np.asarray(found, dtype=float)
 
 
+#: The ball's message types a track is read from, and where each has the position.
+BALL_TYPES: dict[str, Callable[[Any], Any]] = {
+    "geometry_msgs/msg/PointStamped": lambda m: m.point,
+    "geometry_msgs/msg/PoseStamped": lambda m: m.pose.position,
+    "geometry_msgs/msg/PoseWithCovarianceStamped": lambda m: m.pose.pose.position,
+}
+#: Frames that are the field's (an empty frame_id, as a test double writes, is taken so).
+FIELD_FRAMES = ("field", "map", "world", "")
+
+
 def _track(log: TeamLog, topic: str) -> tuple[npt.NDArray[np.int64], FloatArray]:
+    """The ball's field positions on ``topic``; :class:`SyncError` for a type that has no
+    position or a frame that is not the field's (a robot's own ``ball/position`` is in its
+    ``base_footprint``: projected as field coordinates, it fits a wrong clock)."""
+    kind = log.topics.get(topic, "")
+    if kind and kind not in BALL_TYPES:
+        raise SyncError(f"{topic} is a {kind}, not a ball position ("
+                        f"{', '.join(t.rsplit('/', 1)[1] for t in BALL_TYPES)} in the field "
+                        "frame)")
+    where = BALL_TYPES.get(kind, BALL_TYPES["geometry_msgs/msg/PoseStamped"])
     times, points = [], []
     for m in log.messages([topic]):
-        p = m.message.pose.position if hasattr(m.message, "pose") else m.message.point
+        frame = m.message.header.frame_id
+        if frame not in FIELD_FRAMES:
+            raise SyncError(f"{topic} is in the frame {frame!r}, not the field's: the ball "
+                            "must be in field coordinates (the world's ground truth, or a "
+                            "robot's field-frame belief such as /ROBOT/team_ball)")
+        p = where(m.message)
         times.append(m.log_time_ns)
         points.append((p.x, p.y, p.z))
     if len(times) < 2:
@@ -226,8 +290,59 @@ def fit_anchors(anchors: Sequence[tuple[int, int]], *, start_ns: int,
     cam = np.asarray([a[0] for a in anchors], dtype=float)
     offsets = np.asarray([a[0] - a[1] for a in anchors], dtype=float)
     intercept, slope, rms = _line(cam - start_ns, offsets)
+    # A moment picked by hand is right to the frame: half a frame either way.
+    pick = (frame_period_ns or 40_000_000) / 2 / np.sqrt(3)
+    sigma = _slope_sigma(cam - start_ns, offsets, floor=pick) if len(anchors) > 1 else 0.0
     return VideoFit(round(intercept), slope * 1e6, start_ns, round(rms), "anchors",
-                    frame_period_ns)
+                    frame_period_ns, drift_fitted=len(anchors) > 1,
+                    drift_sigma_ppm=sigma * 1e6)
+
+
+def _slope_sigma(x: FloatArray, y: FloatArray, *, floor: float) -> float:
+    """Standard error of the slope of y over x, each y known to ``floor`` at best."""
+    sxx = float(np.sum((x - x.mean()) ** 2))
+    if sxx <= 0:
+        return float("inf")
+    sigma = floor
+    if len(x) > 2:
+        slope, intercept = np.polyfit(x, y, 1)
+        rss = float(np.sum((y - (intercept + slope * x)) ** 2))
+        sigma = max(sigma, float(np.sqrt(rss / (len(x) - 2))))
+    return float(sigma / np.sqrt(sxx))
+
+
+#: What a fit must show to be believed: frames matched, their mean distance (px) from the
+#: projected ball, the stretches' residual (frames), and a camera clock's plausible drift.
+MIN_FRAMES = 20
+MAX_PIXEL_ERROR_PX = 3.0
+MAX_RESIDUAL_FRAMES = 1.0
+MAX_DRIFT_PPM = 1000.0
+#: Drift is fitted from at least this many stretches whose middles span this long.
+MIN_DRIFT_STRETCHES = 3
+MIN_DRIFT_SPAN_S = 40.0
+
+_HELP = ("check that the log and the video are of the same match, or give moments picked "
+         "by hand (--anchor CAMERA=LOG)")
+
+
+def check_fit(fit: VideoFit, *, allow_drift: bool = False) -> None:
+    """Raise :class:`SyncError` (one line, saying what would help) for a fit the data does
+    not support: matched on too few frames, the ball projected far from where the video
+    shows it, stretches more than a frame apart, or a drift no camera clock has."""
+    if fit.method == "ball track":
+        if fit.frames_used < MIN_FRAMES:
+            raise SyncError(f"the fit matched the ball in {fit.frames_used} frames (at least "
+                            f"{MIN_FRAMES} needed): {_HELP}")
+        if not fit.pixel_error_px <= MAX_PIXEL_ERROR_PX:
+            raise SyncError(f"the logged ball falls {fit.pixel_error_px:.1f} px from the "
+                            f"video's on average (at most {MAX_PIXEL_ERROR_PX:g}): {_HELP}")
+        if fit.frame_period_ns and fit.residual_frames > MAX_RESIDUAL_FRAMES:
+            raise SyncError(f"the video's stretches disagree by {fit.residual_frames:.2f} "
+                            f"frames (at most {MAX_RESIDUAL_FRAMES:g}): {_HELP}")
+    if abs(fit.drift_ppm) > MAX_DRIFT_PPM and not allow_drift:
+        raise SyncError(f"a drift of {fit.drift_ppm:+.0f} ppm is implausible for a camera's "
+                        f"clock (tens of ppm; at most {MAX_DRIFT_PPM:g} taken): check the "
+                        "anchors or the log, or --allow-drift to keep it")
 
 
 def fit_video_clock(
@@ -292,15 +407,21 @@ def fit_video_clock(
                         "carries no timing (give anchors picked by hand instead)")
     x = np.asarray([s[0] - video.start_ns for s in stretches], dtype=float)
     y = np.asarray([s[1] for s in stretches], dtype=float)
-    if len(stretches) < 3:  # a line through two points has no scatter to tell
-        intercept, slope, rms = _line(x[:1], y[:1]) if len(x) == 1 else _line(x, y)
-        rms = widest
-    else:
+    drift_fitted = (len(stretches) >= MIN_DRIFT_STRETCHES
+                    and float(np.ptp(x)) >= MIN_DRIFT_SPAN_S * 1e9)
+    sigma = 0.0
+    if drift_fitted:
         intercept, slope, rms = _line(x, y)
+        sigma = _slope_sigma(x, y, floor=widest / np.sqrt(3))
+    else:  # the offset alone: the stretches' mean, drift 0
+        intercept, slope = float(np.mean(y)), 0.0
+        rms = float(np.sqrt(np.mean((y - intercept) ** 2))) if len(y) >= 3 else 0.0
+    rms = max(rms, widest)  # never better than what a stretch could tell apart
     drift = slope * 1e6
     err = cost.errors(intercept, drift)
     err = err[~np.isnan(err)]
     return VideoFit(round(intercept), drift, video.start_ns, round(rms), "ball track", period,
                     float(np.mean(np.minimum(err, CAP_PX))) if len(err) else float("nan"),
-                    len(err), stretches)
+                    len(err), stretches, drift_fitted=drift_fitted,
+                    drift_sigma_ppm=sigma * 1e6)
 

@@ -155,8 +155,9 @@ def film_ball(
     red robot whose edge against the turf comes close to the ball's colour.
 
     ``robots`` (name -> ``t`` -> field x, y, yaw) adds what each believes at 10 Hz: its
-    ``localization/pose`` (that pose) and ``ball/position`` (the true ball, as seen from
-    that pose), and its ``role`` (``striker``) once."""
+    ``localization/pose`` (that pose), ``ball/position`` (the true ball, as seen from that
+    pose, in ``base_footprint``) and ``team_ball`` (the true ball in the field frame), and
+    its ``role`` (``striker``) once."""
     out_dir = Path(folder)
     log_path = out_dir / "log"
     with LogBuilder(log_path, epoch_s=0.0) as log:
@@ -164,6 +165,7 @@ def film_ball(
             msg = PoseStamped()
             msg.pose.position.x, msg.pose.position.y = map(float, track(i / 100))
             msg.pose.position.z = 0.07
+            msg.header.frame_id = "field"
             log.add("world", "ground_truth/ball", msg, t=i / 100)
             if i % 10 == 0:
                 for name, where in (robots or {}).items():
@@ -211,7 +213,12 @@ def _believe(log: LogBuilder, robot: str, pose: tuple[float, float, float],
     seen = PointStamped()
     seen.point.x = math.cos(yaw) * dx + math.sin(yaw) * dy
     seen.point.y = -math.sin(yaw) * dx + math.cos(yaw) * dy
+    seen.header.frame_id = "base_footprint"  # as the robot's world model has it
     log.add(robot, "ball/position", seen, t=t)
+    shared = PoseWithCovarianceStamped()  # the team's ball, in the field frame
+    shared.header.frame_id = "field"
+    shared.pose.pose.position.x, shared.pose.pose.position.y = map(float, ball)
+    log.add(robot, "team_ball", shared, t=t)
 
 
 def seen_ball(path: str | os.PathLike[str], *, robot: str,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from log_analysis import Event, LogSourceError, TeamLog
-from log_analysis.augment import augment_video, robot_colour
+from log_analysis.augment import augment_video, caption_text, robot_colour
 from log_analysis.sync import fit_anchors
 from log_analysis.testing import OVERHEAD, film_ball
 from log_analysis.video import ExternalVideo
@@ -54,7 +54,8 @@ def test_beliefs_are_drawn_where_and_when_the_robot_had_them(tmp_path: Path) -> 
     assert _bluish(frames[20][caption]) > 10  # at 4 s
     assert _bluish(frames[35][caption]) == 0  # at 7 s, past its end and 2 s more
     # The timeline strip: dark, with the cursor moving right.
-    strip = [f[270 + 2:, :, :].mean(axis=2) for f in (frames[5], frames[35])]
+    strip = [f[270 + 14:, :, :].mean(axis=2) for f in (frames[5], frames[35])]  # below
+    # the legend
     assert all(s.mean() < 90 for s in strip)
     cursors = [int(np.argmax(s.max(axis=0) > 200)) for s in strip]
     assert cursors[0] < cursors[1]
@@ -73,3 +74,28 @@ def test_an_existing_output_is_never_overwritten(tmp_path: Path) -> None:
         augment_video(TeamLog(log_path), video, fit_anchors([(0, 0)], start_ns=0),
                       tmp_path / "taken.mp4")
     assert (tmp_path / "taken.mp4").read_bytes() == b"mine"
+
+
+def test_captions_name_the_event_sit_on_a_dark_box_and_tell_a_length_only_when_known(
+        tmp_path: Path) -> None:
+    """The newcomer could not read captions over the turf (a dark outline ghosting), they
+    lacked the event's name, and 3 s into a silence one said "for 9.0 s"."""
+    silent = Event("team link silent", 10_000_000_000, 19_000_000_000, "blue1",
+                   "blue1 heard no teammate for 9.0 s")
+    assert caption_text(silent, 13_000_000_000) == "team link silent: blue1 for 3.0 s so far"
+    assert caption_text(silent, 19_500_000_000) == \
+        "team link silent: blue1 heard no teammate for 9.0 s"
+    log_path, video_path = film_ball(tmp_path, lambda t: (0.5, 0.5), seconds=4,
+                                     offset_s=0.0, drift_ppm=0, robots={"blue1": _walker})
+    video = ExternalVideo(video_path)
+    fit = fit_anchors([(video.start_ns, video.start_ns)], start_ns=video.start_ns)
+    plain = augment_video(TeamLog(log_path), video, fit, tmp_path / "plain.mp4", events=[])
+    captioned = augment_video(TeamLog(log_path), video, fit, tmp_path / "cap.mp4",
+                              events=[Event("fell", 0, 4_000_000_000, "blue1", "blue1 fell")])
+    before, after = _frames(plain.path)[10], _frames(captioned.path)[10]
+    # Behind the caption (top left; the text is thin) the turf darkened as a whole, not
+    # just around the letters: the median pixel is dark.
+    box_before = before[4:18, 4:120].astype(int).sum(axis=2)
+    box_after = after[4:18, 4:120].astype(int).sum(axis=2)
+    assert np.median(box_after) < 0.5 * np.median(box_before), (np.median(box_after),
+                                                                 np.median(box_before))

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from log_analysis import LogSourceError, TeamLog
-from log_analysis.sync import SyncError, fit_anchors, fit_video_clock
+from log_analysis.sync import SyncError, check_fit, fit_anchors, fit_video_clock
 from log_analysis.testing import film_ball
 from log_analysis.video import ExternalVideo
 
@@ -47,6 +47,11 @@ def test_a_rolling_ball_gives_offset_and_drift_well_within_a_frame(tmp_path: Pat
     # ball's orange by a pixel fraction, and the ball moves ~80 px/s.
     assert abs(fit.offset_ns - (-7.3e9)) < frame / 4, fit
     assert abs(fit.drift_ppm - 800) < 150, fit
+    # Four stretches over 60 s: the drift is fitted, with its uncertainty (a few hundred
+    # ppm: each stretch is good to ~10 ms, 60 s apart).
+    assert fit.drift_fitted and 0 < fit.drift_sigma_ppm < 400, fit
+    assert abs(fit.drift_ppm - 800) < 3 * fit.drift_sigma_ppm, fit
+    check_fit(fit)
     assert fit.residual_ns < frame / 4
     assert fit.pixel_error_px < 2
     # The fit maps frames onto the log's time: a frame taken at world 70 s.
@@ -91,5 +96,11 @@ def test_anchors_picked_by_hand_fit_offset_and_drift() -> None:
     for camera, log in truth:
         assert abs(fit.to_log(camera) - log) < 1000
     assert math.isclose(fit.drift_ppm, 100, rel_tol=0.01)
+    assert fit.drift_fitted and fit.drift_sigma_ppm > 0
+    check_fit(fit)
+    wild = fit_anchors([(start, 0), (start + 8_000_000_000, 7_500_000_000)], start_ns=start)
+    with pytest.raises(SyncError, match="implausible"):
+        check_fit(wild)
+    check_fit(wild, allow_drift=True)
     with pytest.raises(SyncError):
         fit_anchors([], start_ns=start)

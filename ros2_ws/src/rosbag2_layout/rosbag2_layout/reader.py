@@ -314,7 +314,8 @@ def _scan(file: Path, reader: BagReader | None) -> Iterator[object]:
         except _DAMAGED as exc:  # EndOfFile, a half-written chunk, bad compression ...
             if reader is not None:
                 reader.truncated.append(file)
-                reason = " ".join(str(exc).split())[:200]  # a bytes dump can be huge
+                reason = (" ".join(str(exc).split())[:200]  # a bytes dump can be huge
+                          or "the file ends in the middle of a record (cut while written)")
                 reader.problems.append(f"{file}: readable up to byte {stream.tell()}, then "
                                        f"{type(exc).__name__}: {reason}")
 
