@@ -102,7 +102,12 @@ def _frame_t(browser: Any) -> str:
 def test_play_and_seek_show_the_new_instant_in_every_view(server: GuiProcess,
                                                           browser: Any) -> None:
     browser.get(server.url)
-    _at(browser, 0.0, server, what="the log opened at its start")
+    # The cursor is the server's, shared by every tab: another test of this module may
+    # have moved it or left it playing (xdist runs them in any order): from the start.
+    wait_for(lambda: _time(browser) is not None, what="the playback bar", alive=[server])
+    _pause(browser, server)
+    enter(browser, "playback-goto", "0")
+    _at(browser, 0.0, server, what="the log's start")
     wait_for(lambda: _blue1_x(browser) == "-1.000", what="blue1 at its first pose",
              alive=[server])
     enter(browser, "playback-goto", "2.5")
