@@ -24,7 +24,7 @@ from efficient_comm.testing import isolated_domain_id
 from log_analysis import Event, VideoFit, sidecar_path, write_events
 from log_analysis.testing import film_ball
 
-from ._gui import GuiProcess, by_testid, click, gui, text_of, wait_for
+from ._gui import GuiProcess, by_testid, click, gui, text_of, wait_for, wait_for_text
 from .test_gui_parameters_browser import enter
 
 BLUE1 = "0:/blue1"
@@ -54,7 +54,8 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GuiProcess]:
     (report / "detections.png").write_bytes(PNG)
     layout = folder / "layout.json"
     # Saved live: the match's robots were in domain 13 (a log keeps their namespaces).
-    layout.write_text(Layout((Panel(kind="world", robot=RobotId(13, "/blue1")),)).to_json())
+    layout.write_text(Layout((Panel(kind="world", robot=RobotId(13, "/blue1")),
+                              Panel(kind="recorder"))).to_json())
     with gui(folder, domains=[isolated_domain_id()],
              args=["--log", str(log), "--video", str(video), "--layout", str(layout),
                    "--augmented", str(video), "--report", str(report)]) as g:
@@ -187,3 +188,19 @@ def test_the_video_frame_augmented_video_and_report_are_served(server: GuiProces
     plot = by_testid(browser, "playback-report").find_element("css selector", "img")
     assert f"{ROUTE}/report/detections.png" in str(plot.get_attribute("src"))
     assert "augmented video" in text_of(browser, "playback-augmented")
+
+
+def test_a_bad_go_to_is_told_and_the_recorder_says_the_log_is_not_live(
+        server: GuiProcess, browser: Any) -> None:
+    """"go to" a time that is no number or lies outside the log says so (it did nothing, or
+    went to an end, without a word); the recorder view says the log is not live (it said
+    the robot "has no recorder (yet)", as live)."""
+    browser.get(server.url)
+    _at(browser, _time(browser) or 0.0, server, what="the page")
+    enter(browser, "playback-goto", "abc")
+    wait_for_text(browser, "cannot go to 'abc'", alive=[server])
+    enter(browser, "playback-goto", "99")
+    wait_for_text(browser, re.compile(r"99 s is outside the log \(0 to [\d.]+ s\): went to "
+                                      "its end"), alive=[server])
+    wait_for_text(browser, "blue1 @ domain 0: recorded: not live: the log holds no "
+                  "recorder's status", alive=[server])

@@ -256,13 +256,13 @@ def augment_video(
     Raises :class:`LogSourceError` when the video cannot be read or the output written.
     """
     target = Path(output)
-    timeline_px += (video.calibration.height + timeline_px) % 2  # H.264: even sizes
+    cal = video.need_calibration("drawing the robots' beliefs into the video")
+    timeline_px += (cal.height + timeline_px) % 2  # H.264: even sizes
     if target.exists():
         raise LogSourceError(f"{target} exists already; refusing to overwrite it")
     first, last = log.time_range()
     beliefs = _beliefs(log, first, last + 1)
     robots = sorted(beliefs)
-    cal = video.calibration
     painter = _Painter(cal, robots, sorted(events, key=lambda e: e.start_ns), (first, last),
                        timeline_px)
     fresh = int(FRESH_S * 1e9)

@@ -318,7 +318,9 @@ def sync_video_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="sync-video", description=_help_of("sync-video"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
-    parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
+    parser.add_argument("video", type=Path,
+                        help="the video (its sidecar VIDEO.json gives its clock and "
+                        "calibration; a video without one is fitted with --anchor only)")
     parser.add_argument("--ball-topic", default="/world/ground_truth/ball",
                         help="where the log has the ball (PointStamped, PoseStamped or "
                         "PoseWithCovarianceStamped in the field frame, e.g. /ROBOT/team_ball; "
@@ -368,7 +370,7 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="augment", description=_help_of("augment"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
-    parser.add_argument("video", type=Path, help="the video, with its sidecar VIDEO.json")
+    parser.add_argument("video", type=Path, help="the video with its sidecar VIDEO.json (the calibration to draw with)")
     parser.add_argument("--fit", type=Path, help="the video's clock (default: "
                         "VIDEO.sync.json; fitted from the ball when there is none)")
     parser.add_argument("--events", type=Path, help="events to caption (default: "

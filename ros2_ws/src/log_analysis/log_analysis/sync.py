@@ -371,7 +371,8 @@ def fit_video_clock(
     period = video.frame_period_ns
     if not period and len(cam) > 1:
         period = int(np.median(np.diff(cam)))
-    cost = _Cost(cam, seen, track_t, track_p, video.calibration, video.start_ns)
+    cost = _Cost(cam, seen, track_t, track_p,
+                 video.need_calibration("a fit from the ball"), video.start_ns)
     if len(cost.cam) < 3:
         raise SyncError(f"the ball was found in {len(cost.cam)} of {len(cam)} frames of "
                         f"{video.path}: too few to fit on")

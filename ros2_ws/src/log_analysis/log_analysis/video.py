@@ -114,16 +114,56 @@ def read_video_sidecar(video: str | os.PathLike[str]) -> tuple[VideoSidecar, Cal
     return data, calibration  # type: ignore[return-value]
 
 
+def _probe(path: Path) -> VideoSidecar:
+    """What a video file says of itself (no sidecar): its clock starts at its first frame,
+    and there is no calibration. Raises :class:`LogSourceError` for a file that is no video."""
+    try:
+        with av.open(str(path)) as container:
+            if not container.streams.video:
+                raise LogSourceError(f"{path} has no frames (no video stream)")
+            stream = container.streams.video[0]
+            base = Fraction(stream.time_base or Fraction(1, 90_000))
+            rate = stream.average_rate or stream.guessed_rate
+            return VideoSidecar(
+                format="", video=path.name, start_ns=0,
+                time_base=[base.numerator, base.denominator],
+                fps=float(rate) if rate else 0.0, frames=int(stream.frames or 0),
+                width=int(stream.codec_context.width), height=int(stream.codec_context.height),
+                view={}, calibration={})
+    except av.FFmpegError as exc:
+        raise LogSourceError(f"{path} is not a video ffmpeg reads: {exc}") from exc
+
+
 class ExternalVideo:
-    """A video file with its sidecar: frames as RGB arrays stamped on the camera's clock."""
+    """A video file with its sidecar: frames as RGB arrays stamped on the camera's clock.
+
+    A video without a sidecar (a phone's, a camera's) is read too: its clock starts at
+    its first frame (0), and it has no :attr:`calibration`, so its clock is fitted by hand
+    (anchors) and nothing is drawn into it; :meth:`need_calibration` says so.
+    """
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise LogSourceError(f"no video at {self.path}")
-        self.sidecar, self.calibration = read_video_sidecar(self.path)
+        self.calibration: Calibration | None
+        if video_sidecar_path(self.path).exists():
+            self.sidecar, self.calibration = read_video_sidecar(self.path)
+            _probe(self.path)  # a sidecar beside a file that is no video: said now
+        else:
+            self.sidecar, self.calibration = _probe(self.path), None
         self.start_ns = int(self.sidecar["start_ns"])
         self._time_base = Fraction(*self.sidecar["time_base"])
+
+    def need_calibration(self, what: str) -> Calibration:
+        """The camera's calibration, or :class:`LogSourceError` saying that ``what`` needs
+        one (a video without its sidecar ``VIDEO.json``)."""
+        if self.calibration is None:
+            raise LogSourceError(
+                f"{what} needs the camera's calibration, and {self.path} has no sidecar "
+                f"{video_sidecar_path(self.path).name}; fit its clock by hand (--anchor "
+                "CAMERA_S=LOG_S) to watch it beside the log")
+        return self.calibration
 
     @property
     def frame_period_ns(self) -> int:

@@ -87,6 +87,34 @@ def test_nothing_to_fit_on_and_bad_videos_are_told(tmp_path: Path) -> None:
         ExternalVideo(junk)
 
 
+def test_a_video_without_its_sidecar_is_read_on_its_own_clock_and_fitted_by_hand(
+        tmp_path: Path) -> None:
+    """A phone's or a camera's video has no sidecar: its frames are read from 0 on its own
+    clock, a fit from the ball (which needs the calibration) is refused saying so and what
+    to do instead, and anchors fit it."""
+    log, video, _ = _film(tmp_path, lambda t: (t / 3 - 1, 0.5), seconds=3, offset_s=1.0,
+                          drift_ppm=0)
+    plain = tmp_path / "phone.mp4"
+    plain.write_bytes(Path(video).read_bytes())
+    with_sidecar = [t for t, _ in ExternalVideo(video).frames()]
+    bare = ExternalVideo(plain)
+    assert bare.calibration is None and bare.start_ns == 0
+    times = [t for t, _ in bare.frames()]
+    assert len(times) == len(with_sidecar) > 5 and times[0] == 0
+    assert [b - a for a, b in zip(times, times[1:])] == \
+        [b - a for a, b in zip(with_sidecar, with_sidecar[1:])]
+    assert bare.frame_period_ns == ExternalVideo(video).frame_period_ns > 0
+    with pytest.raises(LogSourceError, match=r"needs the camera's calibration.*--anchor"):
+        fit_video_clock(TeamLog(log), bare)
+    fit = fit_anchors([(0, 3_000_000_000)], start_ns=bare.start_ns,
+                      frame_period_ns=bare.frame_period_ns)
+    assert fit.to_log(times[1]) == 3_000_000_000 + times[1]
+    text = tmp_path / "notes.mp4"
+    text.write_text("not a video")
+    with pytest.raises(LogSourceError, match=r"notes\.mp4 is not a video"):
+        ExternalVideo(text)
+
+
 def test_anchors_picked_by_hand_fit_offset_and_drift() -> None:
     start = 5_000_000_000
     truth = [(start + round(c * 1e9), round((c + 5 - 2.5) * 1e9 / (1 + 100e-6)))

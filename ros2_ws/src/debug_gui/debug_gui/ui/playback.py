@@ -18,6 +18,7 @@ instant), and keeps it beside the video as ``sync-video`` would.
 from __future__ import annotations
 
 import logging
+import math
 import re
 import threading
 from dataclasses import dataclass, field
@@ -86,7 +87,9 @@ class PlaybackSetup:
         with self._lock:
             if self._frames is None:
                 self._frames = VideoFrames(self.video)
-            found = self._frames.at(self.camera_ns(log_ns))
+            # The frame nearest the instant (the one at or before it is up to a frame
+            # period old: at 5 fps the ball was drawn 0.2 s back).
+            found = self._frames.at(self.camera_ns(log_ns) + self.video.frame_period_ns // 2)
         if found is None:
             return None
         ok, data = cv2.imencode(".jpg", cv2.cvtColor(found[1], cv2.COLOR_RGB2BGR),
@@ -203,20 +206,34 @@ class PlaybackBar:
         self._robot = ""
         self._generator = ""
         self._frame_t: int | None = None
+        #: The cursor the bar showed last (what a pause stops on).
+        self._shown_ns: int | None = None
 
     def _rel(self, t_ns: int) -> float:
         return (t_ns - self.playback.start_ns) / 1e9
 
     def _seek_rel(self, seconds: Any) -> None:
+        duration = self._rel(self.playback.end_ns)
         try:
-            self.playback.seek(self.playback.start_ns / 1e9 + float(seconds))
+            rel = float(seconds)
+            if not math.isfinite(rel):
+                raise ValueError("not a number")
+            self.playback.seek(self.playback.start_ns / 1e9 + rel)
         except (TypeError, ValueError, DebugGuiError) as exc:
-            ui.notify(f"cannot go to {seconds!r}: {exc}", type="negative")
+            ui.notify(f"cannot go to {seconds!r}: {exc} (seconds from the log's start, "
+                      f"0 to {duration:.2f})", type="negative")
+            return
+        if not 0.0 <= rel <= duration:
+            ui.notify(f"{rel:g} s is outside the log (0 to {duration:.2f} s): went to its "
+                      f"{'start' if rel < 0 else 'end'}", type="warning")
 
     def build(self) -> None:
         p = self.playback
         duration = self._rel(p.end_ns)
-        with ui.card().classes("w-full gap-1").props("data-testid=playback"):
+        # The controls stay in sight while the views below are scrolled (under the
+        # page's header); the video and the event list scroll with the page.
+        with ui.card().classes("w-full gap-1").props("data-testid=playback").style(
+                "position: sticky; top: 3.6rem; z-index: 5; padding: 0.5rem 1rem 1.5rem"):
             with ui.row().classes("items-center gap-2 w-full"):
                 ui.label(f"log {Path(p.path).name}").classes("text-bold")
                 ui.button(icon="skip_previous", on_click=lambda: p.step(back=True)).props(
@@ -238,6 +255,7 @@ class PlaybackBar:
             self.slider.props["marker-labels"] = {
                 f"{self._rel(e.start_ns):.2f}": e.name for e in self.setup.events[:MAX_ROWS]}
             self.slider.on("change", lambda e: self._seek_rel(e.args))
+        with ui.card().classes("w-full gap-1").props("data-testid=playback-media"):
             with ui.row().classes("w-full items-start gap-4 no-wrap"):
                 if self.setup.video is not None:
                     self._video_panel()
@@ -247,7 +265,12 @@ class PlaybackBar:
 
     def _toggle(self) -> None:
         if self.playback.playing:
+            # Stop where the page is, not where the cursor ran on to since the last refresh
+            # (at 4x, the bar's 0.2 s is almost a second of log): what was shown is what
+            # the user paused on.
             self.playback.pause()
+            if self._shown_ns is not None:
+                self.playback.seek_ns(self._shown_ns)
         else:
             self.playback.play()
 
@@ -367,6 +390,7 @@ class PlaybackBar:
     def _refresh(self) -> None:
         p = self.playback
         t = p.cursor_ns
+        self._shown_ns = t
         rel = self._rel(t)
         self.time.text = (f"{rel:.2f} s / {self._rel(p.end_ns):.2f} s "
                           f"(log time {t / 1e9:.3f})")

@@ -255,7 +255,10 @@ class _RobotColumn:
             with self.box:
                 if not nodes:
                     ui.label(f"{self.model.robot.label} has no recorder (yet): none of its "
-                             "nodes offers a recorder's status and start service").classes(
+                             "nodes offers a recorder's status and start service"
+                             if self.ctx.source.live else
+                             f"{self.model.robot.label}: {NOT_LIVE}: the log holds no "
+                             "recorder's status").classes(
                         "italic").props(f"data-testid=recorder-none-{self.model.robot.key}")
                 for node in nodes:
                     self.panels[node] = _RecorderPanel(self.ctx, self.model, node)
