@@ -370,7 +370,8 @@ def augment_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="augment", description=_help_of("augment"),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, help="the (merged) log the video goes with")
-    parser.add_argument("video", type=Path, help="the video with its sidecar VIDEO.json (the calibration to draw with)")
+    parser.add_argument("video", type=Path,
+                        help="the video with its sidecar VIDEO.json (the calibration to draw with)")
     parser.add_argument("--fit", type=Path, help="the video's clock (default: "
                         "VIDEO.sync.json; fitted from the ball when there is none)")
     parser.add_argument("--events", type=Path, help="events to caption (default: "

@@ -149,7 +149,10 @@ class ExternalVideo:
         self.calibration: Calibration | None
         if video_sidecar_path(self.path).exists():
             self.sidecar, self.calibration = read_video_sidecar(self.path)
-            _probe(self.path)  # a sidecar beside a file that is no video: said now
+            try:  # a sidecar beside a file that is no video: said now (one without frames
+                av.open(str(self.path)).close()  # keeps its clock: anchors still fit it)
+            except av.FFmpegError as exc:
+                raise LogSourceError(f"{self.path} is not a video ffmpeg reads: {exc}") from exc
         else:
             self.sidecar, self.calibration = _probe(self.path), None
         self.start_ns = int(self.sidecar["start_ns"])

@@ -4,6 +4,7 @@ robot's orange-ish edges beside it; the fit must find that clock within one fram
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -101,8 +102,8 @@ def test_a_video_without_its_sidecar_is_read_on_its_own_clock_and_fitted_by_hand
     assert bare.calibration is None and bare.start_ns == 0
     times = [t for t, _ in bare.frames()]
     assert len(times) == len(with_sidecar) > 5 and times[0] == 0
-    assert [b - a for a, b in zip(times, times[1:])] == \
-        [b - a for a, b in zip(with_sidecar, with_sidecar[1:])]
+    assert [b - a for a, b in itertools.pairwise(times)] == \
+        [b - a for a, b in itertools.pairwise(with_sidecar)]
     assert bare.frame_period_ns == ExternalVideo(video).frame_period_ns > 0
     with pytest.raises(LogSourceError, match=r"needs the camera's calibration.*--anchor"):
         fit_video_clock(TeamLog(log), bare)
