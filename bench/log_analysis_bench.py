@@ -90,7 +90,8 @@ def decode_encode(video: ExternalVideo, output: Path) -> int:
     frames = 0
     with av.open(str(output), "w") as out:
         stream: Any = out.add_stream("libx264", rate=fps)
-        stream.width, stream.height = video.calibration.width, video.calibration.height
+        cal = video.need_calibration("the floor's frame size")
+        stream.width, stream.height = cal.width, cal.height
         stream.pix_fmt = "yuv420p"
         stream.options = {"preset": "veryfast", "crf": "23"}
         for _, rgb in video.frames():
