@@ -112,8 +112,10 @@ def test_a_participant_that_never_joins_is_named(tmp_path: Path) -> None:
     with ExitStack() as stack:
         stack.enter_context(_started(["robot", "--name", "blue1"], domain,
                                      tmp_path / "blue1.log"))
+        # blue1 starts with the world, so the join timeout must cover its start-up and
+        # discovery on a loaded machine (3 s did not, in a full run: both named).
         world = subprocess.run(
-            [*EXAMPLE, "world", "--robots", "blue1", "red9", "--join-timeout", "3"],
+            [*EXAMPLE, "world", "--robots", "blue1", "red9", "--join-timeout", "10"],
             env=ros_env(domain), capture_output=True, text=True, timeout=60,
         )
     assert world.returncode == 1
