@@ -238,9 +238,16 @@ def _print_stuck_tests(terminalreporter: Any) -> None:
 
 
 _root_outcomes: dict[str, str] = {}
+#: Seconds and node ids per lane (a serial group, or "parallel" for the tests that run
+#: wherever a worker is free), summed from every phase of every report the run received.
+_lane_seconds: dict[str, float] = {}
+_lane_tests: dict[str, set[str]] = {}
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    lane = _kinds.serial_group(k for k in _kinds.KINDS if k in report.keywords) or "parallel"
+    _lane_seconds[lane] = _lane_seconds.get(lane, 0.0) + report.duration
+    _lane_tests.setdefault(lane, set()).add(report.nodeid)
     if "root" not in report.keywords:
         return
     if report.skipped:
@@ -258,8 +265,19 @@ def _root_required() -> bool:
     return os.environ.get("CI", "").lower() == "true" and os.geteuid() == 0
 
 
+def _lane_line() -> str:
+    """Where a run's time went: a serial lane's sum is a floor under the wall time however
+    many workers there are, the rest is shared among them (the suite's budget, issue 18)."""
+    lanes = sorted(_lane_seconds, key=lambda lane: (lane == "parallel", lane))
+    return "time by lane: " + ", ".join(
+        f"{lane} {_lane_seconds[lane]:.0f} s ({len(_lane_tests[lane])} tests)"
+        for lane in lanes)
+
+
 def pytest_terminal_summary(terminalreporter: Any) -> None:
     _print_stuck_tests(terminalreporter)
+    if _lane_seconds and not hasattr(terminalreporter.config, "workerinput"):
+        terminalreporter.write_line(_lane_line())
     ran, skipped = _root_counts()
     if ran or skipped:
         terminalreporter.write_line(f"root-only tests: {ran} ran, {skipped} skipped")
