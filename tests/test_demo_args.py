@@ -36,6 +36,9 @@ def run_demo(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     (["--ball", "-0.5"], "--ball"),
     (["--seed", "x"], "--seed"),
     (["--no-such-option"], "unrecognized"),
+    (["--split", "--lockstep"], "--split runs two processes in real time"),
+    (["--split", "dds", "--no-dds"], "not with --no-dds"),
+    (["--split", "udp"], "--split"),
 ])
 def test_a_bad_argument_is_one_line_and_exit_status_2(tmp_path: Path, args: list[str],
                                                       says: str) -> None:

@@ -290,6 +290,8 @@ class ShmTransport:
         self._local_subs: dict[str, int] = {}  # service -> this process's shm subscribers
         self._lock = threading.Lock()
         self._wait: ShmWait | None = None  # the executor's, from the first subscription
+        self._publishers: list[ShmPublisher] = []
+        self._told: set[str] = set()  # topics whose fallback was logged
 
     def listen(self, sub: ShmSubscription) -> None:
         """Have the executor's thread wait on ``sub``'s listener (and relay DDS)."""
@@ -341,20 +343,50 @@ class ShmTransport:
         line saying why DDS alone carries the topic."""
         why = _unfit(pub.topic.msg_type, pub.qos)
         if isinstance(why, str):
-            _tell(logger, pub.topic_name, why)
+            self._tell_once(logger, pub.topic_name, why)
             return None
         try:
-            return ShmPublisher(self, pub, why, logger)
+            shm_pub = ShmPublisher(self, pub, why, logger)
         except Exception as exc:  # iceoryx2 refusing (e.g. /dev/shm full)
             logger.warning(f"topic {pub.topic_name}: no shared memory ({exc}); DDS carries it")
             return None
+        with self._lock:
+            self._publishers.append(shm_pub)
+        return shm_pub
+
+    def traffic(self) -> dict[str, ShmTraffic]:
+        """Per topic this process publishes with the transport, what its publishers sent
+        through shared memory and what they also wrote to DDS: a deployment checks that its
+        large messages take shared memory (a split robot's camera image), a benchmark
+        reports it."""
+        with self._lock:
+            publishers = list(self._publishers)
+        out: dict[str, ShmTraffic] = {}
+        for pub in publishers:
+            was = out.get(pub.topic_name, ShmTraffic(0, 0))
+            out[pub.topic_name] = ShmTraffic(shm_sends=was.shm_sends + pub.shm_sends,
+                                             dds_writes=was.dds_writes + pub.dds_writes)
+        return out
+
+    def _tell_once(self, logger: Logger, topic: str, why: str) -> None:
+        """Why DDS carries ``topic``, once per process: a robot's joint states have a
+        publisher and several subscribers, one line says it for all of them."""
+        with self._lock:
+            if topic in self._told:
+                return
+            self._told.add(topic)
+        _tell(logger, topic, why)
+
+    def _forget(self, pub: ShmPublisher) -> None:
+        with self._lock, contextlib.suppress(ValueError):
+            self._publishers.remove(pub)
 
     def subscription(
         self, sub: LocalSubscription, logger: Logger, on_lost: Callable[[int], None] | None,
     ) -> ShmSubscription | None:
         why = _unfit(sub.topic.msg_type, sub.qos)
         if isinstance(why, str):
-            _tell(logger, sub.topic_name, why)
+            self._tell_once(logger, sub.topic_name, why)
             return None
         try:
             return ShmSubscription(self, sub, why, logger, on_lost)
@@ -370,6 +402,16 @@ class ShmTransport:
         self.node = None  # iceoryx2 removes the node when its last port is gone
 
 
+@dataclass(frozen=True)
+class ShmTraffic:
+    """What a topic's publishers in one process sent (:meth:`ShmTransport.traffic`)."""
+
+    #: Messages whose array crossed through shared memory.
+    shm_sends: int
+    #: Messages also (or only) written to DDS: for plain peers, or below the threshold.
+    dds_writes: int
+
+
 def _tell(logger: Logger, topic: str, why: str) -> None:
     """The one line saying why DDS carries ``topic``: at debug level for the common case of
     a type with nothing large in it (a String, a Twist), so a robot's many small topics do
@@ -382,9 +424,12 @@ def _tell(logger: Logger, topic: str, why: str) -> None:
 
 
 def _unfit(msg_type: type, qos: QoSProfile) -> Layout | str:
-    if is_transient_local(qos):
+    """The type's layout, or why the endpoint does not fit: a type with nothing large in it
+    says so first (told at debug level, even if latched: a robot has many latched states)."""
+    fit = layout(msg_type)
+    if is_transient_local(qos) and not isinstance(fit, str):
         return "transient local: DDS keeps the history for late joiners"
-    return layout(msg_type)
+    return fit
 
 
 class ShmPublisher:
@@ -411,6 +456,8 @@ class ShmPublisher:
         self._seq = itertools.count(1)
         self._dds_seq = 0  # DDS's sequence number of our last DDS write (it counts from 1)
         self._rest = _Rest(pub.topic.msg_type, fit.field)
+        self.topic_name = pub.topic_name
+        self.shm_sends = 0  # messages whose array went through shared memory
         self._warned = False
         self._subscribers = 0  # what the port was last connected to
 
@@ -459,6 +506,7 @@ class ShmPublisher:
             header.dds_t0 = time.time_ns()
             header.dds_t1 = header.dds_t0 + _DDS_WINDOW_NS
         sample.assume_init().send()
+        self.shm_sends += 1
         self._notifier.notify()
         if write_dds:
             self._pub.dds.publish(msg)
@@ -471,6 +519,7 @@ class ShmPublisher:
         return self._dds_seq
 
     def close(self) -> None:
+        self._transport._forget(self)
         self._notifier.delete()
         self._port.delete()
 

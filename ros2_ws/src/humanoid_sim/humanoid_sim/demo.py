@@ -24,6 +24,11 @@ same ``--seed``; by default the simulation runs in real time. ``--push-at`` push
 along the field's +x (towards the opponent goal) at that simulated second
 (``--push-newtons`` for 0.1 s; 40 N fells it).
 
+``--split`` runs the robot as two processes on this machine: the body (simulator, servo
+driver, motions, decisions) here, perception (the ball detector and the JPEG compressor) in
+a container process of its own, the camera image crossing through shared memory
+(``--split dds``: over DDS, for comparison); see :mod:`humanoid_sim.split`.
+
 ``--video match.mp4`` also films the field from above into an MP4 on a camera clock of its
 own (:mod:`humanoid_sim.match_video`: ``match.mp4.json`` beside it), for offline analysis.
 
@@ -37,6 +42,7 @@ was still down at the end, with no bug.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import random
 import sys
@@ -45,6 +51,7 @@ from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from functools import partial
 from pathlib import Path
+from tempfile import TemporaryDirectory
 from typing import NoReturn
 
 from rclpy.validate_namespace import validate_namespace
@@ -59,11 +66,12 @@ from efficient_comm import (
 from robot_recorder import Recorder
 from soccer_field import KIDSIZE
 
-from .errors import HumanoidSimError
+from .errors import HumanoidSimError, ProcessError
 from .match_video import MatchCamera
 from .soccer.compose import SoccerRobot, compose
 from .soccer.localization import SOURCES
 from .soccer.monitor import Figures
+from .split import TRANSPORTS, Perception
 
 EXIT_OK, EXIT_BUG, EXIT_USAGE, EXIT_FELL = 0, 1, 2, 3
 #: Seed 0's start: the kick-off (robot in its own half facing the opponent goal, the ball
@@ -86,6 +94,10 @@ HEADER = (f"{'sim s':>6} {'RTF':>5} {'cam fps':>7} {'det Hz':>6} {'bus Hz':>6} "
 
 def _f(value: float, spec: str) -> str:
     return "n/a" if math.isnan(value) else format(value, spec)
+
+
+#: The split robot's extra column: the camera images its publisher also wrote to DDS.
+SPLIT_HEADER = f" {'img DDS':>7}"
 
 
 def live_line(robot: SoccerRobot, window: Figures) -> str:
@@ -144,8 +156,30 @@ def localization(robot: SoccerRobot) -> str:
             f"{_f(e['heading_error_p95_deg'], '.1f')}°")
 
 
+def image_traffic(robot: SoccerRobot, container: Container) -> tuple[int, int] | None:
+    """The camera image's messages through shared memory and written to DDS by this
+    process (None: the transport is off here)."""
+    if container.shm is None:
+        return None
+    traffic = container.shm.traffic().get(robot.simulator.image_pub.topic_name)
+    return (0, 0) if traffic is None else (traffic.shm_sends, traffic.dds_writes)
+
+
+def split_row(robot: SoccerRobot, container: Container, transport: str,
+              cpu: tuple[float, float, float]) -> str:
+    """The report's row on the split robot: how the image crossed, both processes' CPU."""
+    body_s, perception_s, wall_s = cpu
+    traffic = image_traffic(robot, container)
+    crossed = ("over DDS" if traffic is None else
+               f"{traffic[0]} through shared memory, {traffic[1]} also written to DDS")
+    return (f"| split: perception (ball detector, JPEG compressor) in a process of its own "
+            f"| {transport}; camera image {crossed}; CPU in {wall_s:.1f} s: body "
+            f"{body_s:.2f} s, perception {perception_s:.2f} s, together "
+            f"{100 * (body_s + perception_s) / max(wall_s, 1e-9):.0f} % of one core |")
+
+
 def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
-           wall_s: float) -> str:
+           wall_s: float, *, split: str | None = None) -> str:
     totals = robot.monitor.totals()
     s = totals.summary()
     sim = robot.simulator.status()
@@ -188,6 +222,7 @@ def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
         f"| head behaviour | {robot.behaviour.state}, {robot.behaviour.switches} switches |",
         f"| posture (fall detector) | {posture(robot, totals.frames_down)} |",
         f"| localization (vs ground truth) | {localization(robot)} |",
+        *([split] if split else []),
         "",
         "## Callbacks",
         "",
@@ -347,9 +382,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the robot's localization/pose: the particle filter, noisy "
                         "ground truth standing in, or none (default); the report gives its "
                         "error against ground truth")
+    parser.add_argument("--split", nargs="?", const="shm", choices=TRANSPORTS, default=None,
+                        help="run perception (ball detector, JPEG compressor) in a process of "
+                        "its own, the camera image crossing through shared memory (shm, the "
+                        "default) or DDS (dds); real time with DDS only")
     parser.add_argument("--push-newtons", type=_number(low=0, what="newtons >= 0"),
                         default=40.0, help="force of that push, for 0.1 s (default 40)")
     args = parser.parse_args(argv)
+    if args.split and (args.lockstep or args.no_dds):
+        parser.error(f"--split runs two processes in real time: not with "
+                     f"{'--lockstep' if args.lockstep else '--no-dds'} (a lockstep container "
+                     f"has no shared memory; without DDS the processes cannot meet)")
     pose, ball = start_positions(args.seed)
     args.robot_pose = args.robot_pose or list(pose)
     args.ball = args.ball or list(ball)
@@ -358,14 +401,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     clock = ManualClock() if args.lockstep else None
     started = time.monotonic()
+    shm = None if args.split is None else args.split == "shm"
     with Container("soccer", namespace=args.namespace, dds=not args.no_dds, clock=clock,
-                   stats_namespace=args.namespace) as container:
+                   stats_namespace=args.namespace, shm=shm) as container, \
+            contextlib.ExitStack() as processes:
         try:
             robot = compose(container, namespace=args.namespace, simulator={
                 "seed": args.seed, "robot_pose": args.robot_pose, "ball_position": args.ball,
                 "line_noise": args.line_noise,
                 "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
-            }, localization=None if args.localization == "none" else args.localization)
+            }, localization=None if args.localization == "none" else args.localization,
+               perception=args.split is None)
         except HumanoidSimError as exc:  # what the parser let through and a component refused
             parser.error(str(exc))
         except ComponentError as exc:  # the container wraps what a constructor raised
@@ -384,18 +430,29 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if not isinstance(exc.__cause__, HumanoidSimError):
                     raise
                 parser.error(f"--video: {exc.__cause__}")
+        perception = None
+        if args.split:
+            try:
+                perception = processes.enter_context(Perception(
+                    namespace=args.namespace, transport=args.split,
+                    config_dir=Path(processes.enter_context(TemporaryDirectory()))))
+            except ProcessError as exc:
+                print(f"soccer_demo: {exc}", file=sys.stderr)
+                return EXIT_BUG
         print(f"soccer demo: {robot.simulator.camera.backend if robot.simulator.camera else 'no'}"
               f" camera, servos on {robot.simulator.port}; "
               f"{'lockstep' if args.lockstep else 'real time'}, "
               f"{'until Ctrl-C' if args.duration <= 0 else f'{args.duration:g} s'}; "
               f"robot at {','.join(f'{v:g}' for v in args.robot_pose)}, "
-              f"ball at {','.join(f'{v:g}' for v in args.ball)}")
+              f"ball at {','.join(f'{v:g}' for v in args.ball)}"
+              f"{f'; perception in process {perception.pid} ({args.split})' if perception else ''}")
         if args.stats_period:
-            print(HEADER, flush=True)
+            print(HEADER + (SPLIT_HEADER if perception else ""), flush=True)
         end = args.duration if args.duration > 0 else math.inf
         # Without live lines the loop still wakes every second (Ctrl-C, SIGTERM).
         period = args.stats_period or 1.0
         spin_start = time.monotonic()
+        cpu_start = (time.process_time(), perception.cpu_s() if perception else 0.0)
 
         def elapsed() -> float:  # simulated seconds in lockstep, wall seconds in real time
             return robot.simulator.sim_time_s if args.lockstep else time.monotonic() - spin_start
@@ -408,14 +465,25 @@ def main(argv: Sequence[str] | None = None) -> int:
                 else:
                     container.spin_for(step)
                 if args.stats_period:
-                    print(live_line(robot, robot.monitor.window()), flush=True)
+                    traffic = image_traffic(robot, container) if perception else None
+                    extra = (f" {traffic[1] if traffic else '-':>7}" if perception else "")
+                    print(live_line(robot, robot.monitor.window()) + extra, flush=True)
         except KeyboardInterrupt:
             print("interrupted")
-        text = report(robot, container, args, time.monotonic() - started)
+        split = None
+        perception_alive = True
+        if perception is not None:
+            perception_alive = perception.alive()
+            cpu = (time.process_time() - cpu_start[0],
+                   perception.cpu_s() - cpu_start[1] if perception_alive else math.nan,
+                   time.monotonic() - spin_start)
+            split = split_row(robot, container, args.split, cpu)
+            perception.close()
+        text = report(robot, container, args, time.monotonic() - started, split=split)
         failures = sum(s.exceptions for s in container.stats())
         # A failing callback or an exception inside the emulator is a bug: exit status 1.
         ok = (robot.monitor.totals().detections > 0 and failures == 0
-              and not robot.simulator.pty.errors)
+              and not robot.simulator.pty.errors and perception_alive)
         down = robot.fall_detector.falls > 0 and robot.fall_detector.state != "standing"
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(text)

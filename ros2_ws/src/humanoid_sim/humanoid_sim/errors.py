@@ -3,6 +3,7 @@
 ::
 
     HumanoidSimError
+    ├── ProcessError      a process of the robot did not start (the split robot's perception)
     ├── RenderError       no offscreen OpenGL, or a camera the model cannot render
     ├── SimConfigError    a parameter a component cannot work with (also a ValueError)
     ├── TeamMessageError  a team message no robot could have sent (also a ValueError)
@@ -14,6 +15,10 @@ from __future__ import annotations
 
 class HumanoidSimError(Exception):
     """Root of every error this package raises on purpose."""
+
+
+class ProcessError(HumanoidSimError, OSError):
+    """A process of the robot did not start or is gone (the split robot's perception)."""
 
 
 class RenderError(HumanoidSimError):

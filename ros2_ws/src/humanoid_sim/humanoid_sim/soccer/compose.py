@@ -50,7 +50,8 @@ class SoccerRobot:
 
     simulator: Simulator
     driver: ServoDriver
-    detector: BallDetector
+    #: None when perception runs in another process (``compose(perception=False)``).
+    detector: BallDetector | None
     ball_model: BallModel
     fall_detector: FallDetector
     behaviour: HeadBehaviour
@@ -67,7 +68,7 @@ class SoccerRobot:
     #: Goals and balls out of play, from ground truth; puts the ball back (not the robot's).
     referee: Referee
     #: ``camera/image_raw/compressed`` for viewers off the robot (encodes only on demand).
-    compressor: JpegCompressor
+    compressor: JpegCompressor | None
     #: ``localization/pose`` from the particle filter or noisy ground truth (None: neither
     #: runs), and its error against ground truth.
     localization: Localization | NoisyTruthPose | TruthPose | None = None
@@ -105,12 +106,15 @@ def compose(container: Container, *, namespace: str = "/robot",
             simulator: Mapping[str, Any] | None = None,
             driver: Mapping[str, Any] | None = None,
             striker: Mapping[str, Any] | None = None, play: bool = True,
-            localization: str | None = None,
+            perception: bool = True, localization: str | None = None,
             localization_parameters: Mapping[str, Any] | None = None) -> SoccerRobot:
     """Add the robot to ``container``; ``simulator``/``driver``/``striker`` override their
     parameters. The striker's ``start_pose`` is the simulator's ``robot_pose`` unless given:
     where the robot was placed is what it knows at kick-off. ``play=False`` leaves the
     striker out: the robot stands and its head tracks (the tracking tests' robot).
+    ``perception=False`` leaves out the ball detector and the JPEG compressor, the readers
+    of the camera image that need nothing else: another process runs them
+    (:mod:`humanoid_sim.split`).
     ``localization`` picks this robot's source of ``localization/pose``
     (:data:`.localization.SOURCES`; None: none) with ``localization_parameters``, measured by
     a :class:`.pose_error.PoseErrorMonitor`; the filter starts where the robot was placed
@@ -128,7 +132,8 @@ def compose(container: Container, *, namespace: str = "/robot",
     robot = SoccerRobot(
         simulator=sim,
         driver=servo_driver,
-        detector=container.add(BallDetector, name="ball_detector", namespace=namespace),
+        detector=container.add(BallDetector, name="ball_detector", namespace=namespace)
+        if perception else None,
         ball_model=container.add(BallModel, name="ball_model", namespace=namespace),
         fall_detector=container.add(FallDetector, name="fall_detector", namespace=namespace),
         behaviour=container.add(HeadBehaviour, name="behaviour", namespace=namespace),
@@ -140,7 +145,8 @@ def compose(container: Container, *, namespace: str = "/robot",
         striker=container.add(Striker, name="striker", namespace=namespace,
                               parameters=striker) if play else None,
         referee=container.add(Referee, name="referee", namespace=namespace),
-        compressor=container.add(JpegCompressor, name="jpeg_compressor", namespace=namespace),
+        compressor=container.add(JpegCompressor, name="jpeg_compressor", namespace=namespace)
+        if perception else None,
     )
     if localization is not None:
         if localization == PARTICLE_FILTER:  # placed there: what it knows at kick-off
