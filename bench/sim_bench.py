@@ -20,6 +20,13 @@ Three measures, each run in a fresh child process ``--repeat`` times, medians pr
   not): the robot plays, walking to the ball and kicking it; the real-time factor, distance
   walked and kicks are read from its report. Target >= 1.0 (lockstep: the machine keeps
   up with the walking robot; real time: it does not fall behind the wall clock).
+* ``split_shm`` and ``split_dds``: the demo split into two processes (``--split shm`` /
+  ``--split dds``, real time, DDS on, a DDS domain of its own): perception (ball detector,
+  JPEG compressor) in a container process of its own, the camera image crossing through
+  shared memory or over DDS. The camera's frame rate, the real-time factor and the CPU time
+  of both processes while the robot plays, read from the demo's report; the ratios shm/dds
+  are taken per run pair (run one after the other, under the same load). Target (issue 20):
+  30 fps and RTF 1 over shared memory, with less CPU than over DDS.
 
 Run: ``source scripts/env.sh && python bench/sim_bench.py`` (``--quick`` for a smoke run;
 ``--only KIND``, repeatable, for some of the measures).
@@ -270,7 +277,51 @@ def demo_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
             "bus_hz": figure(r"\| servo bus cycles \(joint states\) \| \d+ \(([\d.]+) Hz\)")}
 
 
+def split_run(seconds: float, *, transport: str) -> dict[str, float]:
+    """The split demo (``--split TRANSPORT``) on a DDS domain of its own; figures from its
+    report: the split's row gives both processes' CPU time while the robot played."""
+    import re
+    import tempfile
+
+    from efficient_comm.testing import isolated_domain_id, ros_env
+
+    with tempfile.TemporaryDirectory() as tmp:
+        report = Path(tmp, "report.md")
+        result = subprocess.run(
+            [sys.executable, "-m", "humanoid_sim.demo", "--split", transport, "--duration",
+             str(seconds), "--stats-period", str(seconds), "--report", str(report)],
+            capture_output=True, text=True, timeout=120 + 20 * seconds, check=False, cwd=tmp,
+            env=ros_env(isolated_domain_id()))
+        if result.returncode not in (0, 3):  # 3: fell and still down; a figure all the same
+            raise RuntimeError(result.stdout[-2000:] + result.stderr[-2000:])
+        text = report.read_text()
+
+    def figure(pattern: str) -> float:
+        found = re.search(pattern, text)
+        if found is None:
+            raise RuntimeError(f"no {pattern!r} in the demo's report:\n{text}")
+        return float(found.group(1))
+
+    wall = figure(r"\| split: .*; CPU in ([\d.]+) s")
+    body = figure(r"\| split: .*: body ([\d.]+) s") / wall
+    perception = figure(r"\| split: .*, perception ([\d.]+) s") / wall
+    simulated = figure(r"\| simulated time \| ([\d.]+) s in")
+    return {"rtf": figure(r"\| real-time factor \| ([\d.]+)"),
+            "camera_fps": figure(r"\| camera frames \| \d+ \(([\d.]+) fps"),
+            "detection_hz": figure(r"\| ball detections \| \d+ \(([\d.]+) Hz\)"),
+            "body_cpu_share": body, "perception_cpu_share": perception,
+            "cpu_share": body + perception, "load": os.getloadavg()[0],
+            # CPU seconds per simulated second: the same work whatever share of the cores
+            # the machine's load left the robot (a robot held back does less, and uses less)
+            "cpu_per_sim_s": (body + perception) * wall / simulated,
+            "dds_writes": (figure(r"\| split: .*, (\d+) also written to DDS")
+                           if transport == "shm" else -1.0),
+            "falls": figure(r"\| falls and get-ups \| (\d+) falls")}
+
+
 def child(kind: str, args: argparse.Namespace) -> dict[str, Any]:
+    if kind.startswith("split_"):
+        return split_run(args.seconds, transport=kind.removeprefix("split_"))
     if kind.startswith("demo_"):
         return demo_run(args.seconds, lockstep=kind == "demo_lockstep")
     if kind in ("bus", "bus_fast"):
@@ -283,7 +334,7 @@ def child(kind: str, args: argparse.Namespace) -> dict[str, Any]:
 
 
 KINDS = ("bus", "bus_fast", "bus_work", "render", "lockstep", "realtime", "demo_lockstep",
-         "demo_realtime")
+         "demo_realtime", "split_shm", "split_dds")
 
 
 def main() -> int:
@@ -337,10 +388,47 @@ def main() -> int:
                   f"{med(kind, 'falls'):.0f} falls in {args.seconds:g} s; servo bus "
                   f"{med(kind, 'bus_hz'):.0f} Hz of 100 (each run's falls: "
                   f"{falls})")
+    if "split_shm" in runs and "split_dds" in runs:
+        summary.update(_split_summary(runs, med, args.seconds))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"summary": summary, "runs": runs}, indent=1))
     print(f"written {args.out}")
     return 0
+
+
+def _split_summary(runs: dict[str, list[dict[str, float]]],
+                   med: Callable[[str, str], float], seconds: float) -> dict[str, float]:
+    """The split robot over shared memory against the same split over DDS, printed."""
+    def ratio(key: str) -> float:  # each run pair's ratio, then the median
+        return statistics.median(
+            s[key] / d[key] if d[key] else float("nan")
+            for s, d in zip(runs["split_shm"], runs["split_dds"], strict=True))
+
+    summary = {f"{kind}_{key}": med(kind, key) for kind in ("split_shm", "split_dds")
+               for key in ("rtf", "camera_fps", "detection_hz", "cpu_share", "body_cpu_share",
+                           "perception_cpu_share", "cpu_per_sim_s", "falls", "load")}
+    summary.update({f"split_{key}_ratio": ratio(key) for key in
+                    ("rtf", "camera_fps", "cpu_share", "body_cpu_share",
+                     "perception_cpu_share", "cpu_per_sim_s")})
+    summary["split_shm_dds_writes"] = max(r["dds_writes"] for r in runs["split_shm"])
+    s = summary
+    for kind, what in (("split_shm", "shared memory"), ("split_dds", "DDS")):
+        each = ", ".join(f"{100 * r['cpu_share']:.0f}" for r in runs[kind])
+        print(f"split robot, image over {what:<13}: camera {s[kind + '_camera_fps']:.1f} fps "
+              f"of 30, RTF {s[kind + '_rtf']:.2f}, detections {s[kind + '_detection_hz']:.1f} "
+              f"Hz; CPU {100 * s[kind + '_cpu_share']:.0f} % of one core (body "
+              f"{100 * s[kind + '_body_cpu_share']:.0f} %, perception "
+              f"{100 * s[kind + '_perception_cpu_share']:.0f} %; runs: {each} %), "
+              f"{s[kind + '_cpu_per_sim_s']:.2f} CPU s per simulated s; {seconds:g} s each, "
+              f"load average {s[kind + '_load']:.1f}")
+    print(f"split robot, shared memory / DDS (median of each run pair): camera fps "
+          f"{s['split_camera_fps_ratio']:.2f}x, RTF {s['split_rtf_ratio']:.2f}x, CPU "
+          f"{s['split_cpu_share_ratio']:.2f}x (body {s['split_body_cpu_share_ratio']:.2f}x, "
+          f"perception {s['split_perception_cpu_share_ratio']:.2f}x), CPU per simulated "
+          f"second {s['split_cpu_per_sim_s_ratio']:.2f}x; target 30 fps, RTF 1 "
+          f"and CPU < 1x; images written to DDS over shared memory: "
+          f"{s['split_shm_dds_writes']:.0f}")
+    return summary
 
 
 def _summary(runs: dict[str, list[dict[str, float]]],

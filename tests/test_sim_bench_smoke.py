@@ -3,7 +3,8 @@
 It asserts what the figures mean, not how fast this machine is: bus transfers succeeded
 (all but the few a loaded machine's scheduling lets time out), the robot runs were real
 (simulated time advanced, frames rendered, the ball tracked), the real-time run kept to the
-wall clock's order of magnitude, and the demo's figures were read from its report.
+wall clock's order of magnitude, and the demo's figures were read from its report (the
+split robot's too, over shared memory and over DDS).
 """
 
 from __future__ import annotations
@@ -45,3 +46,9 @@ def test_sim_bench_smoke(tmp_path: Path) -> None:
     assert summary["demo_lockstep_rtf"] > 0 and summary["demo_lockstep_bus_hz"] > 0
     assert 0.05 < summary["demo_realtime_rtf"] < 1.5
     assert "the demo, robot playing" in result.stdout
+    # The split robot over shared memory and over DDS: both played, the image took shared
+    # memory (no plain subscriber: none written to DDS), and the ratios were taken.
+    assert summary["split_shm_camera_fps"] > 0 and summary["split_dds_camera_fps"] > 0
+    assert summary["split_shm_dds_writes"] == 0
+    assert summary["split_cpu_share_ratio"] > 0 and summary["split_rtf_ratio"] > 0
+    assert "split robot, shared memory / DDS" in result.stdout

@@ -474,6 +474,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         perception_alive = True
         if perception is not None:
             perception_alive = perception.alive()
+            if not perception_alive:  # a bug: exit status 1
+                print(f"soccer_demo: the perception process ended during the run; its last "
+                      f"words: {' | '.join(list(perception.lines)[-3:]) or 'none'}",
+                      file=sys.stderr)
             cpu = (time.process_time() - cpu_start[0],
                    perception.cpu_s() - cpu_start[1] if perception_alive else math.nan,
                    time.monotonic() - spin_start)
