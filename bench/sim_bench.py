@@ -306,14 +306,19 @@ def split_run(seconds: float, *, transport: str) -> dict[str, float]:
     body = figure(r"\| split: .*: body ([\d.]+) s") / wall
     perception = figure(r"\| split: .*, perception ([\d.]+) s") / wall
     simulated = figure(r"\| simulated time \| ([\d.]+) s in")
+    # Frames over the robot's playing time: the report's own rate also counts the seconds
+    # the body waited for perception to start, in which no frame is rendered.
+    camera_fps = figure(r"\| camera frames \| (\d+) \(") / wall
     return {"rtf": figure(r"\| real-time factor \| ([\d.]+)"),
-            "camera_fps": figure(r"\| camera frames \| \d+ \(([\d.]+) fps"),
+            "camera_fps": camera_fps,
             "detection_hz": figure(r"\| ball detections \| \d+ \(([\d.]+) Hz\)"),
             "body_cpu_share": body, "perception_cpu_share": perception,
             "cpu_share": body + perception, "load": os.getloadavg()[0],
             # CPU seconds per simulated second: the same work whatever share of the cores
             # the machine's load left the robot (a robot held back does less, and uses less)
             "cpu_per_sim_s": (body + perception) * wall / simulated,
+            # perception's CPU per camera frame (it reads each): the transport's share
+            "perception_ms_per_frame": 1000 * perception / max(camera_fps, 1e-9),
             "dds_writes": (figure(r"\| split: .*, (\d+) also written to DDS")
                            if transport == "shm" else -1.0),
             "falls": figure(r"\| falls and get-ups \| (\d+) falls")}
@@ -406,10 +411,11 @@ def _split_summary(runs: dict[str, list[dict[str, float]]],
 
     summary = {f"{kind}_{key}": med(kind, key) for kind in ("split_shm", "split_dds")
                for key in ("rtf", "camera_fps", "detection_hz", "cpu_share", "body_cpu_share",
-                           "perception_cpu_share", "cpu_per_sim_s", "falls", "load")}
+                           "perception_cpu_share", "cpu_per_sim_s",
+                           "perception_ms_per_frame", "falls", "load")}
     summary.update({f"split_{key}_ratio": ratio(key) for key in
                     ("rtf", "camera_fps", "cpu_share", "body_cpu_share",
-                     "perception_cpu_share", "cpu_per_sim_s")})
+                     "perception_cpu_share", "cpu_per_sim_s", "perception_ms_per_frame")})
     summary["split_shm_dds_writes"] = max(r["dds_writes"] for r in runs["split_shm"])
     s = summary
     for kind, what in (("split_shm", "shared memory"), ("split_dds", "DDS")):
@@ -419,13 +425,15 @@ def _split_summary(runs: dict[str, list[dict[str, float]]],
               f"Hz; CPU {100 * s[kind + '_cpu_share']:.0f} % of one core (body "
               f"{100 * s[kind + '_body_cpu_share']:.0f} %, perception "
               f"{100 * s[kind + '_perception_cpu_share']:.0f} %; runs: {each} %), "
-              f"{s[kind + '_cpu_per_sim_s']:.2f} CPU s per simulated s; {seconds:g} s each, "
+              f"{s[kind + '_cpu_per_sim_s']:.2f} CPU s per simulated s, perception "
+              f"{s[kind + '_perception_ms_per_frame']:.1f} ms CPU a frame; {seconds:g} s each, "
               f"load average {s[kind + '_load']:.1f}")
     print(f"split robot, shared memory / DDS (median of each run pair): camera fps "
           f"{s['split_camera_fps_ratio']:.2f}x, RTF {s['split_rtf_ratio']:.2f}x, CPU "
           f"{s['split_cpu_share_ratio']:.2f}x (body {s['split_body_cpu_share_ratio']:.2f}x, "
           f"perception {s['split_perception_cpu_share_ratio']:.2f}x), CPU per simulated "
-          f"second {s['split_cpu_per_sim_s_ratio']:.2f}x; target 30 fps, RTF 1 "
+          f"second {s['split_cpu_per_sim_s_ratio']:.2f}x, perception per frame "
+          f"{s['split_perception_ms_per_frame_ratio']:.2f}x; target 30 fps, RTF 1 "
           f"and CPU < 1x; images written to DDS over shared memory: "
           f"{s['split_shm_dds_writes']:.0f}")
     return summary
