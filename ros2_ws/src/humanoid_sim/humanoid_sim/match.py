@@ -254,6 +254,11 @@ def _ended(child: Child) -> str:
     return f"{how} after {time.monotonic() - child.started:.1f} s"
 
 
+#: In lockstep, a team message reaches a teammate this much simulated time after the step it
+#: was sent in (a WiFi link's latency, rounded to the world's 10 ms steps).
+TEAM_LINK_LATENCY_S = 0.1
+
+
 def bridge_config(robot: str, *, prefix: str, port: int, teammates: Sequence[int]
                   ) -> dict[str, Any]:
     """The robot's rf_bridge file: the team link on localhost, within the budget."""
@@ -578,6 +583,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     lockstep=args.lockstep, role_margin_s=args.role_margin,
                     role_min_hold_s=args.role_hold)
                 plan["clock"] = clocks[robot]
+                plan["team_peers"] = [m for m in robots if m.startswith(team) and m != robot
+                                      and args.team_link == "on"]
+                plan["team_latency_s"] = TEAM_LINK_LATENCY_S
                 children[robot] = _start(robot, "humanoid_sim.match_robot", plan,
                                          domain=domains[robot], log_dir=args.out_dir)
             print("localization: " + ", ".join(f"{r} {s}" for r, s in sources.items()),
