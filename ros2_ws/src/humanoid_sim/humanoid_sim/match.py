@@ -37,8 +37,8 @@ camera clock of its own.
 ``--lockstep``: the world steps every robot's process as one barrier on simulated time
 (one ``StepCoordinator`` per robot domain, :func:`.match_world.play_in_lockstep`): slower
 than real time, never late; ``--duration`` then counts simulated seconds, and a seed plays
-the same game on every run as far as the team link (Zenoh, outside the barrier) does not
-decide it (docs/HUMANOID_SIM.md, "In lockstep"). ``--team-link off``: no robot connects to a
+the same game on every run, team messages included (the team link delivers at a step fixed
+by the sender's, :data:`TEAM_LINK_LATENCY_S` later; docs/HUMANOID_SIM.md, "What repeats").
 teammate, as a cut link. ``--team-link-cut-at SECONDS``: the link fails mid-game, once the
 world's (simulated) time reaches SECONDS: every robot is told to close its end
 (:func:`cut_team_link`) and plays on alone.
