@@ -39,6 +39,7 @@ camera clock of its own.
 than real time, never late; ``--duration`` then counts simulated seconds, and a seed plays
 the same game on every run, team messages included (the team link delivers at a step fixed
 by the sender's, :data:`TEAM_LINK_LATENCY_S` later; docs/HUMANOID_SIM.md, "What repeats").
+``--team-link off``: no robot connects to a
 teammate, as a cut link. ``--team-link-cut-at SECONDS``: the link fails mid-game, once the
 world's (simulated) time reaches SECONDS: every robot is told to close its end
 (:func:`cut_team_link`) and plays on alone.
