@@ -216,6 +216,7 @@ class LockstepParticipant:
         self._hooks: list[Callable[[int], None]] = []
         self._counts: deque[tuple[int, dict[str, int]]] = deque(maxlen=10_000)
         self._counts_sub: Any = None
+        self._last_step_ns = -1
 
     def report(self, name: str, count: Callable[[], int]) -> Callable[[], None]:
         """Carry ``count()`` (messages sent so far on a link outside DDS) in every step
@@ -259,11 +260,17 @@ class LockstepParticipant:
 
     def counts_at(self, t_ns: int, *, timeout_s: float) -> dict[str, int] | None:
         """Every participant's counters as of the end of the latest step that ended by
-        ``t_ns`` (empty before the first); waits (on the barrier's own wait set) until the
-        coordinator's counters of a step ending at ``t_ns`` or later came. None if they did
-        not within ``timeout_s``."""
+        ``t_ns`` (empty before the first; call it from a participant that reports counters
+        of its own, so that the coordinator relays some after each step); waits (on the
+        barrier's own wait set) until the coordinator's counters of a step ending at
+        ``t_ns`` or later came. None if they did not within ``timeout_s``."""
+        # Counters come for every step this participant acknowledged (it reports some
+        # itself): none before the first, none yet for a step it has not run.
+        wanted = min(t_ns, self._last_step_ns)
+        if wanted < 0:
+            return {}
         deadline = time.monotonic() + timeout_s
-        while not self._counts or self._counts[-1][0] < t_ns:
+        while not self._counts or self._counts[-1][0] < wanted:
             left = deadline - time.monotonic()
             if left <= 0:
                 return None
@@ -328,6 +335,7 @@ class LockstepParticipant:
                 "gone?); acknowledging the step anyway"
             )
         counters = {name: count() for name, count in self._counters.items()}
+        self._last_step_ns = t_ns
         self._send("step", t_ns, counters)
 
     def _send(self, round_: Round, t_ns: int, counters: Mapping[str, int] | None = None
