@@ -1,19 +1,21 @@
-"""The team match in lockstep, seeded, as a user starts it (``--lockstep``): one blue
-robot against one red, each robot's software in a process of its own on its own DDS
+"""The team match in lockstep, seeded, as a user starts it (``--lockstep``): two blue
+teammates against one red robot, each robot's software in a process of its own on its own DDS
 domain, the world in another, stepped as one barrier on simulated time.
 
-Two matches of 6 simulated seconds of seed 139 run side by side, so each also runs beside
+Two matches of 6 simulated seconds of seed 314 run side by side (roles without hysteresis,
+so that team messages move roles), so each also runs beside
 the other's load, and from their reports:
 
-* the same seed gives the same game across processes: the ground-truth fingerprint (every
-  robot's and the ball's exact pose each 0.1 s simulated) is equal for the two runs; the
+* the same seed gives the same game across processes, with teammates: the ground-truth
+  fingerprint (every robot's and the ball's exact pose each 0.1 s simulated) is equal for
+  the two runs (the team link delivers in lockstep at a step fixed by the sender's); the
   seed drew the start (red1 in the centre circle, where seed 0's default start is not),
   and a fingerprint tells starts apart (``test/test_world.py`` of humanoid_sim: a third
   match of another seed, once run for that, cost a third more);
 * the referee's states are obeyed: the game goes initial -> ready -> set -> playing, no
   robot walks in initial or set (its torso stays within a few centimetres, as a standing
   robot sways), every robot stands in its own half, inside the field, as set begins (placed
-  for the kick-off if it was not: seed 139 starts red1 in the centre circle, which the team
+  for the kick-off if it was not: seed 314 starts red1 in the centre circle, which the team
   without the kick-off must leave), and blue's striker (blue has the kick-off) walks once
   playing;
 * nobody falls (a robot in lockstep is never late, however loaded the machine).
@@ -43,6 +45,11 @@ from soccer_field import KIDSIZE
 from ._match import MatchProcess, report_rows
 
 SIM_S = 6.0
+#: Two teammates (whose team messages, delivered in lockstep, must repeat too) and one
+#: opponent.
+ROBOTS = {"blue1", "blue2", "red1"}
+#: Starts red1 in the centre circle with these robots; both blues walk once playing.
+SEED = 314
 CIRCLE_M = KIDSIZE.centre_circle_diameter / 2
 #: A standing robot's torso moves up to about 4 cm (settling after being put down, sway);
 #: a walking one 0.2 m in 2 s of playing (seen: 0.04 and 0.20 m).
@@ -53,8 +60,10 @@ _ROBOT = re.compile(r"(\w+) at \((-?[\d.]+), (-?[\d.]+)\) moved ([\d.]+) m")
 
 def _start(tmp: Path, seed: int, tag: str) -> tuple[MatchProcess, Path]:
     report = tmp / f"{tag}.md"
-    return MatchProcess(["--robots", "1v1", "--lockstep", "--seed", str(seed),
+    return MatchProcess(["--robots", "2v1", "--lockstep", "--seed", str(seed),
                          "--duration", str(SIM_S), "--ready-s", "1", "--camera-hz", "5",
+                         # Roles without hysteresis: every team message may move a role.
+                         "--role-margin", "0", "--role-hold", "0",
                          "--stats-period", "5", "--out-dir", str(tmp / tag),
                          "--report", str(report)], cwd=tmp), report
 
@@ -88,7 +97,7 @@ def _fingerprint(text: str) -> str:
 
 @pytest.mark.timeout(1500)
 def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> None:
-    runs = {tag: _start(tmp_path, 139, tag) for tag in ("a", "b")}
+    runs = {tag: _start(tmp_path, SEED, tag) for tag in ("a", "b")}
     outputs = _wait(runs)
     texts = {}
     for tag, (match, report) in runs.items():
@@ -96,11 +105,12 @@ def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> 
         texts[tag] = report.read_text()
         assert "; lockstep;" in texts[tag], texts[tag]
         assert re.search(rf"{SIM_S:.1f} s simulated", texts[tag]), texts[tag]
-        assert "seed 139" in texts[tag], texts[tag]
+        assert f"seed {SEED}" in texts[tag], texts[tag]
 
-    # The same seed, the same game.
+    # The same seed, the same game, teammates' messages and all (on the code before team
+    # messages were delivered in lockstep, seed 314's two runs had different fingerprints).
     assert _fingerprint(texts["a"]) == _fingerprint(texts["b"]), (texts["a"], texts["b"])
-    # Seed 139 starts red1 in the centre circle (seed 0, or a seed ignored, starts it at
+    # Seed 314 starts red1 in the centre circle (seed 0, or a seed ignored, starts it at
     # (1, 0), outside), where the team without the kick-off may not stand: the referee
     # places it for the kick-off.
     for text in texts.values():
@@ -111,11 +121,11 @@ def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> 
         states = _states(text)
         assert [s[0] for s in states][:4] == ["initial", "ready", "set", "playing"], text
         for name, _, robots in states:
-            assert set(robots) == {"blue1", "red1"}, text
+            assert set(robots) == ROBOTS, text
             if name in ("initial", "set"):  # nobody walks
                 assert all(moved < STANDING_M for *_, moved in robots.values()), (tag, text)
         # Blue has the kick-off: its striker walks once playing.
-        assert states[3][2]["blue1"][2] >= STANDING_M, (tag, text)
+        assert max(states[3][2][b][2] for b in ("blue1", "blue2")) >= STANDING_M, (tag, text)
         _, _, at_set = states[2]
         for robot, (x, y, _) in at_set.items():  # in its own half, on the field
             side = -1 if robot.startswith("blue") else 1
@@ -124,7 +134,7 @@ def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> 
             if robot.startswith("red"):  # without the kick-off: out of the centre circle
                 assert math.hypot(x, y) >= CIRCLE_M, (tag, robot, text)
         rows = report_rows(text)
-        assert set(rows) == {"blue1", "red1"}, text
+        assert set(rows) == ROBOTS, text
         for robot, row in rows.items():
             assert row[0] == "ran to the end", (tag, robot, text)
             assert row[2] == "playing", (tag, robot, text)  # the robot heard the game

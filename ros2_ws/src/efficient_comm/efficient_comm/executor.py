@@ -726,6 +726,7 @@ class ConsecutiveExecutor:
             for subs, msg in inbox:
                 if subs[0].active:  # not unsubscribed meanwhile
                     self.dispatch(subs, msg, "dds")
+            lockstep.step_started(clock.now_ns())  # links outside DDS (simtime)
             # No DDS poll inside a step: what other participants send now is the next's.
             self._advance_to(clock, target, poll=False)
             lockstep.done_step(target)

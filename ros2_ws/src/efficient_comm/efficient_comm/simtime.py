@@ -58,6 +58,15 @@ step. It saves a round trip between the processes each step, which on a loaded m
 is a wait for the scheduler on each side. The participant tells the two apart by itself:
 a ``/clock`` for a step whose start it has not taken in is a one-round step.
 
+**Links outside DDS.** A participant that also sends on a link of its own (rf_bridge's
+Zenoh team link) makes that link's delivery repeat too: it reports how many messages it
+has put on the link (:meth:`LockstepParticipant.report`, cumulative counters carried in
+its "step" acknowledgement), the coordinators relay every participant's counters after
+each step (:data:`COUNTS_TOPIC`, stamped with the step's end, published before the next
+``/clock``), and a receiver waits at the start of a step until it holds what the counters
+say is due (:meth:`LockstepParticipant.counts_at`, :meth:`LockstepParticipant.at_step_start`).
+The barrier then knows what crossed such a link, though only the link carries it.
+
 **Failures.** The coordinator never waits forever: a participant that does not acknowledge
 within ``timeout_s`` raises :class:`~efficient_comm.LockstepError` naming it, and one whose
 process died is noticed earlier through DDS liveliness on its acknowledgement topic (lease
@@ -66,8 +75,10 @@ process died is noticed earlier through DDS liveliness on its acknowledgement to
 
 from __future__ import annotations
 
+import json
 import time
-from collections.abc import Iterable, Sequence
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import partial
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -98,6 +109,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CLOCK_TOPIC",
+    "COUNTS_TOPIC",
     "INTAKE_TOPIC",
     "LIVELINESS_LEASE_S",
     "LockstepParticipant",
@@ -109,6 +121,8 @@ __all__ = [
 
 CLOCK_TOPIC = "/clock"
 INTAKE_TOPIC = "/efficient_comm/lockstep/intake"
+#: Every participant's counters after a step (``frame_id``: JSON ``{name: count}``).
+COUNTS_TOPIC = "/efficient_comm/lockstep/counts"
 _ACK_PREFIX = "/efficient_comm/lockstep/"
 #: A participant whose process is gone for this long is reported as gone.
 LIVELINESS_LEASE_S = 2.0
@@ -198,6 +212,77 @@ class LockstepParticipant:
         self.last_intake_ns = -1
         self._last_intake = -1
         self.joined = False
+        self._counters: dict[str, Callable[[], int]] = {}
+        self._hooks: list[Callable[[int], None]] = []
+        self._counts: deque[tuple[int, dict[str, int]]] = deque(maxlen=10_000)
+        self._counts_sub: Any = None
+        self._last_step_ns = -1
+
+    def report(self, name: str, count: Callable[[], int]) -> Callable[[], None]:
+        """Carry ``count()`` (messages sent so far on a link outside DDS) in every step
+        acknowledgement as ``name``; every participant then reads it in :meth:`counts_at`.
+        Returns a function that stops reporting it."""
+        self._counters[name] = count
+        self._subscribe_counts()
+
+        def remove() -> None:
+            self._counters.pop(name, None)
+
+        return remove
+
+    def at_step_start(self, hook: Callable[[int], None]) -> Callable[[], None]:
+        """Call ``hook(start_ns)`` on the executor's thread at the start of every step,
+        after the DDS inbox is delivered and before any timer runs. Returns its remover."""
+        self._hooks.append(hook)
+        self._subscribe_counts()
+
+        def remove() -> None:
+            if hook in self._hooks:
+                self._hooks.remove(hook)
+
+        return remove
+
+    def step_started(self, start_ns: int) -> None:
+        for hook in list(self._hooks):
+            hook(start_ns)
+
+    def _subscribe_counts(self) -> None:
+        if self._counts_sub is None:
+            qos = _step_qos()
+            qos.depth = 1000
+            self._counts_sub = self._node.create_subscription(
+                Header, COUNTS_TOPIC, self._on_counts, qos)
+
+    def _on_counts(self, msg: Header) -> None:
+        t = from_msg(msg.stamp)
+        if not self._counts or t > self._counts[-1][0]:
+            self._counts.append((t, json.loads(msg.frame_id)))
+
+    def counts_at(self, t_ns: int, *, timeout_s: float) -> dict[str, int] | None:
+        """Every participant's counters as of the end of the latest step that ended by
+        ``t_ns`` (empty before the first; call it from a participant that reports counters
+        of its own, so that the coordinator relays some after each step); waits (on the
+        barrier's own wait set) until the coordinator's counters of a step ending at
+        ``t_ns`` or later came. None if they did not within ``timeout_s``."""
+        # Counters come for every step this participant acknowledged (it reports some
+        # itself): none before the first, none yet for a step it has not run.
+        wanted = min(t_ns, self._last_step_ns)
+        if wanted < 0:
+            return {}
+        deadline = time.monotonic() + timeout_s
+        while not self._counts or self._counts[-1][0] < wanted:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            self._executor.spin_once(timeout_sec=min(left, 0.5))
+        best: dict[str, int] = {}
+        for t, counts in self._counts:
+            if t > t_ns:
+                break
+            best = counts
+        while len(self._counts) > 1 and self._counts[1][0] <= t_ns:
+            self._counts.popleft()  # older than what any later step asks for
+        return best
 
     def _on_intake(self, msg: Header) -> None:
         t = from_msg(msg.stamp)
@@ -249,10 +334,14 @@ class LockstepParticipant:
                 f"not acknowledge within {self._flush_timeout_s:g} s (a peer "
                 "gone?); acknowledging the step anyway"
             )
-        self._send("step", t_ns)
+        counters = {name: count() for name, count in self._counters.items()}
+        self._last_step_ns = t_ns
+        self._send("step", t_ns, counters)
 
-    def _send(self, round_: Round, t_ns: int) -> None:
-        self._ack.publish(Header(stamp=to_msg(t_ns), frame_id=round_))
+    def _send(self, round_: Round, t_ns: int, counters: Mapping[str, int] | None = None
+              ) -> None:
+        frame = f"{round_} {json.dumps(counters, sort_keys=True)}" if counters else round_
+        self._ack.publish(Header(stamp=to_msg(t_ns), frame_id=frame))
 
     def close(self) -> None:
         self._executor.shutdown()
@@ -313,6 +402,12 @@ class StepCoordinator(Closing):
                                            start_parameter_services=False)
             self._clock_pub = self._node.create_publisher(ClockMsg, CLOCK_TOPIC, _step_qos())
             self._intake_pub = self._node.create_publisher(Header, INTAKE_TOPIC, _step_qos())
+            counts_qos = _step_qos()
+            counts_qos.depth = 1000
+            self._counts_pub = self._node.create_publisher(Header, COUNTS_TOPIC, counts_qos)
+            #: Per participant: the counters of its last step acknowledgement (see
+            #: "Links outside DDS").
+            self.counters: dict[str, dict[str, int]] = {}
             for p in self.participants:
                 self._node.create_subscription(
                     Header, ack_topic(p), partial(self._on_ack, p), _ack_qos(),
@@ -332,7 +427,10 @@ class StepCoordinator(Closing):
         return self._now
 
     def _on_ack(self, participant: str, msg: Header) -> None:
-        self.acked[participant] = (msg.frame_id, from_msg(msg.stamp))
+        round_, _, counters = msg.frame_id.partition(" ")
+        if counters:
+            self.counters[participant] = json.loads(counters)
+        self.acked[participant] = (round_, from_msg(msg.stamp))
 
     def _on_liveliness(self, participant: str, info: QoSLivelinessChangedInfo) -> None:
         if info.alive_count > 0:
@@ -446,4 +544,10 @@ def advance_together(coordinators: Sequence[StepCoordinator], dt_s: float) -> in
         c._start_step(target)
     for c in coordinators:
         c._wait_step(target)
+    counters = {k: v for c in coordinators for p in c.participants
+                for k, v in c.counters.get(p, {}).items()}
+    if counters:  # links outside DDS: every participant learns what was sent on them
+        frame = json.dumps(counters, sort_keys=True)
+        for c in coordinators:
+            c._counts_pub.publish(Header(stamp=to_msg(target), frame_id=frame))
     return target

@@ -160,6 +160,9 @@ class _Participant:
     def done_step(self, t_ns: int) -> None:
         self.acks.append(("step", t_ns))
 
+    def step_started(self, start_ns: int) -> None:
+        self.acks.append(("start", start_ns))  # the hooks of links outside DDS run here
+
 
 def _lockstep_bus() -> tuple[SimClock, ConsecutiveExecutor, _Participant, Bus]:
     """An executor on simulated time attached to a recording lockstep participant, and a
@@ -195,7 +198,7 @@ def test_lockstep_holds_remote_messages_until_an_intake_and_delivers_them_in_ord
     # By topic name, each in arrival order; /b kept its depth (2): b1 dropped and counted.
     assert heard == ["a1", "b2", "b3"]
     assert subs["/b"][0].stats.dropped == 1
-    assert participant.acks[-1] == ("step", 10 * MS)
+    assert participant.acks[-2:] == [("start", 0), ("step", 10 * MS)]
     participant.intake_due = 10 * MS
     clock.receive(20 * MS)
     executor.spin_once(0.0)
@@ -216,7 +219,7 @@ def test_a_step_without_an_intake_round_takes_its_inbox_first() -> None:
     assert heard == []  # held until the step
     clock.receive(10 * MS)
     executor.spin_once(0.0)
-    assert heard == ["a1"] and participant.acks == [("step", 10 * MS)]
+    assert heard == ["a1"] and participant.acks == [("start", 0), ("step", 10 * MS)]
     assert participant.last_intake_ns == 0
     executor.receive_remote((sub,), String(data="a2"))  # sent in the step: the next one's
     clock.receive(20 * MS)

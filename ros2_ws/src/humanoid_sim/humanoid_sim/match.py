@@ -37,8 +37,9 @@ camera clock of its own.
 ``--lockstep``: the world steps every robot's process as one barrier on simulated time
 (one ``StepCoordinator`` per robot domain, :func:`.match_world.play_in_lockstep`): slower
 than real time, never late; ``--duration`` then counts simulated seconds, and a seed plays
-the same game on every run as far as the team link (Zenoh, outside the barrier) does not
-decide it (docs/HUMANOID_SIM.md, "In lockstep"). ``--team-link off``: no robot connects to a
+the same game on every run, team messages included (the team link delivers at a step fixed
+by the sender's, :data:`TEAM_LINK_LATENCY_S` later; docs/HUMANOID_SIM.md, "What repeats").
+``--team-link off``: no robot connects to a
 teammate, as a cut link. ``--team-link-cut-at SECONDS``: the link fails mid-game, once the
 world's (simulated) time reaches SECONDS: every robot is told to close its end
 (:func:`cut_team_link`) and plays on alone.
@@ -252,6 +253,11 @@ def _ended(child: Child) -> str:
     code = child.proc.returncode
     how = f"killed by signal {-code}" if code < 0 else f"exit status {code}"
     return f"{how} after {time.monotonic() - child.started:.1f} s"
+
+
+#: In lockstep, a team message reaches a teammate this much simulated time after the step it
+#: was sent in (a WiFi link's latency, rounded to the world's 10 ms steps).
+TEAM_LINK_LATENCY_S = 0.1
 
 
 def bridge_config(robot: str, *, prefix: str, port: int, teammates: Sequence[int]
@@ -578,6 +584,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     lockstep=args.lockstep, role_margin_s=args.role_margin,
                     role_min_hold_s=args.role_hold)
                 plan["clock"] = clocks[robot]
+                plan["team_peers"] = [m for m in robots if m.startswith(team) and m != robot
+                                      and args.team_link == "on"]
+                plan["team_latency_s"] = TEAM_LINK_LATENCY_S
                 children[robot] = _start(robot, "humanoid_sim.match_robot", plan,
                                          domain=domains[robot], log_dir=args.out_dir)
             print("localization: " + ", ".join(f"{r} {s}" for r, s in sources.items()),

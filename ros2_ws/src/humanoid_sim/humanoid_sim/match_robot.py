@@ -23,6 +23,10 @@ striker's state, game state, falls, the distance to the ball it believes in, cam
 and IMU messages received, and the team link's usage as rf_bridge reports it on
 ``/diagnostics`` (``link_cut`` once the link failed).
 
+In lockstep the team link delivers each teammate's message at a simulated time fixed by
+the step it was sent in (``team_latency_s`` later; rf_bridge's ``lockstep_team_link``),
+waiting for the plan's ``team_peers``: a seed's game repeats with teammates too.
+
 SIGUSR1 (what the match sends at ``--team-link-cut-at``): the team link fails. The robot
 unloads its rf_bridge, whose Zenoh session closes, so nothing more is sent to or heard from
 its teammates; its team layer then finds them gone after its timeout and the robot plays
@@ -278,6 +282,9 @@ def main(argv: list[str] | None = None) -> int:
         bridge = container.load(ComponentSpec(
             class_path="BridgeNode", name="rf_bridge", namespace=ns,
             parameters={"config": plan["bridge_file"]}, source=f"the match's plan for {name}"))
+        if container.lockstep is not None:  # team messages at a step fixed by the sending one
+            bridge.instance.lockstep_team_link(container.lockstep, peers=plan["team_peers"],
+                                               latency_s=plan["team_latency_s"])
         _, clock_sync = add_robot_recording(container, ns, robot=name,
                                             bag_dir=Path(plan["bag_dir"]),
                                             clock_sync=not lockstep)

@@ -95,6 +95,16 @@ class BridgeNode:
             self._diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", qos=10)
             node.create_timer(config.usage_period_s, self.publish_usage)
 
+    def lockstep_team_link(self, barrier: Any, *, peers: Sequence[str],
+                           latency_s: float) -> None:
+        """The team link delivers deterministically in lockstep (``barrier``: the
+        container's ``lockstep`` participant; see :meth:`.team.TeamAdapter.attach_lockstep`).
+        Without a team link, nothing to do."""
+        adapter = self.adapters.get("team")
+        attach = getattr(adapter, "attach_lockstep", None)
+        if callable(attach):
+            attach(barrier, peers=peers, latency_s=latency_s)
+
     def _build_adapters(self, config: BridgeConfig) -> dict[str, ChannelAdapter]:
         out: dict[str, ChannelAdapter] = {}
         peers = {t.peer for t in config.topics}
@@ -105,7 +115,11 @@ class BridgeNode:
         if config.team is not None and "team" in peers:
             from .team import TeamAdapter
 
-            out["team"] = TeamAdapter(config.team, self._node.logger)
+            # Under simulated time the budget is per simulated second (what a lockstep run
+            # admits then repeats); otherwise per wall second.
+            clock = self._node.clock
+            now_ns = clock.now_ns if self._node.clock_kind == "sim" else time.monotonic_ns
+            out["team"] = TeamAdapter(config.team, self._node.logger, now_ns=now_ns)
         return out
 
     def _route(self, spec: TopicSpec) -> Route:
