@@ -422,12 +422,28 @@ class Container(Closing):
         self.executor.shutdown()
 
     def close(self) -> None:
-        """Unload every component (newest first) and leave DDS."""
+        """Unload every component (newest first) and leave DDS.
+
+        An interrupt while one component closes (a second SIGTERM: the parent that stopped
+        this process died meanwhile and the kernel sent its death signal) does not skip the
+        others: it is raised once every component has closed. A component left open can
+        keep the process from ever exiting (a Zenoh session's callback thread is not a
+        daemon), and a match's robots outlived their world by hours so.
+        """
+        interrupted: BaseException | None = None
         for unique_id in sorted(self._components, reverse=True):
             try:
                 self.unload(unique_id)
             except Exception as exc:
                 self.logger.error(f"unloading component {unique_id} raised {exc!r}")
+            except KeyboardInterrupt as exc:
+                interrupted = interrupted or exc
+        self._leave()
+        if interrupted is not None:
+            raise interrupted
+
+    def _leave(self) -> None:
+        """What :meth:`close` does once the components are unloaded: leave DDS."""
         if self._stats_handle is not None:
             node = self._stats_handle.rclpy_node
             if node is not None and self._rclpy_executor is not None:

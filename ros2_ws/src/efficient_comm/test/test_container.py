@@ -157,6 +157,25 @@ def test_unload_calls_close_and_frees_the_name() -> None:
             container.unload(999)
 
 
+def test_an_interrupt_while_one_component_closes_closes_the_others_first() -> None:
+    # A second SIGTERM during shutdown (the stopping parent died) interrupted the first
+    # component's close; the others stayed open, and one with a non-daemon thread (Zenoh's)
+    # kept the process alive for good.
+    class Interrupted:
+        def __init__(self, node: NodeHandle) -> None:
+            pass
+
+        def close(self) -> None:
+            raise KeyboardInterrupt
+
+    container = _container()
+    first = container.add(Closeable, name="first")
+    container.add(Interrupted, name="interrupted")  # newest: closed first
+    with pytest.raises(KeyboardInterrupt):
+        container.close()
+    assert Closeable.closed[-1] == first.name
+
+
 def test_a_composed_component_reaches_its_container() -> None:
     class Probe:
         def __init__(self, node: NodeHandle) -> None:
