@@ -16,6 +16,7 @@ import faulthandler
 import importlib.util
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -138,6 +139,12 @@ BACKSTOP_DIR = "EFFICIENT_COMM_TEST_BACKSTOP_DIR"
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    # A run started in the background by a non-interactive shell (``scripts/test.sh ... &``)
+    # has SIGINT ignored, and every program a test starts inherits that across exec: the
+    # tests that stop a program with Ctrl-C then waited for it in vain (20 of them, every
+    # run). Tests stand in for a user at a terminal, where Ctrl-C works.
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     # Every controlling run makes its own directory, even when it inherited one: a pytest
     # that a test starts (a nested --collect-only) would otherwise print, and delete, the
     # outer run's dumps of tests still in progress.
