@@ -248,18 +248,18 @@ def render_only(frames: int) -> dict[str, float]:
     return {"render_fps": fps, "backend_egl": float(camera.backend == "egl")}
 
 
-def demo_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
-    """The demo as a user runs it; its figures from its report."""
+def _demo_report(options: list[str], *, timeout_s: float,
+                 env: dict[str, str] | None = None) -> Callable[[str], float]:
+    """Run the demo as a user runs it (``options`` and a report of its own); a reader of
+    the report's figures: a pattern's first group as a number, an error if it is missing."""
     import re
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
         report = Path(tmp, "report.md")
         result = subprocess.run(
-            [sys.executable, "-m", "humanoid_sim.demo", "--no-dds", "--duration", str(seconds),
-             "--stats-period", str(seconds), "--report", str(report),
-             *(["--lockstep"] if lockstep else [])],
-            capture_output=True, text=True, timeout=60 + 20 * seconds, check=False, cwd=tmp)
+            [sys.executable, "-m", "humanoid_sim.demo", *options, "--report", str(report)],
+            capture_output=True, text=True, timeout=timeout_s, check=False, cwd=tmp, env=env)
         if result.returncode not in (0, 3):  # 3: fell and still down; a figure all the same
             raise RuntimeError(result.stdout[-2000:] + result.stderr[-2000:])
         text = report.read_text()
@@ -270,6 +270,14 @@ def demo_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
             raise RuntimeError(f"no {pattern!r} in the demo's report:\n{text}")
         return float(found.group(1))
 
+    return figure
+
+
+def demo_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
+    """The demo as a user runs it; its figures from its report."""
+    figure = _demo_report(
+        ["--no-dds", "--duration", str(seconds), "--stats-period", str(seconds),
+         *(["--lockstep"] if lockstep else [])], timeout_s=60 + 20 * seconds)
     return {"rtf": figure(r"\| real-time factor \| ([\d.]+)"),
             "walked_m": figure(r"\| distance walked \(ground truth\) \| ([\d.]+) m"),
             "kicks": figure(r"\| kicks \| (\d+)"),
@@ -280,28 +288,11 @@ def demo_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
 def split_run(seconds: float, *, transport: str) -> dict[str, float]:
     """The split demo (``--split TRANSPORT``) on a DDS domain of its own; figures from its
     report: the split's row gives both processes' CPU time while the robot played."""
-    import re
-    import tempfile
-
     from efficient_comm.testing import isolated_domain_id, ros_env
 
-    with tempfile.TemporaryDirectory() as tmp:
-        report = Path(tmp, "report.md")
-        result = subprocess.run(
-            [sys.executable, "-m", "humanoid_sim.demo", "--split", transport, "--duration",
-             str(seconds), "--stats-period", str(seconds), "--report", str(report)],
-            capture_output=True, text=True, timeout=120 + 20 * seconds, check=False, cwd=tmp,
-            env=ros_env(isolated_domain_id()))
-        if result.returncode not in (0, 3):  # 3: fell and still down; a figure all the same
-            raise RuntimeError(result.stdout[-2000:] + result.stderr[-2000:])
-        text = report.read_text()
-
-    def figure(pattern: str) -> float:
-        found = re.search(pattern, text)
-        if found is None:
-            raise RuntimeError(f"no {pattern!r} in the demo's report:\n{text}")
-        return float(found.group(1))
-
+    figure = _demo_report(
+        ["--split", transport, "--duration", str(seconds), "--stats-period", str(seconds)],
+        timeout_s=120 + 20 * seconds, env=ros_env(isolated_domain_id()))
     wall = figure(r"\| split: .*; CPU in ([\d.]+) s")
     body = figure(r"\| split: .*: body ([\d.]+) s") / wall
     perception = figure(r"\| split: .*, perception ([\d.]+) s") / wall
