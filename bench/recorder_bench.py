@@ -115,12 +115,14 @@ def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> d
             self.gain = np.eye(20) * 0.5
             self.pub = node.create_publisher(Float64MultiArray, "command", qos=10)
             self.latencies: list[int] = []
+            self.k = 0
             node.create_subscription(JointState, "joint_states", self.on_joints, qos=10)
 
         def on_joints(self, msg: JointState) -> None:
             q = np.asarray(msg.position)
             command = Float64MultiArray(data=(self.gain @ q).tolist())
             self.latencies.append(self.node.clock.now_ns() - from_msg(msg.header.stamp))
+            self.k += 1
             self.pub.publish(command)
 
     class InlineRecorder:
@@ -148,15 +150,19 @@ def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> d
     from rclpy.serialization import serialize_message as serialize
 
     topics: list[tuple[str, type]] = []
+    publishers: list[Any] = []  # what published the recorded topics (each counts in ``k``)
     with Container("robot", dds=False, serve=False) as container:
         for r in range(1, ROBOTS + 1):
             ns = f"/robot{r}"
-            container.add(functools.partial(Camera, seed=r), name="camera", namespace=ns)
+            camera = container.add(functools.partial(Camera, seed=r), name="camera",
+                                   namespace=ns)
             joints = container.add(Joints, name="joints", namespace=ns)
             if r == 1:
                 loop_sensor = joints
             topics += [(f"{ns}/camera/image", Image), (f"{ns}/joint_states", JointState)]
+            publishers += [camera, joints]
         controller = container.add(Controller, name="controller", namespace="/robot1")
+        publishers.append(controller)
         topics.append(("/robot1/command", Float64MultiArray))
         recorder: Any = None
         inline: Any = None
@@ -175,6 +181,7 @@ def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> d
         controller.latencies.clear()
         loop_sensor.wake_ns.clear()
         base_msgs = _recorded(recorder, inline)
+        base_published = sum(p.k for p in publishers)
         base_drops = _drops(recorder)
         cpu0, thread0, wall0 = time.process_time(), time.thread_time(), time.monotonic()
         container.spin_for(seconds)
@@ -183,6 +190,7 @@ def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> d
         cpu, thread, wall = (time.process_time() - cpu0, time.thread_time() - thread0,
                              time.monotonic() - wall0)
         recorded = _recorded(recorder, inline) - base_msgs
+        published = sum(p.k for p in publishers) - base_published
         drops = _drops(recorder) - base_drops
         high_water = recorder.writer.high_water if recorder is not None else 0
     lat = sorted(controller.latencies)
@@ -190,7 +198,7 @@ def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> d
     written = sum(p.stat().st_size for p in bag_dir.rglob("*.mcap"))
     return {
         "mode": mode, "seconds": wall, "cpu_s": cpu, "executor_thread_cpu_s": thread,
-        "recorded": recorded, "drops": drops, "queue_high_water": high_water,
+        "published": published, "recorded": recorded, "drops": drops, "queue_high_water": high_water,
         "loop_samples": len(lat), "loop_p50_us": _pct(lat, 50) / 1e3,
         "loop_p99_us": _pct(lat, 99) / 1e3, "bytes_on_disk": written,
         "wake_p50_us": _pct(wake, 50) / 1e3, "wake_p99_us": _pct(wake, 99) / 1e3,
@@ -241,7 +249,8 @@ def summarize(runs: list[dict[str, Any]]) -> dict[str, Any]:
         if not any(r["mode"] == mode for r in runs):
             continue
         summary["per_mode"][mode] = {k: med(mode, k) for k in (
-            "loop_p50_us", "loop_p99_us", "cpu_s", "executor_thread_cpu_s", "recorded",
+            "loop_p50_us", "loop_p99_us", "cpu_s", "executor_thread_cpu_s", "published",
+            "recorded",
             "drops", "queue_high_water", "seconds", "bytes_on_disk", "wake_p50_us",
             "wake_p99_us", "loop_samples")}
     per = summary["per_mode"]

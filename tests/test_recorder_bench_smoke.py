@@ -27,11 +27,19 @@ def test_recorder_bench_smoke(tmp_path: Path) -> None:
     assert set(per) == {"none", "recorder", "inline"}
     assert per["none"]["recorded"] == 0
     # 3 cameras at 30 Hz, 3 x 100 Hz joint states, 100 Hz commands for ~2 s: never more
-    # than that; fewer where the machine lets the publishers' timers fall behind (742 of
-    # 980 seen beside the parallel suite). Nothing lost is checked by the drops below.
+    # than that, fewer where a loaded machine lets the publishers' timers fall behind (318
+    # of 980 beside the suite's simulations), so what is checked is that every message
+    # published in the window was recorded. The inline path writes in the callback, the
+    # recorder from its queue, drained after the window: it also writes what was queued
+    # when the window began, at most its queue's high-water mark.
     for mode in ("recorder", "inline"):
-        assert 0.5 * 2 * 490 <= per[mode]["recorded"] <= 1.2 * 2 * 490, per[mode]
-        assert per[mode]["bytes_on_disk"] > 0
+        m = per[mode]
+        assert 50 <= m["published"] <= 1.2 * 2 * 490, m
+        assert m["bytes_on_disk"] > 0
+    assert per["inline"]["recorded"] == per["inline"]["published"]
+    recorder = per["recorder"]
+    assert (recorder["published"] <= recorder["recorded"]
+            <= recorder["published"] + recorder["queue_high_water"]), recorder
     assert per["recorder"]["drops"] == 0
     assert per["none"]["loop_samples"] > 150
     assert "recorder / inline" in result.stdout
