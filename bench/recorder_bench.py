@@ -198,7 +198,8 @@ def robot(mode: str, seconds: float, bag_dir: Path, params: dict[str, Any]) -> d
     written = sum(p.stat().st_size for p in bag_dir.rglob("*.mcap"))
     return {
         "mode": mode, "seconds": wall, "cpu_s": cpu, "executor_thread_cpu_s": thread,
-        "published": published, "recorded": recorded, "drops": drops, "queue_high_water": high_water,
+        "published": published, "recorded": recorded, "drops": drops,
+        "queue_high_water": high_water,
         "loop_samples": len(lat), "loop_p50_us": _pct(lat, 50) / 1e3,
         "loop_p99_us": _pct(lat, 99) / 1e3, "bytes_on_disk": written,
         "wake_p50_us": _pct(wake, 50) / 1e3, "wake_p99_us": _pct(wake, 99) / 1e3,
