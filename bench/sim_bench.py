@@ -11,7 +11,11 @@ Three measures, each run in a fresh child process ``--repeat`` times, medians pr
   the transport.
 * ``lockstep``: the whole robot (simulator, camera, driver, pipeline) on a manual clock, as
   fast as the machine allows: simulated seconds per wall second is the real-time factor
-  the machine can sustain. Target >= 1.0.
+  the machine can sustain. Target >= 1.0. ``lockstep_pty`` is the same robot with its
+  driver going through the pty (a driver in another process does), where ``lockstep`` has
+  it wired straight to the emulator (``PtyBus.direct_port``, what ``compose`` gives it on
+  a manual clock): the ratio of their CPU per simulated second is what the direct port
+  saves.
 * ``realtime``: the same robot on the wall clock for ``--seconds``: the real-time factor and
   camera frame rate achieved, and the process's CPU use; the baseline for the camera is
   rendering alone (frames per second with nothing else running).
@@ -194,8 +198,11 @@ def _pty_echo(cycles: int, *, request: int, reply: int) -> float:
     return cycles / elapsed
 
 
-def robot_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
+def robot_run(seconds: float, *, lockstep: bool, pty: bool = False) -> dict[str, float]:
+    """``pty``: the driver opens the simulator's pty (with dynamixel-sdk's own port, as in
+    another process) even in lockstep."""
     from efficient_comm import Container, ManualClock
+    from humanoid_sim.driver import WaitingPortHandler
     from humanoid_sim.soccer.compose import compose
 
     clock = ManualClock() if lockstep else None
@@ -204,6 +211,8 @@ def robot_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
         # comparable with earlier figures; the demo_* measures have it play.
         robot = compose(container, simulator={"ball_velocity": [0.0, 0.3],
                                               "ball_kick_period": 3.0}, play=False)
+        if pty:
+            robot.driver.port_factory = WaitingPortHandler
         warm = 1.0
         if lockstep:
             container.advance(warm)
@@ -222,6 +231,7 @@ def robot_run(seconds: float, *, lockstep: bool) -> dict[str, float]:
             "rtf": (robot.simulator.sim_time_s - sim0) / wall,
             "camera_fps_wall": (robot.simulator.frames - frames0) / wall,
             "cpu_share": (time.process_time() - cpu0) / wall,
+            "cpu_per_sim_s": (time.process_time() - cpu0) / (robot.simulator.sim_time_s - sim0),
             "render_ms": robot.simulator.status()["render_ms_mean"],
             "tracking_p95_deg": window["tracking_error_p95_deg"],
             "latency_median_ms": window["latency_median_ms"],
@@ -326,11 +336,12 @@ def child(kind: str, args: argparse.Namespace) -> dict[str, Any]:
         return bus_work(max(5, args.cycles // 20))
     if kind == "render":
         return render_only(args.frames)
-    return robot_run(args.seconds, lockstep=kind == "lockstep")
+    return robot_run(args.seconds, lockstep=kind.startswith("lockstep"),
+                     pty=kind == "lockstep_pty")
 
 
-KINDS = ("bus", "bus_fast", "bus_work", "render", "lockstep", "realtime", "demo_lockstep",
-         "demo_realtime", "split_shm", "split_dds")
+KINDS = ("bus", "bus_fast", "bus_work", "render", "lockstep", "realtime", "lockstep_pty",
+         "demo_lockstep", "demo_realtime", "split_shm", "split_dds")
 
 
 def main() -> int:
@@ -384,12 +395,32 @@ def main() -> int:
                   f"{med(kind, 'falls'):.0f} falls in {args.seconds:g} s; servo bus "
                   f"{med(kind, 'bus_hz'):.0f} Hz of 100 (each run's falls: "
                   f"{falls})")
+    if "lockstep" in runs and "lockstep_pty" in runs:
+        summary.update(_port_summary(runs, med))
     if "split_shm" in runs and "split_dds" in runs:
         summary.update(_split_summary(runs, med, args.seconds))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"summary": summary, "runs": runs}, indent=1))
     print(f"written {args.out}")
     return 0
+
+
+def _port_summary(runs: dict[str, list[dict[str, float]]],
+                  med: Callable[[str, str], float]) -> dict[str, float]:
+    """The lockstep robot with its driver wired straight to the emulator against the same
+    robot with its driver on the pty, printed."""
+    ratio = statistics.median(  # each run pair's ratio (run one after the other), then median
+        d["cpu_per_sim_s"] / p["cpu_per_sim_s"]
+        for d, p in zip(runs["lockstep"], runs["lockstep_pty"], strict=True))
+    summary = {"lockstep_cpu_per_sim_s": med("lockstep", "cpu_per_sim_s"),
+               "lockstep_pty_cpu_per_sim_s": med("lockstep_pty", "cpu_per_sim_s"),
+               "lockstep_pty_rtf": med("lockstep_pty", "rtf"),
+               "lockstep_direct_pty_cpu_ratio": ratio}
+    print(f"lockstep robot, driver wired straight to the emulator: RTF "
+          f"{med('lockstep', 'rtf'):.2f}, {summary['lockstep_cpu_per_sim_s']:.3f} CPU s per "
+          f"simulated s; through the pty: RTF {summary['lockstep_pty_rtf']:.2f}, "
+          f"{summary['lockstep_pty_cpu_per_sim_s']:.3f}; CPU direct/pty {ratio:.2f}x")
+    return summary
 
 
 def _split_summary(runs: dict[str, list[dict[str, float]]],

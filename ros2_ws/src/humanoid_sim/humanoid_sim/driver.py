@@ -147,7 +147,7 @@ class ServoDriver:
         self._port: PortHandler | None = None
         #: Makes the port from its name: dynamixel-sdk's PortHandler. The seam through which
         #: a lockstep simulation hands the SDK a port whose reply timeout does not depend on
-        #: the wall clock (``PtyBus.idle_port``); on a robot nothing sets it.
+        #: the wall clock (``PtyBus.direct_port``); on a robot nothing sets it.
         self.port_factory: Callable[[str], PortHandler] = WaitingPortHandler
         self._packets = PacketHandler(2.0)
         self._last_retry_ns = -RETRY_NS

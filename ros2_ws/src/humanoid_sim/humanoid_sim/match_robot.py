@@ -104,7 +104,7 @@ class LockstepPort(WaitingPortHandler):
     own timeout (about 34 ms with the stock latency timer) would, on a loaded machine,
     count misses an idle one never sees, and the game would change with the load. The
     world's bus is in another process, so the in-process :class:`~.dynamixel.pty.
-    IdlePortHandler` cannot serve; a long wall-clock bound only stops a hang when the world
+    DirectPortHandler` cannot serve; a long wall-clock bound only stops a hang when the world
     is gone.
     """
 

@@ -325,9 +325,9 @@ def add_team(container: Container, *, namespace: str = "/",
     """Add the world and, per robot, its servo driver on its own pty (namespace
     ``/<robot>``): the team's bodies without their software, in one process.
 
-    On a manual clock each driver's port is its bus's
-    :class:`~.dynamixel.pty.IdlePortHandler`, as :func:`~.soccer.compose.add_body` does for
-    one robot: a lockstep run does not depend on the machine's load.
+    On a manual clock each driver's port is wired straight to its bus
+    (:class:`~.dynamixel.pty.DirectPortHandler`), as :func:`~.soccer.compose.add_body` does
+    for one robot: a lockstep run does not depend on the machine's load.
     """
     sim: WorldSimulator = container.add(WorldSimulator, name="world", namespace=namespace,
                                         parameters=dict(world or {}))
@@ -338,7 +338,7 @@ def add_team(container: Container, *, namespace: str = "/",
         driver: ServoDriver = container.add(ServoDriver, name="servo_driver",
                                             namespace=f"/{name}", parameters=parameters)
         if container.clock_kind == "manual":
-            driver.port_factory = robot.pty.idle_port
+            driver.port_factory = robot.pty.direct_port
         drivers[name] = driver
     return sim, drivers
 

@@ -11,6 +11,7 @@ import pytest
 from dynamixel_sdk import (
     COMM_RX_CORRUPT,
     COMM_SUCCESS,
+    COMM_TX_FAIL,
     GroupBulkRead,
     GroupSyncRead,
     GroupSyncWrite,
@@ -39,15 +40,31 @@ IDS = [1, 2, 3]
 GOAL, PRESENT, TORQUE = 116, 132, 64
 
 
+Rig = tuple[PtyBus, IdealPlant, PortHandler, PacketHandler]
+
+
+@pytest.fixture(params=["pty", "direct"])
+def rig(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> Iterator[Rig]:
+    """The bus, its plant, a dynamixel-sdk port on it and a packet handler: every test
+    that takes it runs through the pty (the SDK's own PortHandler, as a driver in another
+    process) and through the port wired straight to the emulator (lockstep in one
+    process)."""
+    yield from _rig(monkeypatch, request.param)
+
+
 @pytest.fixture
-def rig(monkeypatch: pytest.MonkeyPatch
-        ) -> Iterator[tuple[PtyBus, IdealPlant, PortHandler, PacketHandler]]:
+def pty_rig(monkeypatch: pytest.MonkeyPatch) -> Iterator[Rig]:
+    """The rig through the pty only: for tests that write raw bytes to the device file."""
+    yield from _rig(monkeypatch, "pty")
+
+
+def _rig(monkeypatch: pytest.MonkeyPatch, kind: str) -> Iterator[Rig]:
     # dynamixel-sdk times replies on the wall clock: relaxed as in lockstep, so a loaded
     # machine cannot turn a slow emulator thread into a missing reply.
     monkeypatch.setattr(port_handler, "LATENCY_TIMER", LOCKSTEP_LATENCY_TIMER_MS)
     plant = IdealPlant()
     with PtyBus(Bus(IDS, plant)) as pty:
-        port = PortHandler(pty.port)
+        port = PortHandler(pty.port) if kind == "pty" else pty.direct_port(pty.port)
         assert port.openPort() and port.setBaudRate(1_000_000)
         try:
             yield pty, plant, port, PacketHandler(2.0)
@@ -106,8 +123,8 @@ def test_sync_write_goals_and_sync_read_positions(rig) -> None:
     assert [reader.getData(i, PRESENT, 4) for i in IDS] == [2148, 2248, 2348]
 
 
-def test_sync_waits_until_unanswered_writes_are_applied(rig) -> None:
-    pty, _, port, ph = rig
+def test_sync_waits_until_unanswered_writes_are_applied(pty_rig) -> None:
+    pty, _, port, ph = pty_rig
     for round_ in range(20):  # without sync, some rounds would read the previous goal
         goals = GroupSyncWrite(port, ph, GOAL, 4)
         for i in IDS:
@@ -117,6 +134,37 @@ def test_sync_waits_until_unanswered_writes_are_applied(rig) -> None:
         assert [pty.bus.servos[i].get("goal_position") for i in IDS] == [
             1000 + round_ + i for i in IDS]
     assert pty.bus.packets == 20  # the markers are the emulator's own, not bus traffic
+
+
+def test_a_direct_port_is_answered_before_the_write_returns() -> None:
+    """Lockstep's port: what the driver wrote is applied when its write returns, the pty
+    carries nothing to wait for, line noise garbles the same packets as on the pty (drawn
+    in bus order from the seed), and a closed bus fails the write as a gone device does."""
+    def goals_written(corrupt: float) -> tuple[list[int], int, int]:
+        plant = IdealPlant()
+        with PtyBus(Bus(IDS, plant), corrupt=corrupt, seed=3, packet_timeout_s=None) as pty:
+            port, ph = pty.direct_port(pty.port), PacketHandler(2.0)
+            assert port.openPort() and port.setBaudRate(1_000_000)
+            results = []
+            for round_ in range(30):
+                goals = GroupSyncWrite(port, ph, GOAL, 4)
+                for i in IDS:
+                    goals.addParam(i, list((1000 + round_ + i).to_bytes(4, "little")))
+                assert goals.txPacket() == COMM_SUCCESS
+                results.append(ph.ping(port, 1)[1])
+            # No sync: the last round's goals are the servos' (unless noise garbled it).
+            goals_now = [pty.bus.servos[i].get("goal_position") for i in IDS]
+            assert pty.sync()
+            assert pty.bus.packets == 60  # and nothing went through the pty
+            crc_errors = pty.bus.crc_errors
+            pty.close()
+            assert ph.ping(port, 1)[1] == COMM_TX_FAIL
+            return goals_now, crc_errors, results.count(COMM_SUCCESS)
+
+    assert goals_written(0.0) == ([1029 + i for i in IDS], 0, 30)
+    noisy = goals_written(0.2)
+    assert noisy[1] > 0 and noisy[2] < 30  # garbled requests and replies
+    assert goals_written(0.2) == noisy  # the same packets, seed for seed
 
 
 def test_bulk_read_different_fields(rig) -> None:
@@ -142,8 +190,8 @@ def test_torque_off_is_limp_and_limits_and_eeprom_are_enforced(rig) -> None:
     assert ph.write4ByteTxRx(port, 1, GOAL, 3500)[1] == Error.DATA_LIMIT
 
 
-def test_malformed_packets_get_what_a_servo_gives(rig) -> None:
-    pty, _, port, ph = rig
+def test_malformed_packets_get_what_a_servo_gives(pty_rig) -> None:
+    pty, _, port, ph = pty_rig
     fd = os.open(pty.port, os.O_RDWR | os.O_NOCTTY)
     try:
         bad = bytearray(encode(1, Instruction.PING))
@@ -276,8 +324,8 @@ def test_status_return_level_silences_replies_but_not_ping() -> None:
     encode(1, Instruction.FACTORY_RESET, b""),
     bytes(range(256)) * 4,
 ])
-def test_malformed_input_never_stops_the_bus(rig, garbage: bytes) -> None:
-    pty, _, port, ph = rig
+def test_malformed_input_never_stops_the_bus(pty_rig, garbage: bytes) -> None:
+    pty, _, port, ph = pty_rig
     fd = os.open(pty.port, os.O_RDWR | os.O_NOCTTY)
     try:
         os.write(fd, garbage)

@@ -10,10 +10,17 @@ A write the driver does not wait on (sync write has no reply) reaches the emulat
 time later: the kernel moves pty data through a work queue. A lockstep simulation must not
 step physics before such a write is applied, so :meth:`PtyBus.sync` sends a marker through
 the same slave-to-master queue and waits until the emulator has reached it: everything
-written before it has then been handled, whatever the machine's load. The lockstep port
-(:class:`IdlePortHandler`) does so after every write, so no packet is still on its way
-when the driver's cycle returns: what the emulator has counted, and the servos' state,
-are then the same whenever someone looks.
+written before it has then been handled, whatever the machine's load.
+
+A driver in the simulator's own process on a manual clock (lockstep) need not go through
+the kernel at all: :meth:`PtyBus.direct_port` is dynamixel-sdk's PortHandler with the
+emulator at the other end of the wire, answering each write in the writer's thread before
+the write returns (:class:`DirectPortHandler`). The SDK's packet building, CRCs, parsing
+and timeouts are unchanged, and the bytes either way are those the pty would carry, line
+noise included; only the device file and the emulator's thread are left out, which cost a
+lockstep robot a fifth of its time (two pty round trips and two thread hand-overs every
+10 ms step) and carried nothing a test asserts on: the drivers of real-time runs and of
+the match's robot processes still open the pty.
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ from efficient_comm import Closing
 
 from ..errors import SimConfigError
 from .bus import Bus
-from .protocol import BROADCAST_ID, Parser, encode
+from .protocol import BROADCAST_ID, Packet, Parser, encode
 
 #: Not a Protocol 2.0 instruction: the emulator's own in-band marker for :meth:`PtyBus.sync`
 #: (a real bus would ignore it: broadcast packets of unknown instructions get no status).
@@ -113,6 +120,7 @@ class PtyBus(Closing):
         self._sync_seen = 0
         self._serving = True  # False once the thread has ended: no sync can succeed then
         self._stop = threading.Event()
+        self._direct_ports = 0  # open direct ports (sync has nothing to wait for then)
         self._thread = threading.Thread(target=self._serve, name="dynamixel-bus", daemon=True)
         self._thread.start()
 
@@ -165,20 +173,27 @@ class PtyBus(Closing):
                         self._sync_seen = int.from_bytes(packet.params, "little")
                         self._synced.notify_all()
                     continue
-                if self._noisy():  # a flipped bit on the way in: the servos' CRC check fails
-                    packet = dataclasses.replace(packet, crc_ok=False)
-                try:
-                    with self._lock:
-                        reply = self.bus.handle(packet)
-                except Exception as exc:  # never let one packet stop the bus
-                    self.errors.append(exc)
-                    continue
+                reply = self.answer(packet)
                 if reply:
-                    if self._noisy():
-                        noisy = bytearray(reply)
-                        noisy[self._rng.randrange(len(noisy))] ^= 1 << self._rng.randrange(8)
-                        reply = bytes(noisy)
                     self._send(reply)
+
+    def answer(self, packet: Packet) -> bytes:
+        """The bytes the servos answer ``packet`` with, line noise applied both ways (in
+        bus order, so a lockstep run stays exact); errors are kept in :attr:`errors`, never
+        raised: one packet must not stop the bus."""
+        if self._noisy():  # a flipped bit on the way in: the servos' CRC check fails
+            packet = dataclasses.replace(packet, crc_ok=False)
+        try:
+            with self._lock:
+                reply = self.bus.handle(packet)
+        except Exception as exc:
+            self.errors.append(exc)
+            return b""
+        if reply and self._noisy():
+            noisy = bytearray(reply)
+            noisy[self._rng.randrange(len(noisy))] ^= 1 << self._rng.randrange(8)
+            reply = bytes(noisy)
+        return reply
 
     def sync(self) -> bool:
         """Wait until every byte written to the port before this call has been handled.
@@ -186,7 +201,12 @@ class PtyBus(Closing):
         However long that takes: a wall-clock limit would make a lockstep run depend on the
         machine's load (beside busy processes the emulator's thread may wait seconds for
         the CPU). False only if the emulator has stopped (closed, or its pty failed).
+
+        While a :meth:`direct_port` is open nothing is waited for: the lockstep driver's
+        writes were answered before they returned, and the pty carries no driver's.
         """
+        if self._direct_ports:
+            return not self._closed
         number = next(self._sync_sent)
         with self._synced:
             if self._closed or not self._serving:
@@ -213,10 +233,11 @@ class PtyBus(Closing):
         if written < len(reply):
             self.dropped_replies += 1
 
-    def idle_port(self, port_name: str) -> PortHandler:
-        """A dynamixel-sdk port on this bus whose reply timeout is the emulator being done,
-        not the wall clock: for lockstep runs (see :class:`IdlePortHandler`)."""
-        return IdlePortHandler(port_name, self)
+    def direct_port(self, port_name: str) -> PortHandler:
+        """A dynamixel-sdk port wired straight to this bus, for a driver in this process on
+        a manual clock (see :class:`DirectPortHandler`); ``port_name`` is what the driver
+        was told to open (it is only reported)."""
+        return DirectPortHandler(port_name, self)
 
     def close(self) -> None:
         """Stop answering and close the pty; a second call does nothing."""
@@ -229,63 +250,58 @@ class PtyBus(Closing):
         os.close(self._slave)
 
 
-class IdlePortHandler(PortHandler):  # type: ignore[misc]  # the SDK is untyped
-    """dynamixel-sdk's PortHandler, except when a reply has timed out.
+class DirectPortHandler(PortHandler):  # type: ignore[misc]  # the SDK is untyped
+    """dynamixel-sdk's PortHandler with the emulator at the other end of the wire, in the
+    writer's thread: a write is answered (:meth:`PtyBus.answer`) before it returns, and the
+    answer waits here for the SDK to read it.
 
-    The SDK gives up on a reply after a wall-clock timeout. On a loaded machine the
-    emulator's thread may not get to answer in time, so a lockstep run (the same for a seed
-    whatever the load) would see a missing reply where an idle machine sees none. Here
-    every write waits until the emulator has handled it (:meth:`PtyBus.sync`), and a reply
-    has timed out when it can no longer come: every byte the emulator sent has reached this
-    side of the pty, and still the SDK lacks bytes (a silent servo, a garbled length). That
-    takes as long as the emulator needs, and gives the same answer at any load. Likewise
-    ``clearPort`` (the SDK's discarding of stale input before each request) discards
-    every byte the emulator sent so far, never just those that happened to have arrived.
-
-    Waiting after writes the SDK does not wait on (sync write, which has no reply) is what
-    makes the emulator's state the same at any load whenever the driver is not inside a
-    call: without it, the last sync write of a run was still on its way, or not, when the
-    run's figures were read (beside CPU hogs a run counted 394 packets, idle 393).
+    So a reply has timed out exactly when it can no longer come: every byte the servos sent
+    has been read and the SDK still lacks bytes (a silent servo, a garbled length). That is
+    what a real bus's timeout means, without the wall clock, so a lockstep run is the same
+    at any load; and no write is ever on its way when the driver's cycle returns, so the
+    servos' state is the same whenever someone looks. ``clearPort`` (the SDK's discarding
+    of stale input before each request) discards every byte the servos sent so far.
     """
 
     def __init__(self, port_name: str, bus: PtyBus) -> None:
         super().__init__(port_name)
         self._bus = bus
-        self._read = 0  # bytes read from the port, or discarded when it was set up
+        self._parser = Parser()
+        self._input = bytearray()  # what the servos sent that the SDK has not read yet
 
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (the SDK's name)
-        ready = bool(super().setupPort(cflag_baud))
-        self._read = self._bus.sent_bytes  # the set-up discarded what had arrived
-        return ready
+        if not self.is_open:
+            self._bus._direct_ports += 1
+        self.is_open = True
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        self._input.clear()
+        return True
+
+    def closePort(self) -> None:  # noqa: N802
+        if self.is_open:
+            self._bus._direct_ports -= 1
+        self.is_open = False
+
+    def clearPort(self) -> None:  # noqa: N802
+        self._input.clear()
+
+    def getBytesAvailable(self) -> int:  # noqa: N802
+        return len(self._input)
 
     def readPort(self, length: int) -> bytes:  # noqa: N802
-        data = bytes(super().readPort(length))
-        self._read += len(data)
+        data = bytes(self._input[:length])
+        del self._input[:length]
         return data
 
     def writePort(self, packet: list[int]) -> int:  # noqa: N802
-        written = int(super().writePort(packet))
-        self._bus.sync()  # handled, and its reply (if any) sent, before the SDK goes on
-        return written
-
-    def _all_arrived(self) -> None:
-        """Wait until every byte the emulator sent has reached this side (the kernel hands
-        pty data over through a work queue); every write was handled already (writePort)."""
-        while (self._read + self.ser.in_waiting < self._bus.sent_bytes
-               and not self._bus.closed):
-            select.select([self.ser.fileno()], [], [], 0.01)
-
-    def clearPort(self) -> None:  # noqa: N802
-        # The SDK discards what has arrived before each request: on a wall clock that
-        # depends on how far a late reply got. Here it is always every byte sent so far.
-        self._all_arrived()
-        super().clearPort()
-        self._read = self._bus.sent_bytes
+        if not self.is_open or self._bus.closed:
+            return 0  # as a port whose device is gone: the SDK reports a TX failure
+        for received in self._parser.feed(bytes(packet)):
+            self._input += self._bus.answer(received)
+        return len(packet)
 
     def isPacketTimeout(self) -> bool:  # noqa: N802
-        if not self.ser.in_waiting:
-            self._all_arrived()
-        if self.ser.in_waiting:
+        if self._input:
             return False  # bytes to read first: the SDK reads them and asks again
         self.packet_timeout = 0
         return True
