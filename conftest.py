@@ -249,12 +249,17 @@ _root_outcomes: dict[str, str] = {}
 #: wherever a worker is free), summed from every phase of every report the run received.
 _lane_seconds: dict[str, float] = {}
 _lane_tests: dict[str, set[str]] = {}
+#: Seconds per "<lane> <node id>": the serial lanes' sums are a floor under the wall time,
+#: the parallel lane's is shared among the workers.
+_test_seconds: dict[str, float] = {}
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     lane = _kinds.serial_group(k for k in _kinds.KINDS if k in report.keywords) or "parallel"
     _lane_seconds[lane] = _lane_seconds.get(lane, 0.0) + report.duration
     _lane_tests.setdefault(lane, set()).add(report.nodeid)
+    key = f"{lane} {report.nodeid}"
+    _test_seconds[key] = _test_seconds.get(key, 0.0) + report.duration
     if "root" not in report.keywords:
         return
     if report.skipped:
@@ -281,10 +286,34 @@ def _lane_line() -> str:
         for lane in lanes)
 
 
+def _slowest_lines(count: int = 20) -> list[str]:
+    """Where cutting time shortens a run (every phase and rerun summed): the serial lanes'
+    slowest tests, and the parallel lane's slowest files (its time is that of many short
+    tests; ``--durations`` shows single tests of every lane mixed)."""
+    serial: dict[str, float] = {}
+    files: dict[str, float] = {}
+    for key, seconds in _test_seconds.items():
+        lane, _, nodeid = key.partition(" ")
+        if lane == "parallel":
+            name = f"parallel {nodeid.partition('::')[0]}"
+            files[name] = files.get(name, 0.0) + seconds
+        else:
+            serial[key] = seconds
+    lines = []
+    for title, table in (("slowest tests of the serial lanes:", serial),
+                         ("slowest files of the parallel lane:", files)):
+        lines.append(title)
+        lines += [f"{seconds:7.1f} s  {key}"
+                  for key, seconds in sorted(table.items(), key=lambda item: -item[1])[:count]]
+    return lines
+
+
 def pytest_terminal_summary(terminalreporter: Any) -> None:
     _print_stuck_tests(terminalreporter)
     if _lane_seconds and not hasattr(terminalreporter.config, "workerinput"):
         terminalreporter.write_line(_lane_line())
+        for line in _slowest_lines():
+            terminalreporter.write_line(line)
     ran, skipped = _root_counts()
     if ran or skipped:
         terminalreporter.write_line(f"root-only tests: {ran} ran, {skipped} skipped")

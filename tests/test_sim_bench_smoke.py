@@ -37,6 +37,9 @@ def test_sim_bench_smoke(tmp_path: Path) -> None:
     assert summary["sync_work_us"] > 0 and summary["fast_work_us"] > 0
     assert summary["lockstep_rtf"] > 0
     assert summary["lockstep_tracking_p95_deg"] < 10
+    # The lockstep robot with its driver through the pty as well: both ran, the ratio taken.
+    assert summary["lockstep_pty_rtf"] > 0 and summary["lockstep_direct_pty_cpu_ratio"] > 0
+    assert "CPU direct/pty" in result.stdout
     # Physics follows the wall clock: never ahead of it; behind it as far as the machine is
     # loaded (0.2 seen beside the parallel suite and another engineer's benchmark).
     assert 0.05 < summary["realtime_rtf"] < 1.5

@@ -96,9 +96,8 @@ class RobotPlant:
         self._damping = {i: float(model.dof_damping[d]) for i, d in self._dof.items()}
         self._goal: dict[int, tuple[bool, float, float]] = {}
         # Set-point slewing for all torqued joints at once: actuator index, goal, speed.
-        self.slew_index = np.zeros(0, dtype=np.intp)
-        self.slew_goal = np.zeros(0)
-        self.slew_speed = np.zeros(0)
+        self._slew: tuple[npt.NDArray[np.intp], npt.NDArray[np.float64],
+                          npt.NDArray[np.float64]] | None = None
         #: Pushes under way: body id, the simulated time at which it ends, its force.
         self.pushes: list[tuple[int, float, npt.NDArray[np.float64]]] = []
         self._torso = model.body(prefix + "torso").id
@@ -127,10 +126,18 @@ class RobotPlant:
             self.data.ctrl[self._actuator[dxl_id]] = self.data.qpos[self._joint[dxl_id].qposadr[0]]
         self._goal[dxl_id] = (torque, goal_rad, max_speed_rad_s)
         self._set_torque(dxl_id, on=torque)
-        on = [(self._actuator[i], g, s) for i, (t, g, s) in self._goal.items() if t]
-        self.slew_index = np.array([a for a, _, _ in on], dtype=np.intp)
-        self.slew_goal = np.array([g for _, g, _ in on])
-        self.slew_speed = np.array([s for _, _, s in on])
+        self._slew = None  # rebuilt at the next step: a sync write commands every servo
+
+    @property
+    def slew(self) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.float64],
+                            npt.NDArray[np.float64]]:
+        """The actuators under torque, their goals (rad) and speed limits (rad/s)."""
+        if self._slew is None:
+            on = [(self._actuator[i], g, s) for i, (t, g, s) in self._goal.items() if t]
+            self._slew = (np.array([a for a, _, _ in on], dtype=np.intp),
+                          np.array([g for _, g, _ in on], dtype=np.float64),
+                          np.array([s for _, _, s in on], dtype=np.float64))
+        return self._slew
 
     def push(self, force_n: tuple[float, float, float], *, duration_s: float,
              body: str = "torso") -> None:
@@ -201,12 +208,13 @@ def step_world(model: mujoco.MjModel, data: mujoco.MjData, robots: Sequence[Robo
     steps = max(1, round(seconds / model.opt.timestep))
     dt = model.opt.timestep
     if len(robots) == 1:
-        (robot,) = robots
-        index, goal, limit = robot.slew_index, robot.slew_goal, robot.slew_speed * dt
+        index, goal, speed = robots[0].slew
+        limit = speed * dt
     else:
-        index = np.concatenate([r.slew_index for r in robots])
-        goal = np.concatenate([r.slew_goal for r in robots])
-        limit = np.concatenate([r.slew_speed for r in robots]) * dt
+        slews = [r.slew for r in robots]
+        index = np.concatenate([i for i, _, _ in slews])
+        goal = np.concatenate([g for _, g, _ in slews])
+        limit = np.concatenate([s for _, _, s in slews]) * dt
     for _ in range(steps):
         if len(index):
             ctrl = data.ctrl[index]

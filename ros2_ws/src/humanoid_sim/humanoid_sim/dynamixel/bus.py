@@ -47,10 +47,20 @@ class Bus:
         self.instructions: Counter[int] = Counter()
 
     def _present(self, dxl_id: int) -> Servo | None:
+        return self._by_id().get(dxl_id)
+
+    def _by_id(self) -> dict[int, Servo]:
+        """The connected servos by the ID in their tables now (the first of a shared ID).
+
+        Taken once for a packet that addresses many servos: each servo on a real bus
+        reads the packet with the ID it has when the packet arrives, so a sync write of
+        new IDs renumbers the servos after the packet, not in the middle of it.
+        """
+        servos: dict[int, Servo] = {}
         for servo in self.servos.values():
-            if servo.connected and servo.dxl_id == dxl_id:
-                return servo
-        return None
+            if servo.connected:
+                servos.setdefault(servo.dxl_id, servo)
+        return servos
 
     @staticmethod
     def _reply(servo: Servo, instruction: int, error: int, params: bytes = b"") -> bytes:
@@ -158,16 +168,18 @@ class Bus:
                 s.reset(keep=_FACTORY_RESET_KEEP[p[0]])
         elif inst == Instruction.SYNC_WRITE and len(p) >= 4:
             address, size = int.from_bytes(p[:2], "little"), int.from_bytes(p[2:4], "little")
+            by_id = self._by_id()
             for i in range(4, len(p) - size, size + 1):
-                servo = self._present(p[i])
+                servo = by_id.get(p[i])
                 if servo is not None:
                     servo.write(address, p[i + 1 : i + 1 + size])
         elif inst == Instruction.BULK_WRITE:
             i = 0
+            by_id = self._by_id()
             while i + 5 <= len(p):
                 address = int.from_bytes(p[i + 1 : i + 3], "little")
                 size = int.from_bytes(p[i + 3 : i + 5], "little")
-                servo = self._present(p[i])
+                servo = by_id.get(p[i])
                 if servo is not None:
                     servo.write(address, p[i + 5 : i + 5 + size])
                 i += 5 + size
@@ -184,19 +196,20 @@ class Bus:
 
     def _reads(self, inst: int, reads: list[tuple[int, int, int]]) -> bytes:
         """The answer to a sync or bulk read of ``(id, address, size)``, plain or fast."""
+        by_id = self._by_id()
         if inst in (Instruction.SYNC_READ, Instruction.BULK_READ):
-            return b"".join(self._read_status(*read, inst) for read in reads)
+            return b"".join(self._read_status(by_id.get(read[0]), *read[1:], inst)
+                            for read in reads)
         blocks = []
         for dxl_id, address, size in reads:
-            servo = self._present(dxl_id)
+            servo = by_id.get(dxl_id)
             if servo is None or not servo.fast_read or not servo.get("status_return_level"):
                 break  # the servos after it wait for its block in vain
             error, data = servo.read(address, size)
             blocks.append((dxl_id, error | servo.alert(), data.ljust(size, b"\0")))
         return fast_status(blocks, length=1 + sum(size + 4 for _, _, size in reads))
 
-    def _read_status(self, dxl_id: int, address: int, size: int, inst: int) -> bytes:
-        servo = self._present(dxl_id)
+    def _read_status(self, servo: Servo | None, address: int, size: int, inst: int) -> bytes:
         if servo is None:
             return b""
         return self._reply(servo, inst, *servo.read(address, size))

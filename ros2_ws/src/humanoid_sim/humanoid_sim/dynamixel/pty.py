@@ -265,6 +265,7 @@ class DirectPortHandler(PortHandler):  # type: ignore[misc]  # the SDK is untype
 
     def __init__(self, port_name: str, bus: PtyBus) -> None:
         super().__init__(port_name)
+        self.is_open: bool = False
         self._bus = bus
         self._parser = Parser()
         self._input = bytearray()  # what the servos sent that the SDK has not read yet

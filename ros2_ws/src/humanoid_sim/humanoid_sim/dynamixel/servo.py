@@ -22,6 +22,12 @@ from .plant import Plant
 from .protocol import Error
 
 (_LOW_1, _HIGH_1), (_LOW_2, _HIGH_2) = ct.INDIRECT_DATA_SPANS
+_ID = ct.BY_NAME["id"].address
+#: The items a read of present values refreshes, and those it depends on.
+_PRESENT = tuple(ct.BY_NAME[name] for name in (
+    "present_position", "present_velocity", "present_current", "present_temperature",
+    "present_input_voltage", "moving", "realtime_tick"))
+_HOMING, _MOVING_THRESHOLD = ct.BY_NAME["homing_offset"], ct.BY_NAME["moving_threshold"]
 #: Speed when profile_velocity is 0 ("infinite" on a real servo): the no-load speed.
 NO_LOAD_SPEED_RAD_S = 46 * 2 * math.pi / 60
 
@@ -48,15 +54,15 @@ class Servo:
 
     @property
     def dxl_id(self) -> int:
-        return self.table[ct.BY_NAME["id"].address]
+        return self.table[_ID]
 
     def get(self, name: str) -> int:
         return self._value(self.table, ct.BY_NAME[name])
 
     @staticmethod
     def _value(table: bytearray, field: ct.Field) -> int:
-        raw = bytes(table[field.address : field.address + field.size])
-        return int.from_bytes(raw, "little", signed=field.signed)
+        return int.from_bytes(table[field.address : field.address + field.size], "little",
+                              signed=field.signed)
 
     def _set(self, field: ct.Field, value: int) -> None:
         self.table[field.address : field.address + field.size] = value.to_bytes(
@@ -124,16 +130,17 @@ class Servo:
         # e-Manual: Present Position = Actual Position + Homing Offset.
         ticks = round(s.position_rad * ct.TICKS_PER_RAD) + ct.CENTER_TICKS
         velocity = round(s.velocity_rad_s * 60 / (2 * math.pi) / ct.RPM_PER_UNIT)
-        f = ct.BY_NAME
-        self._set(f["present_position"], ticks + self.get("homing_offset"))
-        self._set(f["present_velocity"], velocity)
-        self._set(f["present_current"], round(s.current_a / ct.AMP_PER_UNIT))
-        self._set(f["present_temperature"], round(s.temperature_c))
-        self._set(f["present_input_voltage"], round(s.voltage_v * 10))
-        self._set(f["moving"], int(abs(velocity) > self.get("moving_threshold")))
-        # Milliseconds of the plant's time, not the wall clock's: in lockstep a driver that
-        # reads the tick must read the same whatever the machine's load.
-        self._set(f["realtime_tick"], round(self.plant.time_s * 1000) % 32768)
+        table = self.table
+        moving = abs(velocity) > self._value(table, _MOVING_THRESHOLD)
+        values = (ticks + self._value(table, _HOMING), velocity,
+                  round(s.current_a / ct.AMP_PER_UNIT), round(s.temperature_c),
+                  round(s.voltage_v * 10), int(moving),
+                  # Milliseconds of the plant's time, not the wall clock's: in lockstep a
+                  # driver that reads the tick must read the same whatever the load.
+                  round(self.plant.time_s * 1000) % 32768)
+        for field, value in zip(_PRESENT, values, strict=True):
+            table[field.address : field.address + field.size] = value.to_bytes(
+                field.size, "little", signed=field.signed)
 
     # -- writes ---------------------------------------------------------------------------
 
