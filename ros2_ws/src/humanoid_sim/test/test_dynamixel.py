@@ -253,6 +253,16 @@ def test_writes_are_checked_like_the_e_manual_says() -> None:
     assert error(_write(GOAL, 5000, 4)) == Error.NONE
 
 
+def test_a_sync_write_of_new_ids_renumbers_every_servo_it_names() -> None:
+    # Each servo reads the packet with the ID it had when the packet arrived: 1 -> 2 and
+    # 2 -> 3 in one sync write renumber both (servo 1 is not addressed again as "2").
+    bus = Bus(IDS, IdealPlant())
+    params = b"\x07\x00\x01\x00" + b"\x01\x02" + b"\x02\x03"
+    packet = Parser().feed(encode(0xFE, Instruction.SYNC_WRITE, params))[0]
+    assert bus.handle(packet) == b""
+    assert {i: servo.dxl_id for i, servo in bus.servos.items()} == {1: 2, 2: 3, 3: 3}
+
+
 def test_homing_offset_is_added_to_the_present_position() -> None:
     plant = IdealPlant()
     bus = Bus(IDS, plant)
