@@ -308,8 +308,8 @@ def split_run(seconds: float, *, transport: str) -> dict[str, float]:
     perception = figure(r"\| split: .*, perception ([\d.]+) s") / wall
     simulated = figure(r"\| simulated time \| ([\d.]+) s in")
     # Frames over the robot's playing time: the report's own rate also counts the seconds
-    # the body waited for perception to start, in which no frame is rendered.
-    camera_fps = figure(r"\| camera frames \| (\d+) \(") / wall
+    # the body waited for perception to start and be discovered.
+    camera_fps = figure(r"\| split: .*CPU in [\d.]+ s \((\d+) camera frames\)") / wall
     return {"rtf": figure(r"\| real-time factor \| ([\d.]+)"),
             "camera_fps": camera_fps,
             "detection_hz": figure(r"\| ball detections \| \d+ \(([\d.]+) Hz\)"),

@@ -64,10 +64,12 @@ def test_split_robot_sends_its_camera_image_through_shared_memory(tmp_path: Path
     assert len(set(stamps)) == len(stamps) and stamps == sorted(stamps), stamps  # once each
     text = report.read_text()
     row = re.search(r"\| split: .* \| shm; camera image (\d+) through shared memory, (\d+) "
-                    r"also written to DDS; CPU in [\d.]+ s: body [\d.]+ s, perception "
-                    r"([\d.]+) s", text)
+                    r"also written to DDS; CPU in [\d.]+ s \((\d+) camera frames\): body "
+                    r"[\d.]+ s, perception ([\d.]+) s", text)
     assert row is not None, text
-    shm, dds, perception_cpu = int(row[1]), int(row[2]), float(row[3])
+    shm, dds, frames, perception_cpu = int(row[1]), int(row[2]), int(row[3]), float(row[4])
+    # Every frame rendered once perception was connected went to it through shared memory.
+    assert 0 < frames <= shm, (frames, shm)
     # Written to DDS only for the plain subscriber: at least what it got, never all.
     assert len(stamps) <= dds < shm, (len(stamps), dds, shm)
     assert perception_cpu > 0

@@ -408,6 +408,20 @@ class Container(Closing):
                     late.append(name)
         return late
 
+    def publisher_nodes(self, topic: str) -> list[str]:
+        """The nodes (full names) publishing ``topic`` (a full name) that DDS knows of, in
+        any process, this one's included; none without DDS. The graph as discovery has it
+        so far: poll it to wait for a peer."""
+        if self._node is None:
+            return []
+        return [_full_name(i) for i in self._node.get_publishers_info_by_topic(topic)]
+
+    def subscriber_nodes(self, topic: str) -> list[str]:
+        """The nodes subscribing ``topic``, as :meth:`publisher_nodes` finds publishers."""
+        if self._node is None:
+            return []
+        return [_full_name(i) for i in self._node.get_subscriptions_info_by_topic(topic)]
+
     def take_dds(self) -> int:
         """Run every callback DDS has ready now, without waiting (a world taking what the
         robots sent in a lockstep step); returns how many ran."""
@@ -465,3 +479,8 @@ class Container(Closing):
             self._node = None
         if self.context is not None:
             self.context.try_shutdown()
+
+
+def _full_name(info: Any) -> str:
+    """``/ns/name`` of a graph endpoint's node."""
+    return f"{info.node_namespace.rstrip('/')}/{info.node_name}"

@@ -166,14 +166,16 @@ def image_traffic(robot: SoccerRobot, container: Container) -> tuple[int, int] |
 
 
 def split_row(robot: SoccerRobot, container: Container, transport: str,
-              cpu: tuple[float, float, float]) -> str:
-    """The report's row on the split robot: how the image crossed, both processes' CPU."""
+              cpu: tuple[float, float, float], *, frames: int) -> str:
+    """The report's row on the split robot: how the image crossed, both processes' CPU
+    and the camera's ``frames`` while the robot played (after perception was connected)."""
     body_s, perception_s, wall_s = cpu
     traffic = image_traffic(robot, container)
     crossed = ("over DDS" if traffic is None else
                f"{traffic[0]} through shared memory, {traffic[1]} also written to DDS")
     return (f"| split: perception (ball detector, JPEG compressor) in a process of its own "
-            f"| {transport}; camera image {crossed}; CPU in {wall_s:.1f} s: body "
+            f"| {transport}; camera image {crossed}; CPU in {wall_s:.1f} s ({frames} camera "
+            f"frames): body "
             f"{body_s:.2f} s, perception {perception_s:.2f} s, together "
             f"{100 * (body_s + perception_s) / max(wall_s, 1e-9):.0f} % of one core |")
 
@@ -436,6 +438,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 perception = processes.enter_context(Perception(
                     namespace=args.namespace, transport=args.split,
                     config_dir=Path(processes.enter_context(TemporaryDirectory()))))
+                perception.wait_connected(container)
             except ProcessError as exc:
                 print(f"soccer_demo: {exc}", file=sys.stderr)
                 return EXIT_BUG
@@ -453,6 +456,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         period = args.stats_period or 1.0
         spin_start = time.monotonic()
         cpu_start = (time.process_time(), perception.cpu_s() if perception else 0.0)
+        frames_start = robot.simulator.frames
 
         def elapsed() -> float:  # simulated seconds in lockstep, wall seconds in real time
             return robot.simulator.sim_time_s if args.lockstep else time.monotonic() - spin_start
@@ -481,7 +485,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             cpu = (time.process_time() - cpu_start[0],
                    perception.cpu_s() - cpu_start[1] if perception_alive else math.nan,
                    time.monotonic() - spin_start)
-            split = split_row(robot, container, args.split, cpu)
+            split = split_row(robot, container, args.split, cpu,
+                              frames=robot.simulator.frames - frames_start)
             perception.close()
         text = report(robot, container, args, time.monotonic() - started, split=split)
         failures = sum(s.exceptions for s in container.stats())
@@ -493,6 +498,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.report.write_text(text)
     print(f"\n{text}\nreport written to {args.report.resolve()}")
     if not ok:
+        why = [what for what, bad in (
+            ("the robot detected no ball", not robot.monitor.totals().detections),
+            (f"{failures} callbacks failed (the report's exc column)", failures),
+            (f"the servo bus emulator failed: {robot.simulator.pty.errors[:1]}",
+             robot.simulator.pty.errors),
+            ("the perception process ended", not perception_alive)) if bad]
+        print(f"soccer_demo: a bug (exit status 1): {'; '.join(why)}", file=sys.stderr)
         return EXIT_BUG
     if down:
         print("the robot fell and did not get up (exit status 3)")

@@ -37,7 +37,7 @@ from typing import Any, Literal
 
 import yaml
 
-from efficient_comm import exit_with_parent
+from efficient_comm import Container, exit_with_parent
 
 from .errors import ProcessError
 
@@ -113,6 +113,28 @@ class Perception:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    def wait_connected(self, container: Container) -> None:
+        """Spin ``container`` (the body's) until it has discovered perception's camera
+        subscription and ball detection publisher, at most :attr:`ready_timeout_s`;
+        ProcessError if it did not or the process ended.
+
+        "Loaded" only says the components exist: discovery takes up to a few seconds more
+        on a loaded machine, in which the camera's images would reach nobody and a short
+        run would see no ball (13 detections of 55 frames in a 2 s run, and none in one).
+        """
+        ns = self.namespace.rstrip("/")
+        detector = f"{ns}/ball_detector"
+
+        def connected() -> bool:
+            return (detector in container.subscriber_nodes(f"{ns}/camera/image_raw")
+                    and detector in container.publisher_nodes(f"{ns}/ball/detection")
+                    ) or not self.alive()
+
+        if not container.spin_until(connected, timeout_s=self.ready_timeout_s) or not self.alive():
+            raise ProcessError(f"the perception process (pid {self.pid}) was not discovered "
+                               f"within {self.ready_timeout_s:g} s"
+                               f"{'' if self.alive() else ' (it ended)'}")
 
     def _read(self) -> None:
         """Pass the process's output through; readiness is its container's "loaded" lines
