@@ -240,3 +240,25 @@ def test_processes_publish_their_callback_statistics_where_they_are_told(tmp_pat
                           p.node.get_node_names_and_namespaces(), timeout_s=30)
         topics = dict(p.node.get_topic_names_and_types())
         assert "/bot_q/efficient_comm/stats" not in topics
+
+
+def test_a_container_lists_the_nodes_on_a_topic_in_other_processes() -> None:
+    """``Container.publisher_nodes`` / ``subscriber_nodes``: what a program waits on for a
+    peer in another process (the split demo waits so for its perception process)."""
+    from std_msgs.msg import String
+
+    from efficient_comm import Container
+
+    domain = isolated_domain_id()
+    topic = unique_topic("graph")
+    with Container("ctr", domain_id=domain, serve=False) as container, \
+            peer(domain, "graph_peer") as other:
+        container.add(lambda n: n.create_subscription(String, topic, lambda _: None),
+                      name="listener", namespace="/me")
+        assert container.publisher_nodes(topic) == []
+        other.node.create_publisher(String, topic, 10)
+        assert container.spin_until(lambda: "/graph_peer" in container.publisher_nodes(topic),
+                                    timeout_s=20), container.publisher_nodes(topic)
+        assert "/me/listener" in container.subscriber_nodes(topic)
+    with Container("off", dds=False, serve=False) as offline:
+        assert offline.publisher_nodes(topic) == [] == offline.subscriber_nodes(topic)
