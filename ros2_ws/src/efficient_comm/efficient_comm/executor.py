@@ -596,13 +596,22 @@ class ConsecutiveExecutor:
         from rclpy.subscription import Subscription
 
         ran = 0
-        for handler, entity in items:
-            handler()
-            if (exc := handler.exception()) is not None:
-                raise exc
-            ran += 1
-            if isinstance(entity, Subscription):
-                ran += take_samples(entity, limit=MAX_TAKES)
+        pending = iter(items)
+        try:
+            for handler, entity in pending:
+                handler()
+                if (exc := handler.exception()) is not None:
+                    raise exc
+                ran += 1
+                if isinstance(entity, Subscription):
+                    ran += take_samples(entity, limit=MAX_TAKES)
+        except BaseException:
+            # The handlers not run are never awaited: close their coroutines (else Python
+            # warns "coroutine ... was never awaited" when the process ends).
+            if isinstance(items, list):
+                for handler, _ in pending:
+                    handler.cancel()
+            raise
         return ran
 
     def _poll_dds(self) -> None:

@@ -474,8 +474,8 @@ class ShmPublisher:
         remote = subscribers - self._transport.local_subscribers(self.name)
         if data is None or data.nbytes < self._transport.threshold_bytes or remote <= 0:
             if dds is not None and pub.dds_matched:
+                self._dds_seq += 1  # counted first: a Ctrl-C between the two loses no count
                 dds.publish(msg)
-                self._dds_seq += 1
             return
         try:
             self._send(msg, data, write_dds=dds is not None and pub.dds_matched > remote)
@@ -486,8 +486,8 @@ class ShmPublisher:
                     f"topic {pub.topic_name}: shared memory refused a message of "
                     f"{data.nbytes} bytes ({exc}); DDS carries such messages")
             if dds is not None and pub.dds_matched:
-                dds.publish(msg)
                 self._dds_seq += 1
+                dds.publish(msg)
 
     def _send(self, msg: Any, data: memoryview, *, write_dds: bool) -> None:
         meta = self._rest.dump(msg)
@@ -510,8 +510,8 @@ class ShmPublisher:
         self.shm_sends += 1
         self._notifier.notify()
         if write_dds:
-            self._pub.dds.publish(msg)
             self._dds_seq += 1
+            self._pub.dds.publish(msg)
 
     @property
     def dds_writes(self) -> int:
@@ -784,6 +784,10 @@ class ShmWait:
             self._cond.notify_all()
         self._executor.wake_dds()
         self._relay.join(timeout=5.0)
+        with self._cond:
+            items, self._items = self._items, None
+        for handler, _ in items or ():  # found, never to run: their coroutines are closed
+            handler.cancel()
         self._guards = []
         self._fd_guard = self._waitset = None
         with self._lock:
