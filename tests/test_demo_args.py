@@ -109,3 +109,14 @@ def test_the_demo_films_the_match_and_refuses_a_video_it_cannot_write(tmp_path: 
     lines = bad.stderr.splitlines()
     assert bad.returncode == EXIT_USAGE and len(lines) == 1, bad.stderr
     assert lines[0].startswith("soccer_demo: error: --video: cannot write the match video")
+
+
+def test_the_command_line_imports_no_simulation() -> None:
+    """A bad argument and ``--help`` answer before the simulation is imported (it took about
+    two seconds each, a minute for this file's cases on a loaded machine)."""
+    probe = ("import sys\nfrom humanoid_sim import demo\n"
+             "print(sorted({m.split('.')[0] for m in sys.modules} & {'mujoco', 'rclpy', "
+             "'efficient_comm', 'cv2', 'numpy'}))")
+    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                            timeout=60, check=True).stdout.strip()
+    assert loaded == "[]", loaded

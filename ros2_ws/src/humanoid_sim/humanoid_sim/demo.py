@@ -41,306 +41,35 @@ was still down at the end, with no bug.
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import math
-import random
 import sys
-import time
-from collections.abc import Callable, Sequence
-from datetime import UTC, datetime
-from functools import partial
+from collections.abc import Sequence
 from pathlib import Path
-from tempfile import TemporaryDirectory
-from typing import NoReturn
 
-from rclpy.validate_namespace import validate_namespace
-
-from efficient_comm import (
-    ComponentError,
-    Container,
-    ManualClock,
-    format_stats,
-    stop_on_sigterm,
+from .arguments import (
+    EXIT_BUG,
+    EXIT_FELL,
+    EXIT_OK,
+    EXIT_USAGE,
+    KICK_OFF_BALL,
+    KICK_OFF_POSE,
+    TRANSPORTS,
+    DemoArguments,
+    field_position,
+    finite_number,
+    namespace_arg,
+    start_positions,
 )
-from robot_recorder import Recorder
-from soccer_field import KIDSIZE
+from .soccer.pose_sources import SOURCES
 
-from .errors import HumanoidSimError, ProcessError
-from .match_video import MatchCamera
-from .soccer.compose import SoccerRobot, compose
-from .soccer.localization import SOURCES
-from .soccer.monitor import Figures
-from .split import TRANSPORTS, Perception
-
-EXIT_OK, EXIT_BUG, EXIT_USAGE, EXIT_FELL = 0, 1, 2, 3
-#: Seed 0's start: the kick-off (robot in its own half facing the opponent goal, the ball
-#: on the centre mark); other seeds draw theirs (:func:`start_positions`).
-KICK_OFF_POSE, KICK_OFF_BALL = (-1.0, 0.5, 0.0), (0.0, 0.0)
-#: Options whose value may start with a minus sign (``--ball -0.5,0``).
-SIGNED_OPTIONS = ("--robot-pose", "--ball")
-#: What the robot's recorder records once started (relative to the robot's namespace);
-#: a viewer may change it (the recorder's ``~/set_topics`` service).
-RECORDED_TOPICS = [
-    "joint_states", "imu/data", "ball/detection", "ball/estimate", "head/goal",
-    "fall/state", "ground_truth/robot", "ground_truth/ball", "camera/image_raw max_rate_hz=5",
-    "ball/position", "behaviour/state", "cmd_vel", "odom", "motion/state",
-]
-
-HEADER = (f"{'sim s':>6} {'RTF':>5} {'cam fps':>7} {'det Hz':>6} {'bus Hz':>6} "
-          f"{'err mean°':>9} {'err p95°':>8} {'lat ms':>6} {'walked m':>8} {'kicks':>5} "
-          f"{'goals':>5} {'falls':>5} {'striker':<8} {'head':<9} {'bus err':>7}")
-
-
-def _f(value: float, spec: str) -> str:
-    return "n/a" if math.isnan(value) else format(value, spec)
-
-
-#: The split robot's extra column: the camera images its publisher also wrote to DDS.
-SPLIT_HEADER = f" {'img DDS':>7}"
-
-
-def live_line(robot: SoccerRobot, window: Figures) -> str:
-    s = window.summary()
-    return (f"{robot.simulator.sim_time_s:>6.1f} {robot.simulator.real_time_factor:>5.2f} "
-            f"{s['camera_fps']:>7.1f} {s['detection_rate_hz']:>6.1f} "
-            f"{s['joint_state_rate_hz']:>6.1f} {_f(s['tracking_error_mean_deg'], '9.2f'):>9} "
-            f"{_f(s['tracking_error_p95_deg'], '8.2f'):>8} "
-            f"{_f(s['latency_median_ms'], '6.1f'):>6} {robot.monitor.walked_m:>8.2f} "
-            f"{robot.monitor.kicks:>5} {robot.referee.goals:>5} {robot.fall_detector.falls:>5} "
-            f"{robot.striker.state if robot.striker else '-':<8} {robot.behaviour.state:<9} "
-            f"{robot.driver.comm_errors:>7}")
-
-
-def posture(robot: SoccerRobot, frames_down: int) -> str:
-    """What the fall detector saw, for the report: the robot fell, or it stood throughout."""
-    fall = robot.fall_detector
-    pushes = robot.simulator.status()["pushes"]
-    pushed = f"; pushed {pushes} time{'s' * (pushes != 1)}" if pushes else ""
-    if not fall.falls:
-        return f"stood throughout, now {fall.state}{pushed}"
-    when = ", ".join(f"{(t - robot.monitor.started_ns) / 1e9:.1f} s" for t in fall.fell_at_ns)
-    return (f"**FELL** {fall.falls} time{'s' * (fall.falls != 1)} (at {when}), now "
-            f"{fall.state}; {frames_down} frames while down, not scored{pushed}")
-
-
-def play(robot: SoccerRobot) -> list[str]:
-    """The report's rows on the game: goals, kicks, falls and get-ups, walking."""
-    monitor, referee, striker = robot.monitor, robot.referee, robot.striker
-    goals = ", ".join(f"{t / 1e9:.1f} s" for t in referee.goal_at_ns)
-    first = (f"{monitor.first_kick_ns / 1e9:.1f} s" if monitor.first_kick_ns is not None
-             else "no kick")
-    return [
-        f"| goals (ball over the opponent goal line between the posts) | {referee.goals}"
-        f"{f' (at {goals})' if goals else ''}; own goals {referee.own_goals}, "
-        f"balls out {referee.outs} |",
-        f"| kicks | {monitor.kicks} ({striker.kicks if striker else 0} finished as the striker "
-        f"asked) |",
-        f"| time to the first kick | {first} |",
-        f"| falls and get-ups | {robot.fall_detector.falls} falls, {monitor.getups} get-ups |",
-        f"| distance walked (ground truth) | {monitor.walked_m:.2f} m |",
-        f"| striker | {striker.state if striker else 'none'} |",
-    ]
-
-
-def localization(robot: SoccerRobot) -> str:
-    """Which source published ``localization/pose`` and its error, for the report."""
-    if robot.pose_error is None:
-        return "none"
-    errors = robot.pose_error.errors
-    e = errors.summary()
-    return (f"{errors.source}: {e['estimates']:.0f} estimates, position error mean "
-            f"{_f(e['position_error_mean_m'], '.3f')} m, p95 "
-            f"{_f(e['position_error_p95_m'], '.3f')} m; heading error mean "
-            f"{_f(e['heading_error_mean_deg'], '.1f')}°, p95 "
-            f"{_f(e['heading_error_p95_deg'], '.1f')}°")
-
-
-def image_traffic(robot: SoccerRobot, container: Container) -> tuple[int, int] | None:
-    """The camera image's messages through shared memory and written to DDS by this
-    process (None: the transport is off here)."""
-    if container.shm is None:
-        return None
-    traffic = container.shm.traffic().get(robot.simulator.image_pub.topic_name)
-    return (0, 0) if traffic is None else (traffic.shm_sends, traffic.dds_writes)
-
-
-def split_row(robot: SoccerRobot, container: Container, transport: str,
-              cpu: tuple[float, float, float], *, frames: int) -> str:
-    """The report's row on the split robot: how the image crossed, both processes' CPU
-    and the camera's ``frames`` while the robot played (after perception was connected)."""
-    body_s, perception_s, wall_s = cpu
-    traffic = image_traffic(robot, container)
-    crossed = ("over DDS" if traffic is None else
-               f"{traffic[0]} through shared memory, {traffic[1]} also written to DDS")
-    return (f"| split: perception (ball detector, JPEG compressor) in a process of its own "
-            f"| {transport}; camera image {crossed}; CPU in {wall_s:.1f} s ({frames} camera "
-            f"frames): body "
-            f"{body_s:.2f} s, perception {perception_s:.2f} s, together "
-            f"{100 * (body_s + perception_s) / max(wall_s, 1e-9):.0f} % of one core |")
-
-
-def report(robot: SoccerRobot, container: Container, args: argparse.Namespace,
-           wall_s: float, *, split: str | None = None) -> str:
-    totals = robot.monitor.totals()
-    s = totals.summary()
-    sim = robot.simulator.status()
-    skipped = (f" ({sim['skipped_s']:.2f} s of simulated time given up while behind)"
-               if sim["skipped_s"] else "")
-    lines = [
-        "# Soccer demo report",
-        "",
-        f"Run at {datetime.now(UTC):%Y-%m-%d %H:%M:%S} UTC, "
-        f"{'lockstep' if args.lockstep else 'real time'}, seed {args.seed}, "
-        f"{'no DDS' if args.no_dds else 'DDS on'}.",
-        "",
-        "| figure | value |",
-        "|---|---|",
-        f"| start | robot at {','.join(f'{v:g}' for v in args.robot_pose)} (x, y, heading), "
-        f"ball at {','.join(f'{v:g}' for v in args.ball)} |",
-        f"| simulated time | {sim['sim_time_s']:.1f} s in {wall_s:.1f} s wall |",
-        *play(robot),
-        f"| real-time factor | {sim['real_time_factor']:.2f}{skipped} |",
-        f"| camera frames | {totals.frames} ({s['camera_fps']:.1f} fps, "
-        f"render {sim['render_ms_mean']:.1f} ms each) |",
-        f"| ball detections | {totals.detections} ({s['detection_rate_hz']:.1f} Hz) |",
-        f"| servo bus cycles (joint states) | {totals.joint_states} "
-        f"({s['joint_state_rate_hz']:.1f} Hz) |",
-        f"| ball outside the image (searching, not scored) | {totals.frames_out_of_view} "
-        f"frames |",
-        f"| tracking error (ball from image centre) | mean "
-        f"{_f(s['tracking_error_mean_deg'], '.2f')}°, p95 "
-        f"{_f(s['tracking_error_p95_deg'], '.2f')}°, max "
-        f"{_f(s['tracking_error_max_deg'], '.2f')}° |",
-        f"| detection error vs ground truth | p95 {_f(s['detection_error_p95_deg'], '.2f')}° |",
-        f"| image -> joint command latency | median {_f(s['latency_median_ms'], '.2f')} ms, "
-        f"p99 {_f(s['latency_p99_ms'], '.2f')} ms"
-        f"{' (lockstep: no wall time passes)' if args.lockstep else ''} |",
-        f"| servos answering | {len(robot.driver.present)} of {len(robot.driver.ids)}, "
-        f"{robot.driver.comm_errors} bus errors seen by the driver |",
-        f"| emulated bus | {sim['bus_crc_errors']} requests with a bad CRC, "
-        f"{sim['bus_discarded_bytes']} bytes of unfinished packets dropped, "
-        f"{sim['bus_dropped_replies']} replies nobody read |",
-        f"| head behaviour | {robot.behaviour.state}, {robot.behaviour.switches} switches |",
-        f"| posture (fall detector) | {posture(robot, totals.frames_down)} |",
-        f"| localization (vs ground truth) | {localization(robot)} |",
-        *([split] if split else []),
-        "",
-        "## Callbacks",
-        "",
-        "```",
-        format_stats(container.stats()),
-        "```",
-        "",
-    ]
-    return "\n".join(lines)
-
-
-def start_positions(seed: int) -> tuple[tuple[float, float, float], tuple[float, float]]:
-    """Where the robot (x, y, heading) and the ball (x, y) start for ``seed``.
-
-    Seed 0 is the kick-off (:data:`KICK_OFF_POSE`, :data:`KICK_OFF_BALL`). Other seeds
-    draw a start a game can have: the robot in its own half, at least 0.5 m inside the
-    lines and off the halfway line, facing anywhere; the ball in the middle of the field
-    (within 1.5 m of the centre mark in x and y, clear of the penalty areas) and at least
-    0.6 m from the robot, so every start asks for a walk before the kick.
-    """
-    if seed == 0:
-        return KICK_OFF_POSE, KICK_OFF_BALL
-    rng = random.Random(f"soccer_demo start {seed}")
-    while True:
-        half_l, half_w = KIDSIZE.half_length, KIDSIZE.half_width
-        pose = (rng.uniform(-half_l + 0.5, -0.5), rng.uniform(-half_w + 0.5, half_w - 0.5),
-                rng.uniform(-math.pi, math.pi))
-        ball = (rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5))
-        if math.dist(pose[:2], ball) >= 0.6:
-            return pose, ball
-
-
-def _number(*, low: float = -math.inf, high: float = math.inf, low_open: bool = False,
-            high_open: bool = False, what: str) -> Callable[[str], float]:
-    """A finite number within [low, high] (bounds excluded where ``*_open``)."""
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        inside = ((value > low if low_open else value >= low)
-                  and (value < high if high_open else value <= high))
-        if not math.isfinite(value) or not inside:
-            raise argparse.ArgumentTypeError(f"{text!r}: need {what}")
-        return value
-    return parse
-
-
-def _on_field(count: int, what: str) -> Callable[[str], list[float]]:
-    """``count`` comma-separated finite numbers, x and y on the field."""
-    def parse(text: str) -> list[float]:
-        try:
-            values = [float(part) for part in text.split(",")]
-        except ValueError:
-            values = []
-        if len(values) != count or not all(map(math.isfinite, values)):
-            raise argparse.ArgumentTypeError(f"{text!r}: need {what}, {count} numbers "
-                                             f"separated by commas")
-        half_l, half_w = KIDSIZE.half_length, KIDSIZE.half_width
-        if abs(values[0]) > half_l or abs(values[1]) > half_w:
-            raise argparse.ArgumentTypeError(
-                f"{text!r} is off the field: it is {2 * half_l:g} x {2 * half_w:g} m, "
-                f"x within +-{half_l:g}, y within +-{half_w:g} (origin the centre mark)")
-        return values
-    return parse
-
-
-class DemoArguments(argparse.ArgumentParser):
-    """The demo's parser: a bad argument is one line (``soccer_demo: error: ...``) and
-    exit status 2, and values of :data:`SIGNED_OPTIONS` may start with a minus sign."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
-
-    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
-                   namespace: None = None) -> argparse.Namespace:
-        # argparse takes "-0.5,0" for an option (only plain negative numbers are values):
-        # glue such a value to its option, as "--ball=-0.5,0" is read.
-        given = list(sys.argv[1:] if args is None else args)
-        joined: list[str] = []
-        for arg in given:
-            if joined and joined[-1] in SIGNED_OPTIONS and arg.startswith("-"):
-                joined[-1] = f"{joined[-1]}={arg}"
-            else:
-                joined.append(arg)
-        return super().parse_args(joined)
-
-
-def namespace_arg(text: str) -> str:
-    """``--namespace``: an absolute ROS namespace (a relative one gets its leading slash)."""
-    namespace = text if text.startswith("/") else "/" + text
-    try:
-        validate_namespace(namespace)
-    except Exception as exc:  # rclpy's InvalidNamespaceException, with a caret line
-        reason = str(exc).splitlines()[0].rstrip(":")
-        raise argparse.ArgumentTypeError(f"{text!r}: {reason}") from None
-    return namespace
-
-
-def add_recorder(container: Container, namespace: str, bag_dir: Path, *,
-                 autostart: bool = False) -> Recorder:
-    """The robot's recorder, ``<namespace>/recorder``: idle until told to start (recording
-    from the start with ``autostart``)."""
-    recorder: Recorder = container.add(
-        Recorder, name="recorder", namespace=namespace,
-        parameters={"topics": RECORDED_TOPICS, "output_dir": str(bag_dir),
-                    "autostart": autostart},
-    )
-    return recorder
+__all__ = ["EXIT_BUG", "EXIT_FELL", "EXIT_OK", "EXIT_USAGE", "KICK_OFF_BALL", "KICK_OFF_POSE",
+           "main", "start_positions"]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = DemoArguments(prog="soccer_demo", description=__doc__.split("\n\n")[0],
                            epilog="A team match instead: scripts/demo.sh --robots 3 (or 2, "
                            "AvB such as 3v3); python -m humanoid_sim.match --help.")
-    parser.add_argument("--duration", type=_number(low=0, what="seconds >= 0"), default=30.0,
+    parser.add_argument("--duration", type=finite_number(low=0, what="seconds >= 0"), default=30.0,
                         help="simulated seconds in lockstep, wall seconds otherwise; "
                         "0 = until Ctrl-C (default 30)")
     parser.add_argument("--lockstep", action="store_true",
@@ -348,20 +77,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0,
                         help="the start (unless --robot-pose and --ball are given; 0 is the "
                         "kick-off) and the line noise's pattern (default 0)")
-    parser.add_argument("--robot-pose", type=_on_field(3, "X,Y,HEADING"), default=None,
+    parser.add_argument("--robot-pose", type=field_position(3, "X,Y,HEADING"), default=None,
                         metavar="X,Y,HEADING",
                         help="where the robot starts on the field (m, m, rad; x towards the "
                         "opponent goal, origin the centre mark, e.g. -1,0.5,0); "
                         "default: from --seed")
-    parser.add_argument("--ball", type=_on_field(2, "X,Y"), default=None, metavar="X,Y",
+    parser.add_argument("--ball", type=field_position(2, "X,Y"), default=None, metavar="X,Y",
                         help="where the ball starts (m; 0,0 is the centre mark); "
                         "default: from --seed")
-    parser.add_argument("--line-noise", type=_number(low=0, high=1, high_open=True,
+    parser.add_argument("--line-noise", type=finite_number(low=0, high=1, high_open=True,
                                                      what="a share 0 <= p < 1"),
                         default=0.0, help="share of servo bus packets (either way) with a "
                         "flipped bit, 0 <= p < 1 (default 0)")
     parser.add_argument("--no-dds", action="store_true", help="no DDS: nothing leaves the process")
-    parser.add_argument("--stats-period", type=_number(low=0, what="seconds >= 0"),
+    parser.add_argument("--stats-period", type=finite_number(low=0, what="seconds >= 0"),
                         default=2.0, help="seconds between the printed live lines; 0 = none "
                         "(default 2)")
     parser.add_argument("--namespace", type=namespace_arg, default="/robot",
@@ -376,7 +105,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--video", type=Path, default=None, metavar="MP4",
                         help="also film the field from above into this MP4 (a sidecar "
                         "MP4.json beside it), on a camera clock 2.5 s off the world's")
-    parser.add_argument("--push-at", type=_number(low=0, what="simulated seconds >= 0"),
+    parser.add_argument("--push-at", type=finite_number(low=0, what="simulated seconds >= 0"),
                         default=0.0, metavar="SECONDS",
                         help="push the robot along +x of the field (towards the opponent "
                         "goal) at this simulated time (0: never)")
@@ -388,128 +117,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="run perception (ball detector, JPEG compressor) in a process of "
                         "its own, the camera image crossing through shared memory (shm, the "
                         "default) or DDS (dds); real time with DDS only")
-    parser.add_argument("--push-newtons", type=_number(low=0, what="newtons >= 0"),
+    parser.add_argument("--push-newtons", type=finite_number(low=0, what="newtons >= 0"),
                         default=40.0, help="force of that push, for 0.1 s (default 40)")
     args = parser.parse_args(argv)
     if args.split and (args.lockstep or args.no_dds):
         parser.error(f"--split runs two processes in real time: not with "
                      f"{'--lockstep' if args.lockstep else '--no-dds'} (a lockstep container "
                      f"has no shared memory; without DDS the processes cannot meet)")
-    pose, ball = start_positions(args.seed)
-    args.robot_pose = args.robot_pose or list(pose)
-    args.ball = args.ball or list(ball)
-    bag_dir = args.bag_dir or Path("recordings", args.namespace.strip("/") or "root")
-    stop_on_sigterm()
+    # The simulation is imported once the arguments are known good (see .arguments).
+    from ._demo_run import run
 
-    clock = ManualClock() if args.lockstep else None
-    started = time.monotonic()
-    shm = None if args.split is None else args.split == "shm"
-    with Container("soccer", namespace=args.namespace, dds=not args.no_dds, clock=clock,
-                   stats_namespace=args.namespace, shm=shm) as container, \
-            contextlib.ExitStack() as processes:
-        try:
-            robot = compose(container, namespace=args.namespace, simulator={
-                "seed": args.seed, "robot_pose": args.robot_pose, "ball_position": args.ball,
-                "line_noise": args.line_noise,
-                "push_at": args.push_at, "push_force": [args.push_newtons, 0.0, 0.0],
-            }, localization=None if args.localization == "none" else args.localization,
-               perception=args.split is None)
-        except HumanoidSimError as exc:  # what the parser let through and a component refused
-            parser.error(str(exc))
-        except ComponentError as exc:  # the container wraps what a constructor raised
-            if not isinstance(exc.__cause__, HumanoidSimError):
-                raise
-            parser.error(str(exc.__cause__))
-        add_recorder(container, args.namespace, bag_dir, autostart=args.record)
-        if args.video is not None:
-            try:
-                sim = robot.simulator
-                container.add(partial(MatchCamera, model=sim.model, data=sim.data,
-                                      lock=sim.pty.lock), name="match_camera",
-                              namespace=args.namespace,
-                              parameters={"video_path": str(args.video)})
-            except ComponentError as exc:  # a bad path or size: the camera's own one line
-                if not isinstance(exc.__cause__, HumanoidSimError):
-                    raise
-                parser.error(f"--video: {exc.__cause__}")
-        perception = None
-        if args.split:
-            try:
-                perception = processes.enter_context(Perception(
-                    namespace=args.namespace, transport=args.split,
-                    config_dir=Path(processes.enter_context(TemporaryDirectory()))))
-                perception.wait_connected(container)
-            except ProcessError as exc:
-                print(f"soccer_demo: {exc}", file=sys.stderr)
-                return EXIT_BUG
-        print(f"soccer demo: {robot.simulator.camera.backend if robot.simulator.camera else 'no'}"
-              f" camera, servos on {robot.simulator.port}; "
-              f"{'lockstep' if args.lockstep else 'real time'}, "
-              f"{'until Ctrl-C' if args.duration <= 0 else f'{args.duration:g} s'}; "
-              f"robot at {','.join(f'{v:g}' for v in args.robot_pose)}, "
-              f"ball at {','.join(f'{v:g}' for v in args.ball)}"
-              f"{f'; perception in process {perception.pid} ({args.split})' if perception else ''}")
-        if args.stats_period:
-            print(HEADER + (SPLIT_HEADER if perception else ""), flush=True)
-        end = args.duration if args.duration > 0 else math.inf
-        # Without live lines the loop still wakes every second (Ctrl-C, SIGTERM).
-        period = args.stats_period or 1.0
-        spin_start = time.monotonic()
-        cpu_start = (time.process_time(), perception.cpu_s() if perception else 0.0)
-        frames_start = robot.simulator.frames
-
-        def elapsed() -> float:  # simulated seconds in lockstep, wall seconds in real time
-            return robot.simulator.sim_time_s if args.lockstep else time.monotonic() - spin_start
-
-        try:
-            while (left := end - elapsed()) > 1e-3:
-                step = min(period, left)
-                if args.lockstep:
-                    container.advance(step)
-                else:
-                    container.spin_for(step)
-                if args.stats_period:
-                    traffic = image_traffic(robot, container) if perception else None
-                    extra = (f" {traffic[1] if traffic else '-':>7}" if perception else "")
-                    print(live_line(robot, robot.monitor.window()) + extra, flush=True)
-        except KeyboardInterrupt:
-            print("interrupted")
-        split = None
-        perception_alive = True
-        if perception is not None:
-            perception_alive = perception.alive()
-            if not perception_alive:  # a bug: exit status 1
-                print(f"soccer_demo: the perception process ended during the run; its last "
-                      f"words: {' | '.join(list(perception.lines)[-3:]) or 'none'}",
-                      file=sys.stderr)
-            cpu = (time.process_time() - cpu_start[0],
-                   perception.cpu_s() - cpu_start[1] if perception_alive else math.nan,
-                   time.monotonic() - spin_start)
-            split = split_row(robot, container, args.split, cpu,
-                              frames=robot.simulator.frames - frames_start)
-            perception.close()
-        text = report(robot, container, args, time.monotonic() - started, split=split)
-        failures = sum(s.exceptions for s in container.stats())
-        # A failing callback or an exception inside the emulator is a bug: exit status 1.
-        ok = (robot.monitor.totals().detections > 0 and failures == 0
-              and not robot.simulator.pty.errors and perception_alive)
-        down = robot.fall_detector.falls > 0 and robot.fall_detector.state != "standing"
-    args.report.parent.mkdir(parents=True, exist_ok=True)
-    args.report.write_text(text)
-    print(f"\n{text}\nreport written to {args.report.resolve()}")
-    if not ok:
-        why = [what for what, bad in (
-            ("the robot detected no ball", not robot.monitor.totals().detections),
-            (f"{failures} callbacks failed (the report's exc column)", failures),
-            (f"the servo bus emulator failed: {robot.simulator.pty.errors[:1]}",
-             robot.simulator.pty.errors),
-            ("the perception process ended", not perception_alive)) if bad]
-        print(f"soccer_demo: a bug (exit status 1): {'; '.join(why)}", file=sys.stderr)
-        return EXIT_BUG
-    if down:
-        print("the robot fell and did not get up (exit status 3)")
-        return EXIT_FELL
-    return EXIT_OK
+    return run(args, parser)
 
 
 if __name__ == "__main__":

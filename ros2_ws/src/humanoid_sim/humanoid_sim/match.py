@@ -76,7 +76,7 @@ from efficient_comm import stop_on_sigterm
 from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
 from soccer_field import KIDSIZE
 
-from .demo import EXIT_OK, DemoArguments, _number
+from .arguments import EXIT_OK, DemoArguments, finite_number
 from .match_recording import (
     ClockSkew,
     RecordingPaths,
@@ -86,7 +86,7 @@ from .match_recording import (
     recording_report,
 )
 from .match_world import GroundTruthLog
-from .soccer.localization import GROUND_TRUTH, NOISY_GROUND_TRUTH, PARTICLE_FILTER, SOURCES
+from .soccer.pose_sources import GROUND_TRUTH, NOISY_GROUND_TRUTH, PARTICLE_FILTER, SOURCES
 from .world import DEFAULT_START
 
 EXIT_ENDED = 1
@@ -279,7 +279,7 @@ def _parser() -> DemoArguments:
     parser.add_argument("--robots", type=robot_names, default=robot_names("3"),
                         help="2 or 3: one team; AvB: A blue against B red, e.g. 3v3 "
                         "(default 3; 1 is the one-robot demo)")
-    parser.add_argument("--duration", type=_number(low=0, what="seconds >= 0"),
+    parser.add_argument("--duration", type=finite_number(low=0, what="seconds >= 0"),
                         default=60.0, help="wall seconds (with --lockstep: simulated "
                         "seconds); 0 = until Ctrl-C (default 60)")
     parser.add_argument("--seed", type=int, default=0,
@@ -288,7 +288,7 @@ def _parser() -> DemoArguments:
     parser.add_argument("--team-link", choices=["on", "off"], default="on",
                         help="off: no robot connects to a teammate (a cut link: each "
                         "plays alone); default on")
-    parser.add_argument("--team-link-cut-at", type=_number(low=0, what="seconds >= 0"),
+    parser.add_argument("--team-link-cut-at", type=finite_number(low=0, what="seconds >= 0"),
                         default=None, metavar="SECONDS",
                         help="the team link fails once the world's (simulated) time reaches "
                         "SECONDS: every robot's end is closed mid-game (default never)")
@@ -296,30 +296,30 @@ def _parser() -> DemoArguments:
                         help="the world steps every robot's process as one barrier on "
                         "simulated time: slower than real time, never late, and a seed "
                         "plays the same game every run")
-    parser.add_argument("--stats-period", type=_number(low=0.5, what="seconds >= 0.5"),
+    parser.add_argument("--stats-period", type=finite_number(low=0.5, what="seconds >= 0.5"),
                         default=2.0, help="seconds between live lines (default 2)")
-    parser.add_argument("--camera-hz", type=_number(low=0, high=60, what="0 to 60 Hz"),
+    parser.add_argument("--camera-hz", type=finite_number(low=0, high=60, what="0 to 60 Hz"),
                         default=30.0, help="each robot's camera rate (default 30)")
-    parser.add_argument("--ready-s", type=_number(low=1, what="seconds >= 1"), default=45.0,
+    parser.add_argument("--ready-s", type=finite_number(low=1, what="seconds >= 1"), default=45.0,
                         help="the referee's longest ready (default 45, the GameController's)")
     parser.add_argument("--localization", type=localization_choice,
                         default=(DEFAULT_LOCALIZATION, {}),
                         help="each robot's localization/pose: pf (the particle filter), "
                         "noisy (noisy ground truth) or truth; for all robots, per robot "
                         "(blue1=pf,red1=noisy) or both (noisy,blue1=pf) (default noisy)")
-    parser.add_argument("--role-margin", type=_number(low=0, what="seconds >= 0"),
+    parser.add_argument("--role-margin", type=finite_number(low=0, what="seconds >= 0"),
                         default=None, metavar="S",
                         help="how much sooner at the ball a teammate must be to take the "
                         "striker's role from another (default 1; 0 with --role-hold 0 lets "
                         "roles oscillate, for trying log_analysis's role_oscillation)")
-    parser.add_argument("--role-hold", type=_number(low=0, what="seconds >= 0"),
+    parser.add_argument("--role-hold", type=finite_number(low=0, what="seconds >= 0"),
                         default=None, metavar="S",
                         help="the least time a robot keeps a role it took (default 2)")
     parser.add_argument("--report", type=Path, default=Path("match_report.md"))
     parser.add_argument("--out-dir", type=Path, default=Path("match"),
                         help="each process's log, the bags, the merged log and the video go "
                         "here (default ./match)")
-    parser.add_argument("--video-fps", type=_number(low=0, high=30, what="0 to 30 fps"),
+    parser.add_argument("--video-fps", type=finite_number(low=0, high=30, what="0 to 30 fps"),
                         default=5.0, help="the external video's frame rate, 0 for none "
                         "(default 5)")
     return parser

@@ -33,16 +33,15 @@ import sys
 import threading
 from collections import deque
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import yaml
 
 from efficient_comm import Container, exit_with_parent
 
+from .arguments import TRANSPORTS, Transport
 from .errors import ProcessError
 
-Transport = Literal["shm", "dds"]
-TRANSPORTS: tuple[Transport, ...] = ("shm", "dds")
 #: The perception process's components: (registered class, node name).
 PERCEPTION = (
     ("humanoid_sim::BallDetector", "ball_detector"),

@@ -57,12 +57,12 @@ from ..errors import SimConfigError
 from .fall import STANDING
 from .game_control import GameControl
 from .landmarks import LandmarkDetector, read_points
+from .pose_sources import GROUND_TRUTH as GROUND_TRUTH
+from .pose_sources import NOISY_GROUND_TRUTH as NOISY_GROUND_TRUTH
+from .pose_sources import PARTICLE_FILTER as PARTICLE_FILTER
+from .pose_sources import SOURCES as SOURCES
 
 Array = npt.NDArray[np.float64]
-PARTICLE_FILTER = "particle_filter"
-NOISY_GROUND_TRUTH = "noisy_ground_truth"
-GROUND_TRUTH = "ground_truth"
-SOURCES = (PARTICLE_FILTER, NOISY_GROUND_TRUTH, GROUND_TRUTH)
 #: How sure the filter is of a kick-off spot the referee placed the robot on (m, rad).
 PLACED_SIGMA = (0.1, 0.1)
 LATCHED = latched_qos()
