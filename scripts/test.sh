@@ -22,6 +22,12 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 # (about 0.4 s of CPU a process on this machine, the environment sets PYTHONDONTWRITEBYTECODE).
 unset PYTHONDONTWRITEBYTECODE
 python -m compileall -q -j 0 ros2_ws/src tests bench >/dev/null
+# Every simulation process probes EGL in a child before it renders (humanoid_sim.render):
+# probe once for the run instead (MUJOCO_GL=egl|osmesa skips the probe).
+if [[ -z ${MUJOCO_GL:-} ]]; then
+  MUJOCO_GL=$(python -c 'from humanoid_sim.render import gl_backend; print(gl_backend())') \
+    && export MUJOCO_GL
+fi
 
 echo "test: ruff check"
 ruff check

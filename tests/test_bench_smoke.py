@@ -36,7 +36,10 @@ def test_quick_bench_reports_every_scenario(tmp_path: Path) -> None:
     out = tmp_path / "comm_bench.json"
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     proc = subprocess.run(
-        [sys.executable, str(BENCH), "--quick", "--no-plot", "--out", str(out)],
+        # A child that hangs is ended after 60 s and named in the errors (not the whole
+        # run ended by the timeout below with nothing said).
+        [sys.executable, str(BENCH), "--quick", "--no-plot", "--timeout", "60", "--out",
+         str(out)],
         capture_output=True,
         text=True,
         timeout=240,  # 45 s on an idle machine; beside the suite's other workers often 2x

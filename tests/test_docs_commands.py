@@ -119,16 +119,24 @@ def _group_states(pgid: int) -> list[str]:
     return states
 
 
-def _wait_until_idle(proc: subprocess.Popen[bytes]) -> None:
+#: An rclpy node's log line (``[INFO] [1700000000.123] [name]: ...``).
+_NODE_LOGGED = re.compile(r"^\[(INFO|WARN)\] \[[\d.]+\] \[", re.MULTILINE)
+
+
+def _wait_until_idle(proc: subprocess.Popen[bytes], log: Path) -> None:
     """Wait :data:`STOPPED_AFTER_S`, then until every process the command started has been
     waiting (sleeping, as a started node spins) in most samples for a second, at most
     :data:`RUN_S`: Ctrl-C while Python still imports is a KeyboardInterrupt traceback for any
     program, and a loaded machine imports rclpy for longer than the 5 s an idle one needs.
+    A node that has logged is past its imports too: a simulation in real time is never idle
+    (the world's command waited the whole minute).
     """
     with contextlib.suppress(subprocess.TimeoutExpired):
         proc.wait(timeout=STOPPED_AFTER_S)
     deadline = time.monotonic() + RUN_S
     while proc.poll() is None and time.monotonic() < deadline:
+        if _NODE_LOGGED.search(log.read_text(errors="replace")):
+            return
         samples = []
         for _ in range(20):
             samples.append(all(s == "S" for s in _group_states(proc.pid)))
@@ -158,7 +166,7 @@ def test_doc_block_runs_as_written(block: Block, tmp_path: Path) -> None:
             log = tmp_path / f"cmd{n}.log"
             proc = _start(command, cwd, env, log)
             if block.directive == "runs-until-stopped":
-                _wait_until_idle(proc)
+                _wait_until_idle(proc, log)
                 still_running = proc.poll() is None
                 stop_process_group(proc)
                 text = log.read_text(errors="replace")
