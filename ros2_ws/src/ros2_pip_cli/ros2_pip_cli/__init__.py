@@ -9,6 +9,7 @@ Where things live:
 
 * ``_main``      the command line: commands, verbs, the error for what is not offered;
 * ``_graph``     a daemon-free node that waits for discovery until the graph is stable;
+* ``_timing``    how long commands listen (light: ``ros2 run`` and ``pkg`` import no rclpy);
 * ``_view``      what the graph verbs print, from the daemon or from the command's own node;
 * ``_daemon``    the per-user graph daemon (its process, socket and ``ros2 daemon``);
 * ``_messages``  messages as YAML and CSV (``topic echo``);

@@ -44,7 +44,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from ._graph import ANNOUNCE_S, QUIET_S, SETTLE_MAX_S, WAIT_S
+from ._timing import ANNOUNCE_S, QUIET_S, SETTLE_MAX_S, WAIT_S
 from ._view import DAEMON_NODE_PREFIX, Query, View, build_view, present
 from .errors import CliError, DaemonUnavailableError
 

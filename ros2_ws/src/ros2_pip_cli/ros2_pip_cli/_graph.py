@@ -25,18 +25,12 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
+from ._timing import ANNOUNCE_S as ANNOUNCE_S
+from ._timing import QUIET_S as QUIET_S
+from ._timing import SETTLE_MAX_S as SETTLE_MAX_S
+from ._timing import WAIT_S as WAIT_S
 from .errors import CliError
 
-#: A running Fast DDS participant answers a newcomer only with its next periodic announcement
-#: (every 3 s), so a command that lists the whole graph listens at least this long ...
-ANNOUNCE_S = 3.5
-#: ... and then until the graph has not changed for this long and every endpoint seen has
-#: its node's name (names come in a second step of discovery) ...
-QUIET_S = 0.5
-#: ... or until this long, whatever the graph still does (nodes coming and going).
-SETTLE_MAX_S = 6.0
-#: How long a command waits for the node, topic or service it was asked about.
-WAIT_S = 10.0
 _POLL_S = 0.02
 
 

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
-from ._graph import ANNOUNCE_S
+from ._timing import ANNOUNCE_S
 from .errors import CliError, UsageError
 
 HINT = "a regular ROS 2 install (ros2cli) has the full command line"

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rclpy.node import Node
+from ._timing import ANNOUNCE_S
 
-from ._graph import ANNOUNCE_S, cli_node, full_name
+if TYPE_CHECKING:  # rclpy only where a graph is read: ``ros2 run`` imports this module
+    from rclpy.node import Node
 
 #: Nodes of this tool that are not part of the user's graph: graph daemons (any command's)
 #: are left out of every answer, as is the asking command's own node.
@@ -95,6 +96,8 @@ def _tool_service(name: str, own: str) -> bool:
 
 def present(node: Node, query: Query) -> bool:
     """Whether what ``query`` waits for is in ``node``'s graph (True if it waits for none)."""
+    from ._graph import full_name
+
     if query.wait_kind == "topic":
         return any(n == query.wait_name for n, _ in node.get_topic_names_and_types())
     if query.wait_kind == "service":
@@ -107,6 +110,8 @@ def present(node: Node, query: Query) -> bool:
 
 def build_view(node: Node, query: Query) -> View:
     """The answer to ``query`` from what ``node`` has discovered (no waiting here)."""
+    from ._graph import full_name
+
     own = node.get_fully_qualified_name()
     view = View(
         nodes=sorted(f for f in (full_name(n, ns) for n, ns in
@@ -149,6 +154,8 @@ def graph_view(args: argparse.Namespace, query: Query) -> View:
         answer = ask_view(query)
         if answer is not None:
             return answer
+    from ._graph import cli_node
+
     with cli_node() as cli:
         # Whole-graph answers listen --spin-time first; answers about one thing wait for it
         # (and, for counts, listen as long too once it has appeared).
