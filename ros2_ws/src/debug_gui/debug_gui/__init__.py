@@ -18,22 +18,57 @@ Where things live (ARCHITECTURE.md, "debug_gui", has the why):
 Public names are re-exported here; the UI is imported only by ``server`` and ``ui``.
 """
 
-from .errors import AccessDenied as AccessDenied
-from .errors import CallFailed as CallFailed
-from .errors import DebugGuiError as DebugGuiError
-from .errors import InvalidInput as InvalidInput
-from .errors import LogUnreadable as LogUnreadable
-from .errors import NotLive as NotLive
-from .errors import RobotUnavailable as RobotUnavailable
-from .hub import Feed as Feed
-from .hub import Hub as Hub
-from .hub import TopicCounter as TopicCounter
-from .playback import Playback as Playback
-from .robots import RobotId as RobotId
-from .security import AccessPolicy as AccessPolicy
-from .source import Source as Source
-from .source import Stream as Stream
+import importlib
+from typing import TYPE_CHECKING, Any
 
+#: Each public name and the module that defines it, imported on first use: the commands
+#: (``debug_gui``, the demo) answer a bad option before the data side is imported.
+_EXPORTS: dict[str, str] = {
+    "AccessDenied": ".errors",
+    "CallFailed": ".errors",
+    "DebugGuiError": ".errors",
+    "InvalidInput": ".errors",
+    "LogUnreadable": ".errors",
+    "NotLive": ".errors",
+    "RobotUnavailable": ".errors",
+    "Feed": ".hub",
+    "Hub": ".hub",
+    "TopicCounter": ".hub",
+    "Playback": ".playback",
+    "RobotId": ".robots",
+    "AccessPolicy": ".security",
+    "Source": ".source",
+    "Stream": ".source",
+}
+__all__ = sorted([*_EXPORTS, "main"])
+
+if not TYPE_CHECKING:  # hidden from type checkers, which would take any name as valid
+    def __getattr__(name: str) -> Any:
+        module = _EXPORTS.get(name)
+        if module is None:
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(module, __name__), name)
+        globals()[name] = value  # later uses find it without coming here
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted({*globals(), *_EXPORTS})
+else:  # the same names for type checkers (tests/test_lazy_exports.py keeps both alike)
+    from .errors import AccessDenied as AccessDenied
+    from .errors import CallFailed as CallFailed
+    from .errors import DebugGuiError as DebugGuiError
+    from .errors import InvalidInput as InvalidInput
+    from .errors import LogUnreadable as LogUnreadable
+    from .errors import NotLive as NotLive
+    from .errors import RobotUnavailable as RobotUnavailable
+    from .hub import Feed as Feed
+    from .hub import Hub as Hub
+    from .hub import TopicCounter as TopicCounter
+    from .playback import Playback as Playback
+    from .robots import RobotId as RobotId
+    from .security import AccessPolicy as AccessPolicy
+    from .source import Source as Source
+    from .source import Stream as Stream
 
 def main() -> int:
     """The ``debug_gui`` command (imports the UI toolkit only when run)."""

@@ -24,16 +24,15 @@ from typing import TYPE_CHECKING, Any
 
 from rclpy.utilities import remove_ros_args
 
-from log_analysis import ExternalVideo, LogAnalysisError, VideoFit, read_events, sidecar_path
-
 from .errors import DebugGuiError, InvalidInput, LogUnreadable
-from .hub import Hub
 from .layout import Layout, check_layout_path
-from .playback import Playback, rebind
 from .security import AccessPolicy, check_port, parse_domains
-from .source import Source
 
+# The data side (rclpy contexts, bags, videos) and the UI toolkit are imported where they
+# serve: a bad option or --help answers before them (1.5 s of imports).
 if TYPE_CHECKING:
+    from .hub import Hub
+    from .source import Source
     from .ui.playback import PlaybackSetup
 
 DEFAULT_PORT = 8080
@@ -180,6 +179,8 @@ def serve(options: Options, *, default_layout: Layout | None = None) -> int:
     os.environ.pop("PYTEST_CURRENT_TEST", None)
     from nicegui import app, ui
 
+    from .hub import Hub
+    from .playback import rebind
     from .ui import registry
     from .ui.app import Shell, install
 
@@ -243,6 +244,15 @@ def serve(options: Options, *, default_layout: Layout | None = None) -> int:
 def open_log(options: Options) -> PlaybackSetup:
     """The log, its events and its video as ``--log`` and its options name them; what is
     missing beside the log is said (in the notes), what is broken is LogUnreadable."""
+    from log_analysis import (
+        ExternalVideo,
+        LogAnalysisError,
+        VideoFit,
+        read_events,
+        sidecar_path,
+    )
+
+    from .playback import Playback
     from .ui.playback import PlaybackSetup, describe_fit, sync_path
 
     assert options.log is not None

@@ -97,7 +97,7 @@ if not TYPE_CHECKING:  # hidden from type checkers, which would take any name as
 
     def __dir__() -> list[str]:
         return sorted({*globals(), *_EXPORTS})
-else:  # the same names for type checkers (test_exports.py keeps both alike)
+else:  # the same names for type checkers (tests/test_lazy_exports.py keeps both alike)
     from ._clock import ManualClock as ManualClock
     from ._clock import SimClock as SimClock
     from ._clock import SkewedClock as SkewedClock
