@@ -18,8 +18,9 @@ Where things live (ARCHITECTURE.md, "debug_gui", has the why):
 Public names are re-exported here; the UI is imported only by ``server`` and ``ui``.
 """
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from efficient_comm.lazy import lazy_exports
 
 #: Each public name and the module that defines it, imported on first use: the commands
 #: (``debug_gui``, the demo) answer a bad option before the data side is imported.
@@ -43,16 +44,7 @@ _EXPORTS: dict[str, str] = {
 __all__ = sorted([*_EXPORTS, "main"])
 
 if not TYPE_CHECKING:  # hidden from type checkers, which would take any name as valid
-    def __getattr__(name: str) -> Any:
-        module = _EXPORTS.get(name)
-        if module is None:
-            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-        value = getattr(importlib.import_module(module, __name__), name)
-        globals()[name] = value  # later uses find it without coming here
-        return value
-
-    def __dir__() -> list[str]:
-        return sorted({*globals(), *_EXPORTS})
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 else:  # the same names for type checkers (tests/test_lazy_exports.py keeps both alike)
     from .errors import AccessDenied as AccessDenied
     from .errors import CallFailed as CallFailed

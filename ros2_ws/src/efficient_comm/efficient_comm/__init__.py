@@ -21,6 +21,8 @@ Where things live (read ARCHITECTURE.md for the why):
 * ``from_msg``/``to_msg`` header stamp <-> integer nanoseconds; ``latched_qos`` the one
   latched profile;
 * ``run_standalone``, ``stop_on_sigterm`` for programs and console scripts of their own.
+* ``lazy``       a package's public names loaded on first use (``lazy_exports``; this
+                 package's own, debug_gui's).
 
 Everything public is re-exported here once; modules starting with ``_`` are private.
 The re-exports are loaded on first use (:data:`_EXPORTS`): a tool that reads bags or
@@ -30,8 +32,9 @@ prints messages imports the type names, not the container, shared memory and num
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .lazy import lazy_exports
 
 #: Each public name and the module that defines it, imported when the name is first used.
 _EXPORTS: dict[str, str] = {
@@ -87,16 +90,7 @@ __all__ = sorted(_EXPORTS)
 
 
 if not TYPE_CHECKING:  # hidden from type checkers, which would take any name as valid
-    def __getattr__(name: str) -> Any:
-        module = _EXPORTS.get(name)
-        if module is None:
-            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-        value = getattr(importlib.import_module(module, __name__), name)
-        globals()[name] = value  # later uses find it without coming here
-        return value
-
-    def __dir__() -> list[str]:
-        return sorted({*globals(), *_EXPORTS})
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 else:  # the same names for type checkers (tests/test_lazy_exports.py keeps both alike)
     from ._clock import ManualClock as ManualClock
     from ._clock import SimClock as SimClock
