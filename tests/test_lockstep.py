@@ -36,22 +36,22 @@ def _started(args: Sequence[str], domain: int, log: Path) -> Iterator[subprocess
 
 
 def _robots(
-    stack: ExitStack, domain: int, tmp: Path, seed: int
+    stack: ExitStack, domain: int, tmp: Path, seed: int, *, counts: bool = False
 ) -> dict[str, subprocess.Popen[bytes]]:
     return {
         name: stack.enter_context(_started(
-            ["robot", "--name", name, "--peer", peer, "--seed", str(seed)], domain,
-            tmp / f"{name}.log",
+            ["robot", "--name", name, "--peer", peer, "--seed", str(seed),
+             *(["--counts"] if counts else [])], domain, tmp / f"{name}.log",
         ))
         for name, peer in (("blue1", "red1"), ("red1", "blue1"))
     }
 
 
-def _run(tmp: Path, seed: int, steps: int) -> list[str]:
+def _run(tmp: Path, seed: int, steps: int, *, counts: bool = False) -> list[str]:
     """One whole run: two robots and the world; the world's value lines."""
     domain = isolated_domain_id()
     with ExitStack() as stack:
-        _robots(stack, domain, tmp, seed)
+        _robots(stack, domain, tmp, seed, counts=counts)
         world = subprocess.run(
             [*EXAMPLE, "world", "--robots", "blue1", "red1", "--steps", str(steps),
              "--timeout", "30"],
@@ -78,6 +78,33 @@ def test_seeded_runs_repeat_across_processes(tmp_path: Path) -> None:
         assert t == tick * DT_NS
         # Delivered before the next step, and not earlier: always one step old.
         assert peer == (t - DT_NS if tick > 1 else -1), line
+
+
+def test_counters_one_robot_reports_reach_the_other_by_the_next_step(tmp_path: Path) -> None:
+    """The barrier's counters (what rf_bridge's team link repeats by in lockstep): each robot
+    reports its tick count with every step; at the start of each step the other robot reads,
+    as the coordinator relayed it, exactly the count the reporter itself had then."""
+    steps = 40
+    _run(tmp_path, seed=3, steps=steps, counts=True)
+    line = re.compile(r"^(\w+) step (\d+) ticks (\d+) peer (-|\d+)$", re.MULTILINE)
+    own: dict[tuple[str, int], int] = {}
+    relayed: dict[tuple[str, int], str] = {}
+    for name in ("blue1", "red1"):
+        text = (tmp_path / f"{name}.log").read_text()
+        assert "no counters" not in text, text
+        for robot, t, ticks, peer in line.findall(text):
+            own[robot, int(t)] = int(ticks)
+            relayed[robot, int(t)] = peer
+    checked = 0
+    for (robot, t), peer in relayed.items():
+        other = "red1" if robot == "blue1" else "blue1"
+        if peer == "-":
+            assert t == 0, (robot, t)  # none before the first step
+            continue
+        assert int(peer) == own[other, t], (robot, t, peer, own[other, t])
+        checked += 1
+    assert checked >= 2 * (steps - 2), checked
+    assert max(own.values()) >= steps - 2  # the counts moved: the test could fail
 
 
 def _wait_for_line(log: Path, text: str, proc: subprocess.Popen[bytes], timeout_s: float) -> None:

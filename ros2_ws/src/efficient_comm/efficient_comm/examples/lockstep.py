@@ -15,6 +15,12 @@ sorted, then ``done``. Two runs with the same seed print the same lines; a peer 
 always from exactly one step before (a message crosses a process boundary in one step).
 Stop the robots with Ctrl-C. A robot that dies makes the world exit 1 with one line
 naming it.
+
+``robot --counts`` also shows the barrier's counters, what a link outside DDS repeats by
+(:meth:`~efficient_comm.simtime.LockstepParticipant.report`): the robot reports its tick
+count as ``<name>/ticks`` with every step and prints, at the start of each step, its own
+count and its peer's as the coordinator relayed it (``-`` before the first):
+``blue1 step T ticks N peer M``. The peer's M is the peer's own N at that step's start.
 """
 
 from __future__ import annotations
@@ -75,6 +81,10 @@ class Counter:
                                      qos=latched_qos())
         node.create_timer(period, self._tick)
 
+    @property
+    def ticks(self) -> int:
+        return self._ticks
+
     def _on_peer(self, msg: PointStamped) -> None:
         self._peer = msg
 
@@ -116,9 +126,31 @@ def robot(args: argparse.Namespace) -> int:
             print(f"error: {args.name}: nobody subscribed to {value_topic(args.name)} within "
                   f"{args.timeout:g} s (is the world running on this domain?)", file=sys.stderr)
             return 1
+        if args.counts:
+            _show_counts(container, counter, args.name, args.peer or "")
         print(f"{args.name}: ready", flush=True)
         container.spin()
     return 0
+
+
+def _show_counts(container: Container, counter: Counter, name: str, peer: str) -> None:
+    """Report ``counter``'s ticks to the barrier; at each step start, print them and the
+    peer's as relayed (``robot --counts``)."""
+    barrier = container.lockstep
+    assert barrier is not None  # robot() makes a lockstep container
+    barrier.report(f"{name}/ticks", lambda: counter.ticks)
+
+    def at_start(start_ns: int) -> None:
+        counts = barrier.counts_at(start_ns, timeout_s=10.0)
+        if counts is None:
+            print(f"{name} step {start_ns}: no counters from the world within 10 s",
+                  flush=True)
+            return
+        relayed = counts.get(f"{peer}/ticks")
+        print(f"{name} step {start_ns} ticks {counter.ticks} "
+              f"peer {'-' if relayed is None else relayed}", flush=True)
+
+    barrier.at_step_start(at_start)
 
 
 def _spawn(stack: ExitStack, robots: Sequence[str], seed: int,
@@ -196,6 +228,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--period", type=float, default=0.01, help="timer period, simulated s")
     r.add_argument("--timeout", type=float, default=30.0, help="s to wait for subscribers")
+    r.add_argument("--counts", action="store_true",
+                   help="report the tick count to the barrier; print own and peer's per step")
     w = sub.add_parser("world", help="the toy world (the step coordinator)")
     w.add_argument("--robots", nargs="+", required=True)
     w.add_argument("--steps", type=int, default=100)
