@@ -252,6 +252,11 @@ _lane_tests: dict[str, set[str]] = {}
 #: Seconds per "<lane> <node id>": the serial lanes' sums are a floor under the wall time,
 #: the parallel lane's is shared among the workers.
 _test_seconds: dict[str, float] = {}
+#: What each first attempt of a test run again said (node id, the end of its report): with
+#: ``--reruns`` a flaky test's failure was otherwise shown nowhere, only ``RERUN <id>``.
+_rerun_reports: list[tuple[str, str]] = []
+#: Lines of each such report kept for the summary (the assertion and what led to it).
+RERUN_LINES = 40
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
@@ -260,6 +265,9 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     _lane_tests.setdefault(lane, set()).add(report.nodeid)
     key = f"{lane} {report.nodeid}"
     _test_seconds[key] = _test_seconds.get(key, 0.0) + report.duration
+    if str(report.outcome) == "rerun":  # pytest-rerunfailures' mark on a failed first attempt
+        text = report.longreprtext.rstrip().splitlines()[-RERUN_LINES:]
+        _rerun_reports.append((f"{report.nodeid} ({report.when})", "\n".join(text)))
     if "root" not in report.keywords:
         return
     if report.skipped:
@@ -310,6 +318,11 @@ def _slowest_lines(count: int = 20) -> list[str]:
 
 def pytest_terminal_summary(terminalreporter: Any) -> None:
     _print_stuck_tests(terminalreporter)
+    if _rerun_reports and not hasattr(terminalreporter.config, "workerinput"):
+        terminalreporter.write_sep("=", "first attempts of the tests run again", yellow=True)
+        for nodeid, text in _rerun_reports:
+            terminalreporter.write_sep("-", nodeid)
+            terminalreporter.write_line(text)
     if _lane_seconds and not hasattr(terminalreporter.config, "workerinput"):
         terminalreporter.write_line(_lane_line())
         for line in _slowest_lines():

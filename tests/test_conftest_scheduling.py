@@ -103,3 +103,27 @@ def test_a_crashed_test_without_reruns_left_fails_and_is_not_run_again(tmp_path:
         run.stdout), run.stdout[-3000:]
     # Failed once and not run again: its flag file would let a second run pass.
     assert "1 failed, 14 passed" in run.stdout, run.stdout[-3000:]
+
+
+#: A test that fails its first run only, saying why.
+FAIL_ONCE = '''
+from pathlib import Path
+
+
+def test_fails_once() -> None:
+    flag = Path(__file__).with_name("failed.flag")
+    if not flag.exists():
+        flag.touch()
+        assert "first" == "second", "the first attempt's own words"
+'''
+
+
+def test_a_rerun_tests_first_failure_is_shown_in_the_summary(tmp_path: Path) -> None:
+    """A flaky test run again said only ``RERUN <id>``: why its first attempt failed was
+    printed nowhere, so the flakes of full runs could not be told apart."""
+    folder = _tests(tmp_path, {"test_a_quick.py": QUICK, "test_b_flaky.py": FAIL_ONCE})
+    run = _run(folder)
+    assert run.returncode == 0, run.stdout[-3000:]
+    summary = run.stdout.partition("first attempts of the tests run again")[2]
+    assert "tests/test_b_flaky.py::test_fails_once (call)" in summary, run.stdout[-3000:]
+    assert "the first attempt's own words" in summary, run.stdout[-3000:]
