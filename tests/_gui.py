@@ -373,6 +373,7 @@ def choose(driver: Any, testid: str, option: str, *, timeout_s: float = 10.0) ->
     """Pick ``option`` (its text) in the NiceGUI select ``testid``."""
     from selenium.webdriver.common.by import By
 
+    opened = [time.monotonic()]
     by_testid(driver, testid).click()
 
     def item() -> Any:
@@ -391,6 +392,13 @@ def choose(driver: Any, testid: str, option: str, *, timeout_s: float = 10.0) ->
 
         element = item()
         if element is None:
+            # A menu re-rendered while open may close: with no menu for a second after the
+            # last click, open it again (a full run once waited 10 s before a closed menu).
+            if (not driver.find_elements(By.CSS_SELECTOR, ".q-menu")
+                    and time.monotonic() - opened[0] > 1.0):
+                opened[0] = time.monotonic()
+                with contextlib.suppress(Exception):  # re-rendered meanwhile: next round
+                    by_testid(driver, testid).click()
             return False
         try:
             element.click()
