@@ -178,6 +178,13 @@ def robot() -> Iterator[Robot]:
         peer.close()
 
 
+def wait_for_node(hub: Hub, node: str) -> None:
+    end = time.monotonic() + TIMEOUT_S
+    while not any(node in hub.nodes(robot) for robot in hub.robots()):
+        assert time.monotonic() < end, f"the Hub never saw the node {node}"
+        time.sleep(0.05)  # the Hub has no event for a node's arrival; polled with a deadline
+
+
 @pytest.fixture
 def policy() -> AccessPolicy:
     return AccessPolicy.for_server()
@@ -187,6 +194,9 @@ def policy() -> AccessPolicy:
 def endpoint(robot: Robot, policy: AccessPolicy) -> Iterator[FoxgloveEndpoint]:
     with Hub(domains=[robot.domain]) as hub:
         assert hub.wait_for_robots(1, timeout_s=TIMEOUT_S), "the Hub never saw the robot"
+        # The robot is seen by its statistics topic; its node's name reaches the Hub by
+        # another discovery message, sometimes later: parameters are addressed by node.
+        wait_for_node(hub, f"{robot.namespace}/detector")
         with serve_foxglove(hub, policy=policy, port=0, refresh_s=0.2) as served:
             yield served
 

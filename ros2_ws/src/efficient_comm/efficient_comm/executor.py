@@ -797,26 +797,41 @@ def take_samples(sub: Any, *, limit: int | None = None) -> int:
     """Run ``sub``'s callback on each sample its reader holds now (at most ``limit``);
     returns how many (rclpy's handler takes one a wait). ``sub`` is an ``rclpy``
     Subscription; 0 once it is destroyed. Also the lockstep barrier's intake
-    (:mod:`.simtime`), which takes a step's whole inbox."""
-    from rclpy.exceptions import InvalidHandle
-    from rclpy.subscription import Subscription
-
-    whole = sub._callback_type is not Subscription.CallbackType.MessageOnly
+    (:mod:`.simtime`), which asks every reader of a container each step, mostly to hear
+    it is empty: so this is kept lean (rclpy's names looked up once per process)."""
+    invalid, message_only = _rclpy_names()
+    whole = sub._callback_type is not message_only
+    handle, msg_type, raw, callback = sub.handle, sub.msg_type, sub.raw, sub.callback
     taken = 0
     while limit is None or taken < limit:
         try:
-            with sub.handle:
-                info = sub.handle.take_message(sub.msg_type, sub.raw)
-        except InvalidHandle:  # destroyed meanwhile
+            with handle:
+                info = handle.take_message(msg_type, raw)
+        except invalid:  # destroyed meanwhile
             return taken
         if info is None:
             return taken
         taken += 1
         if whole:
-            sub.callback(*info)
+            callback(*info)
         else:
-            sub.callback(info[0])
+            callback(info[0])
     return taken
+
+
+_RCLPY_NAMES: tuple[type[Exception], Any] | None = None
+
+
+def _rclpy_names() -> tuple[type[Exception], Any]:
+    """rclpy's InvalidHandle and MessageOnly callback type, imported on first use (a
+    container without DDS never imports rclpy)."""
+    global _RCLPY_NAMES
+    if _RCLPY_NAMES is None:
+        from rclpy.exceptions import InvalidHandle
+        from rclpy.subscription import Subscription
+
+        _RCLPY_NAMES = (InvalidHandle, Subscription.CallbackType.MessageOnly)
+    return _RCLPY_NAMES
 
 
 class _Owner:

@@ -86,7 +86,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.event_handler import QoSLivelinessChangedInfo, SubscriptionEventCallbacks
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import ShutdownException, SingleThreadedExecutor, TimeoutException
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -100,6 +100,7 @@ from std_msgs.msg import Header
 from ._clock import SimClock, from_msg, to_msg
 from ._closing import Closing
 from ._qos import latched_qos
+from ._reader_wait import ReaderWait
 from .dds import prepare_process
 from .errors import ConfigError, LockstepError
 from .executor import take_samples
@@ -126,6 +127,8 @@ COUNTS_TOPIC = "/efficient_comm/lockstep/counts"
 _ACK_PREFIX = "/efficient_comm/lockstep/"
 #: A participant whose process is gone for this long is reported as gone.
 LIVELINESS_LEASE_S = 2.0
+#: The coordinator looks at its liveliness events at least this often while it waits.
+EVENTS_PERIOD_S = 0.25
 
 Round = Literal["ready", "intake", "step"]
 
@@ -202,10 +205,10 @@ class LockstepParticipant:
         self._intake_sub = node.create_subscription(
             Header, INTAKE_TOPIC, self._on_intake, _step_qos()
         )
-        follow_clock(node, clock, reliable=True)
+        clock_sub = follow_clock(node, clock, reliable=True)
         self._wake = node.create_guard_condition(lambda: None)
-        self._executor = SingleThreadedExecutor(context=container.context)
-        self._executor.add_node(node)
+        self._waiter = ReaderWait(container.context, (self._intake_sub, clock_sub),
+                                  guard=self._wake)
         #: The time of an intake round asked for and not yet done (the executor does it).
         self.intake_due: int | None = None
         #: The time of the last intake done (asked for, or implied by a one-round step).
@@ -252,6 +255,7 @@ class LockstepParticipant:
             qos.depth = 1000
             self._counts_sub = self._node.create_subscription(
                 Header, COUNTS_TOPIC, self._on_counts, qos)
+            self._waiter.add(self._counts_sub)
 
     def _on_counts(self, msg: Header) -> None:
         t = from_msg(msg.stamp)
@@ -274,7 +278,7 @@ class LockstepParticipant:
             left = deadline - time.monotonic()
             if left <= 0:
                 return None
-            self._executor.spin_once(timeout_sec=min(left, 0.5))
+            self._waiter.wait(min(left, 0.5))
         best: dict[str, int] = {}
         for t, counts in self._counts:
             if t > t_ns:
@@ -299,14 +303,15 @@ class LockstepParticipant:
     def wait(self, timeout_s: float) -> None:
         """Wait up to ``timeout_s`` for the coordinator's next round (intake or ``/clock``).
 
-        The barrier's two subscriptions have a node and a wait set of their own: the
+        The barrier's subscriptions have a node and a wait set of their own, kept for the
+        participant's life (:class:`~efficient_comm._reader_wait.ReaderWait`): the
         container's wait set holds every component's node (each with its DDS readers,
         parameter services and events), and building it is milliseconds of Python; a step
         waited on it twice and took its inbox through it, so the barrier, not the robot's
         work, was most of a robot's CPU in lockstep. Everything else on DDS is taken
         directly at intake (:meth:`take`) or polled now and then by the executor.
         """
-        self._executor.spin_once(timeout_sec=timeout_s)
+        self._waiter.wait(timeout_s)
 
     def wake(self) -> None:
         """End a :meth:`wait` early (another thread queued work for the executor)."""
@@ -344,7 +349,7 @@ class LockstepParticipant:
         self._ack.publish(Header(stamp=to_msg(t_ns), frame_id=frame))
 
     def close(self) -> None:
-        self._executor.shutdown()
+        self._waiter.close()
         self._node.destroy_node()
 
 
@@ -408,13 +413,19 @@ class StepCoordinator(Closing):
             #: Per participant: the counters of its last step acknowledgement (see
             #: "Links outside DDS").
             self.counters: dict[str, dict[str, int]] = {}
-            for p in self.participants:
+            acks = tuple(
                 self._node.create_subscription(
                     Header, ack_topic(p), partial(self._on_ack, p), _ack_qos(),
                     event_callbacks=SubscriptionEventCallbacks(
                         liveliness=partial(self._on_liveliness, p)
                     ),
                 )
+                for p in self.participants
+            )
+            # Acknowledgements through a wait set of their own (see ReaderWait); the
+            # executor only for the liveliness events, when a wait brought nothing.
+            self._waiter = ReaderWait(self.context, acks)
+            self._events_due = 0.0
             self._executor = SingleThreadedExecutor(context=self.context)
             self._executor.add_node(self._node)
         except BaseException:
@@ -501,7 +512,19 @@ class StepCoordinator(Closing):
                     f"{timeout_s:g} s; last acknowledged: {self._describe(waiting)}",
                     participants=tuple(waiting),
                 )
-            self._executor.spin_once(timeout_sec=min(left, 0.5))
+            if not self._waiter.wait(min(left, EVENTS_PERIOD_S)) or (
+                    time.monotonic() >= self._events_due):
+                self._poll_events()
+
+    def _poll_events(self) -> None:
+        """Run the liveliness events (who joined, who is gone) rclpy's executor has ready."""
+        self._events_due = time.monotonic() + EVENTS_PERIOD_S
+        while True:
+            try:
+                handler, _, _ = self._executor.wait_for_ready_callbacks(0.0)
+            except (TimeoutException, ShutdownException):
+                return
+            handler()
 
     def _describe(self, names: Iterable[str]) -> str:
         parts = []
@@ -512,6 +535,7 @@ class StepCoordinator(Closing):
         return "; ".join(parts)
 
     def close(self) -> None:
+        self._waiter.close()
         self._executor.shutdown()
         self._node.destroy_node()
         self.context.try_shutdown()

@@ -1,0 +1,123 @@
+"""The lockstep barrier's wait (efficient_comm._reader_wait): one wait set for its life,
+every sample of each ready subscription taken, woken by its guard from another thread."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from efficient_comm._qos import latched_qos
+from efficient_comm._reader_wait import ReaderWait
+from efficient_comm.testing import isolated_domain_id, unique_topic
+
+
+def _node(name: str, domain: int) -> Any:
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    return rclpy.create_node(name, context=context, enable_rosout=False,
+                             start_parameter_services=False)
+
+
+def _close(node: Any) -> None:
+    context = node.context
+    node.destroy_node()
+    context.try_shutdown()
+
+
+@pytest.fixture
+def nodes() -> Iterator[tuple[Any, Any]]:
+    """A node that waits and a peer in a participant of its own (the process may already
+    ignore its own endpoints: efficient_comm.dds)."""
+    domain = isolated_domain_id()
+    node, peer = _node("reader_wait", domain), _node("peer", domain)
+    try:
+        yield node, peer
+    finally:
+        _close(peer)
+        _close(node)
+
+
+def _qos() -> QoSProfile:
+    return QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _matched(waiter: ReaderWait, pub: Any) -> None:
+    _wait_until(waiter, lambda: pub.get_subscription_count() > 0)
+
+
+def _wait_until(waiter: ReaderWait, done: Any, timeout_s: float = 10.0) -> None:
+    end = time.monotonic() + timeout_s
+    while not done():
+        assert time.monotonic() < end, "nothing came"
+        waiter.wait(0.5)
+
+
+def test_every_sample_of_a_ready_subscription_is_taken_and_others_added_later(
+        nodes: tuple[Any, Any]) -> None:
+    node, peer = nodes
+    first, second = unique_topic("first"), unique_topic("second")
+    got: list[tuple[str, str]] = []
+    subs = (node.create_subscription(String, first, lambda m: got.append(("a", m.data)),
+                                     _qos()),)
+    waiter = ReaderWait(node.context, subs)
+    try:
+        pub = peer.create_publisher(String, first, _qos())
+        later = peer.create_publisher(String, second, _qos())
+        _matched(waiter, pub)
+        assert waiter.wait(0.0) == 0
+        for i in range(3):
+            pub.publish(String(data=str(i)))
+        assert pub.wait_for_all_acked()  # all three are in the reader's cache now
+        assert waiter.wait(10.0) == 3  # one wait takes every sample the reader holds
+        assert got == [("a", "0"), ("a", "1"), ("a", "2")]  # in order, none twice
+
+        # A subscription added after the first wait is waited on too.
+        waiter.add(node.create_subscription(String, second,
+                                            lambda m: got.append(("b", m.data)),
+                                            _qos()))
+        _matched(waiter, later)
+        later.publish(String(data="x"))
+        _wait_until(waiter, lambda: ("b", "x") in got)
+        assert got.count(("b", "x")) == 1
+    finally:
+        waiter.close()
+
+
+def test_the_guard_ends_a_wait_at_once_and_a_destroyed_subscription_is_dropped(
+        nodes: tuple[Any, Any]) -> None:
+    node, _ = nodes
+    sub = node.create_subscription(String, unique_topic("quiet"), lambda _m: None,
+                                   latched_qos())
+    guard = node.create_guard_condition(lambda: None)
+    waiter = ReaderWait(node.context, (sub,), guard=guard)
+    try:
+        timer = threading.Timer(0.2, guard.trigger)
+        timer.start()
+        start = time.monotonic()
+        assert waiter.wait(30.0) == 0
+        assert time.monotonic() - start < 10.0  # woken, not timed out
+        timer.join()
+
+        node.destroy_subscription(sub)
+        assert waiter.wait(0.0) == 0  # dropped, not an error
+        assert waiter.wait(0.0) == 0
+    finally:
+        waiter.close()
+
+
+def test_a_wait_after_shutdown_raises_as_rclpy_executors_do(nodes: tuple[Any, Any]) -> None:
+    node, _ = nodes
+    waiter = ReaderWait(node.context, ())
+    node.context.try_shutdown()
+    with pytest.raises(ExternalShutdownException):
+        waiter.wait(0.0)
+    waiter.close()
