@@ -1,19 +1,19 @@
-"""A wait on a few DDS subscriptions with one wait set kept for its life (the lockstep
-barrier's two ends wait on it every round).
+"""Waits on DDS with one wait set kept across waits, instead of rclpy's executor, which
+builds a new one on every wait, in Python, from every entity of its nodes: each
+subscription and publisher with its QoS event handlers, each guard condition, an ExitStack
+entry per handle.
 
-rclpy's executor builds a new wait set on every wait, in Python, from every entity of its
-nodes: each subscription with its QoS event handlers, each guard condition, its own guards,
-an ExitStack entry per handle. For the barrier's small node that is about 0.23 ms a wait on
-the project's two-core machine, several times a step; in a profile of a lockstep team match
-it was a third of each robot's main-thread CPU, and as much of the world's. Here the wait
-set is made once (rebuilt only when a subscription is added), each wait puts the same
-handles in again (rcl empties a wait set on every wait) and takes every sample of each ready
-subscription at once, running its callback on the calling thread.
+* :class:`ReaderWait`: a few subscriptions and a guard, the lockstep barrier's two ends
+  every round. rclpy's wait cost about 0.23 ms for the barrier's small node on the
+  project's two-core machine, several times a step; in a profile of a lockstep team match
+  it was a third of each robot's main-thread CPU, and as much of the world's.
+* :class:`NodesWait`: every subscription, service, client, timer and guard of a
+  container's nodes, the executor's DDS wait in real time (``ConsecutiveExecutor``).
 
-QoS events (liveliness) are not waited on: their owner still spins its rclpy executor now
-and then for them (:class:`~efficient_comm.simtime.StepCoordinator` does when a wait brought
-nothing). Ctrl-C ends a wait at once: the wait set holds a guard condition rclpy's signal
-handler triggers, as its executors' do.
+Each wait puts the same handles in again (rcl empties a wait set on every wait); samples
+of ready subscriptions are taken all at once (:func:`~efficient_comm.executor.take_samples`).
+Ctrl-C ends a wait at once: the wait set holds a guard condition rclpy's signal handler
+triggers, as its executors' do.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import contextlib
 from typing import Any
 
 from rclpy.context import Context
+from rclpy.event_handler import QoSPublisherEventType
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException
 from rclpy.guard_condition import GuardCondition
@@ -31,13 +32,17 @@ from rclpy.subscription import Subscription
 
 from .executor import take_samples
 
-__all__ = ["ReaderWait"]
+__all__ = ["NodesWait", "ReaderWait"]
+
+_PUBLISHER_MATCHED = QoSPublisherEventType.RCL_PUBLISHER_MATCHED
 
 
 class ReaderWait:
     """Wait for samples on ``subscriptions`` (more with :meth:`add`) or for ``guard`` to be
     triggered (another thread's wake-up), and run the callbacks of what came. Not
-    thread-safe: one thread waits (another may trigger ``guard``)."""
+    thread-safe: one thread waits (another may trigger ``guard``). QoS events (liveliness)
+    are not waited on: :class:`~efficient_comm.simtime.StepCoordinator` runs its rclpy
+    executor for those now and then."""
 
     def __init__(self, context: Context, subscriptions: tuple[Subscription, ...] = (), *,
                  guard: GuardCondition | None = None) -> None:
@@ -97,3 +102,108 @@ def _valid(sub: Subscription) -> bool:
             return True
     except InvalidHandle:
         return False
+
+
+class NodesWait:
+    """Wait on every subscription, service, client, rclpy timer and guard condition of an
+    rclpy executor's nodes, with one wait set rebuilt only when those change.
+
+    What a container's executor blocks in between its timers when it talks DDS in real
+    time. rclpy's own wait (``Executor._wait_for_ready_callbacks``) rebuilds its wait set on
+    every call and adds each entity's QoS event handlers too (three or more per publisher
+    and subscription): about 7 ms of CPU a wait for 20 nodes with their parameter services
+    on the project's machine, against 0.8 ms here; in profiles of the team match that
+    wait was a third of the world's main thread and a quarter of each robot's. QoS events
+    are left out (hundreds of them; the caller runs rclpy's wait now and then for those)
+    but for the publishers' "matched" events, which are run here at once: a composed
+    publisher writes DDS only while a reader is matched (efficient_comm.bus), so a late
+    event would drop what a new subscriber should get.
+    """
+
+    def __init__(self, executor: Any) -> None:
+        self._executor = executor
+        self._context: Context = executor.context
+        self._sigint = SignalHandlerGuardCondition(self._context)
+        self._key: tuple[tuple[int, ...], ...] | None = None
+        self._set: Any = None
+        self._subs: list[Any] = []
+        self._services: list[Any] = []
+        self._clients: list[Any] = []
+        self._timers: list[Any] = []
+        self._guards: list[Any] = []
+        self._matched: list[Any] = []
+
+    def _refresh(self) -> None:
+        nodes = self._executor.get_nodes()
+        key = tuple((id(n), len(n._subscriptions), len(n._services), len(n._clients),
+                     len(n._timers), len(n._guards), len(n._publishers)) for n in nodes)
+        if key == self._key:
+            return
+        self._key, self._set = key, None
+        self._matched = [h for n in nodes for p in n._publishers for h in p.event_handlers
+                         if h.event_type == _PUBLISHER_MATCHED]
+        self._subs = [e for n in nodes for e in n._subscriptions]
+        self._services = [e for n in nodes for e in n._services]
+        self._clients = [e for n in nodes for e in n._clients]
+        self._timers = [e for n in nodes for e in n._timers]
+        self._guards = [e for n in nodes for e in n._guards] + [self._sigint]
+
+    def wait(self, timeout_s: float) -> tuple[list[Any], list[Any], bool]:
+        """Wait up to ``timeout_s``; returns the ready subscriptions (their samples not
+        taken), the triggered guard conditions, and whether a service, client or rclpy
+        timer is ready (for rclpy's executor to run). Raises rclpy's
+        ExternalShutdownException once the context is shut down."""
+        if not self._context.ok():
+            raise ExternalShutdownException()
+        self._refresh()
+        groups = (self._subs, self._services, self._clients, self._timers, self._guards)
+        with contextlib.ExitStack() as held:
+            try:
+                for group in groups:
+                    for entity in group:
+                        held.enter_context(entity.handle)
+                for handler in self._matched:
+                    held.enter_context(handler)
+            except InvalidHandle:  # destroyed meanwhile: look again next time
+                self._key = None
+                return [], [], False
+            context = self._context.handle
+            if context is None:
+                raise ExternalShutdownException()
+            held.enter_context(context)
+            if self._set is None:
+                self._set = _rclpy.WaitSet(len(self._subs), len(self._guards),
+                                           len(self._timers), len(self._clients),
+                                           len(self._services), len(self._matched), context)
+            wait_set = self._set
+            wait_set.clear_entities()
+            for sub in self._subs:
+                wait_set.add_subscription(sub.handle)
+            for service in self._services:
+                wait_set.add_service(service.handle)
+            for client in self._clients:
+                wait_set.add_client(client.handle)
+            for timer in self._timers:
+                wait_set.add_timer(timer.handle)
+            for guard in self._guards:
+                wait_set.add_guard_condition(guard.handle)
+            for handler in self._matched:
+                handler.add_to_wait_set(wait_set)
+            wait_set.wait(max(0, round(timeout_s * 1e9)))
+            ready = set(wait_set.get_ready_entities("subscription"))
+            subs = [s for s in self._subs if s.handle.pointer in ready] if ready else []
+            fired = set(wait_set.get_ready_entities("guard_condition"))
+            guards = [g for g in self._guards if g.handle.pointer in fired] if fired else []
+            other = bool(wait_set.get_ready_entities("service")
+                         or wait_set.get_ready_entities("client")
+                         or wait_set.get_ready_entities("timer"))
+            matched = [h for h in self._matched if h.is_ready(wait_set)]
+        for handler in matched:  # what rclpy's executor does with a ready event
+            if (data := handler.take_data()) is not None:
+                handler.callback(data)
+        return subs, guards, other
+
+    def close(self) -> None:
+        with contextlib.suppress(InvalidHandle, ValueError):
+            self._sigint.destroy()
+        self._set = None

@@ -44,6 +44,7 @@ from .stats import CallbackStats, StatsRegistry, StatsSnapshot
 if TYPE_CHECKING:
     from rclpy.executors import Executor as RclpyExecutor
 
+    from ._reader_wait import NodesWait
     from .bus import LocalSubscription
     from .handle import Clock, ClockKind, Logger
     from .simtime import LockstepParticipant
@@ -59,6 +60,9 @@ DDS_POLL_INTERVAL_NS = 1_000_000
 #: ...but a poll (an rclpy wait-set round over every node's entities, 0.2-0.6 ms) may take
 #: at most this share of busy time, so the interval grows with the measured poll cost.
 DDS_POLL_SHARE = 0.05
+#: Between real-time waits on DDS, its QoS events (publication matched, message lost) are
+#: taken this often through rclpy's wait (see ConsecutiveExecutor._dds_wait).
+DDS_EVENTS_POLL_NS = 250_000_000
 #: Samples taken at most from one ready DDS reader per wait beyond the first (its history
 #: bounds what it holds; this bounds a reader that keeps receiving while it is taken).
 MAX_TAKES = 64
@@ -210,6 +214,8 @@ class ConsecutiveExecutor:
         self._dds: RclpyExecutor | None = None
         self._dds_wake: Callable[[], None] | None = None
         self._own_wait: OwnWait | None = None
+        self._nodes_wait: NodesWait | None = None
+        self._events_due = 0
         self._last_dds_poll = 0
         self._dds_poll_interval = DDS_POLL_INTERVAL_NS
         self.registry = StatsRegistry()
@@ -238,6 +244,9 @@ class ConsecutiveExecutor:
         own, self._own_wait = self._own_wait, None
         if own is not None:
             own.stop()
+        nodes, self._nodes_wait = self._nodes_wait, None
+        if nodes is not None:
+            nodes.close()
         self._dds_wake = None
         self._dds = None
         self._wake_event.set()
@@ -548,11 +557,40 @@ class ConsecutiveExecutor:
                 own.poll()
             self._last_dds_poll = time.monotonic_ns()
         elif self._dds is not None:
-            self._run_dds_ready(self._dds, timeout_s)
+            self._dds_wait(self._dds, timeout_s)
             self._last_dds_poll = time.monotonic_ns()
         else:
             self._wake_event.wait(timeout_s)
             self._wake_event.clear()
+
+    def _dds_wait(self, dds: RclpyExecutor, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` on DDS and run what came: the subscriptions' samples
+        taken here directly, services, clients and rclpy timers through rclpy's executor.
+
+        The wait is :class:`~efficient_comm._reader_wait.NodesWait`'s, on a wait set kept
+        across waits: rclpy's executor builds one per wait from every entity with its QoS
+        event handlers, milliseconds of Python that were a third of a real-time world's
+        main thread. The events (publication matched, message lost) are taken through
+        rclpy's wait every :data:`DDS_EVENTS_POLL_NS`, when the wait above ends for it.
+        """
+        now = time.monotonic_ns()
+        if now >= self._events_due:
+            self._events_due = now + DDS_EVENTS_POLL_NS
+            if self._run_dds_ready(dds, 0.0):
+                return  # something ran: the caller looks at its timers first
+        nodes = self._nodes_wait
+        if nodes is None:
+            from ._reader_wait import NodesWait
+
+            nodes = self._nodes_wait = NodesWait(dds)
+        subs, guards, other = nodes.wait(min(timeout_s, (self._events_due - now) / 1e9))
+        for guard in guards:
+            if guard.callback is not None:  # rclpy calls a triggered guard's callback
+                guard.callback()
+        for sub in subs:
+            take_samples(sub, limit=MAX_TAKES)
+        if other:
+            self._run_dds_ready(dds, 0.0)
 
     def _run_dds_ready(self, dds: RclpyExecutor, timeout_s: float) -> int:
         """One DDS wait (up to ``timeout_s``), then every callback it found ready, and of

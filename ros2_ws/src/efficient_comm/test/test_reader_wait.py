@@ -16,7 +16,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from efficient_comm._qos import latched_qos
-from efficient_comm._reader_wait import ReaderWait
+from efficient_comm._reader_wait import NodesWait, ReaderWait
+from efficient_comm.executor import take_samples
 from efficient_comm.testing import isolated_domain_id, unique_topic
 
 
@@ -121,3 +122,58 @@ def test_a_wait_after_shutdown_raises_as_rclpy_executors_do(nodes: tuple[Any, An
     with pytest.raises(ExternalShutdownException):
         waiter.wait(0.0)
     waiter.close()
+
+
+def test_a_nodes_wait_takes_samples_says_when_rclpys_work_is_ready_and_runs_matched_events(
+        nodes: tuple[Any, Any]) -> None:
+    """NodesWait (a real-time container's DDS wait): samples of ready subscriptions are left
+    to the caller, a service request is reported for rclpy's executor, and a publisher's
+    "matched" event runs its callback at once (a composed publisher writes DDS only while
+    a reader is matched)."""
+    from rclpy.event_handler import PublisherEventCallbacks
+    from rclpy.executors import SingleThreadedExecutor
+
+    from efficient_comm_interfaces.srv import ListComponents
+
+    node, peer = nodes
+    topic, service = unique_topic("nodes"), unique_topic("trigger")
+    got: list[str] = []
+    matched: list[int] = []
+    node.create_subscription(String, topic, lambda m: got.append(m.data), _qos())
+    node.create_service(ListComponents, service, lambda _req, resp: resp)
+    def on_matched(status: Any) -> None:
+        matched.append(status.current_count)
+
+    out = node.create_publisher(String, unique_topic("out"), _qos(),
+                                event_callbacks=PublisherEventCallbacks(matched=on_matched))
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    waiter = NodesWait(executor)
+    try:
+        pub = peer.create_publisher(String, topic, _qos())
+        end = time.monotonic() + 10.0
+        while pub.get_subscription_count() == 0:
+            assert time.monotonic() < end, "never matched"
+            waiter.wait(0.1)
+        pub.publish(String(data="hi"))
+        assert pub.wait_for_all_acked()
+        subs, _, other = waiter.wait(10.0)
+        assert [s.topic_name for s in subs] == [topic] and not other
+        assert take_samples(subs[0]) == 1 and got == ["hi"]
+
+        client = peer.create_client(ListComponents, service)
+        assert client.wait_for_service(timeout_sec=10.0)
+        client.call_async(ListComponents.Request())
+        end = time.monotonic() + 10.0
+        while not waiter.wait(0.5)[2]:  # the request: for rclpy's executor to serve
+            assert time.monotonic() < end, "the request never showed"
+
+        peer.create_subscription(String, out.topic_name, lambda _m: None, _qos())
+        end = time.monotonic() + 10.0
+        while not matched:  # run by the wait itself, not by rclpy's executor
+            assert time.monotonic() < end, "the matched event never ran"
+            waiter.wait(0.5)
+        assert matched == [1]
+    finally:
+        waiter.close()
+        executor.shutdown()
