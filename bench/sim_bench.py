@@ -70,7 +70,8 @@ def bus_cycles(cycles: int, *, fast: bool) -> dict[str, float]:
     from humanoid_sim.driver import ADDR_GOAL, ADDR_TORQUE, ADDR_VELOCITY, READ_LENGTH
     from humanoid_sim.dynamixel.bus import Bus
     from humanoid_sim.dynamixel.pty import PtyBus
-    from humanoid_sim.mujoco_plant import JOINTS, MujocoPlant
+    from humanoid_sim.joints import JOINTS
+    from humanoid_sim.mujoco_plant import MujocoPlant
 
     with PtyBus(Bus(JOINTS, MujocoPlant())) as pty:
         port, packets = PortHandler(pty.port), PacketHandler(2.0)
@@ -106,7 +107,8 @@ def bus_work(cycles: int) -> dict[str, float]:
     from humanoid_sim.driver import ADDR_VELOCITY, READ_LENGTH
     from humanoid_sim.dynamixel.bus import Bus
     from humanoid_sim.dynamixel.protocol import Instruction, Parser, encode
-    from humanoid_sim.mujoco_plant import JOINTS, MujocoPlant
+    from humanoid_sim.joints import JOINTS
+    from humanoid_sim.mujoco_plant import MujocoPlant
 
     class Replay:
         """What dynamixel-sdk reads a reply through: the bytes the emulator answered."""

@@ -51,7 +51,8 @@ MUJOCO_QUALITY = (28, 16, 4)
 def measure(robots: int, *, steps: int, frames: int) -> dict[str, float]:
     import numpy as np
 
-    from humanoid_sim.mujoco_plant import JOINTS, NO_LOAD_SPEED_RAD_S
+    from humanoid_sim.joints import JOINTS
+    from humanoid_sim.mujoco_plant import NO_LOAD_SPEED_RAD_S
     from humanoid_sim.render import OffscreenRenderer
     from humanoid_sim.soccer.motion import STANCE
     from humanoid_sim.world import DEFAULT_START, World

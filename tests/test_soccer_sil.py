@@ -28,7 +28,7 @@ from efficient_comm import ComponentError, Container
 from efficient_comm.testing import TestHandle, isolated_domain_id, ros_env, test_container
 from humanoid_sim.driver import MISSING_AFTER
 from humanoid_sim.errors import HumanoidSimError, SimConfigError
-from humanoid_sim.mujoco_plant import JOINTS
+from humanoid_sim.joints import JOINTS
 from humanoid_sim.soccer.compose import SoccerRobot, compose
 from humanoid_sim.soccer.fall import LATCHED
 from humanoid_sim.soccer.motion import STANCE

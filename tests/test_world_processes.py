@@ -11,7 +11,7 @@ from geometry_msgs.msg import Point, PoseStamped, Quaternion
 from sensor_msgs.msg import Image, JointState
 
 from efficient_comm.testing import isolated_domain_id
-from humanoid_sim.mujoco_plant import JOINTS
+from humanoid_sim.joints import JOINTS
 
 from ._ros import child, executable, peer, wait_until
 

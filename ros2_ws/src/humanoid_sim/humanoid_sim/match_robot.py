@@ -65,9 +65,9 @@ from efficient_comm.handle import NodeHandle
 from soccer_interfaces.msg import GameState
 
 from .driver import ServoDriver, WaitingPortHandler
+from .joints import JOINTS
+from .match_devices import DEVICE, IMU_DEPTH
 from .match_recording import add_robot_recording
-from .match_world import DEVICE, IMU_DEPTH
-from .mujoco_plant import JOINTS
 from .soccer.arbiter import MotionArbiter
 from .soccer.behaviour import HeadBehaviour
 from .soccer.fall import LATCHED, FallDetector

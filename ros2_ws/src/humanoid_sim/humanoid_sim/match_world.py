@@ -66,22 +66,15 @@ from efficient_comm.handle import NodeHandle
 from robot_recorder import Recorder
 from soccer_interfaces.msg import GameState
 
+from .match_devices import DEVICE, IMU_DEPTH
 from .match_recording import ClockServers, world_topics
 from .match_video import MatchCamera
 from .soccer.team_referee import STATE_NAMES, TeamReferee
 from .world_simulator import WorldSimulator
 
-#: Where a robot's devices arrive on its domain (``/<robot>/device/imu/data``, ...); the
-#: robot's :class:`~.match_robot.DeviceInput` takes each once from DDS and publishes it
-#: in-process under the usual name.
-DEVICE = "device"
 #: Lockstep: how long the world waits for a robot's step, and for every robot to join.
 STEP_TIMEOUT_S = 60.0
 JOIN_TIMEOUT_S = 180.0
-#: The IMU's history on a robot's domain (both ends): at 100 Hz, half a second. A loaded
-#: robot takes DDS samples only between its callbacks; with 10, the writer overwrote what
-#: the robot had not taken yet.
-IMU_DEPTH = 50
 
 
 class SensorLink:

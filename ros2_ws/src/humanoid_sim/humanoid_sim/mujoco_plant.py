@@ -30,6 +30,7 @@ import numpy.typing as npt
 
 from .dynamixel.plant import JointState
 from .errors import SimConfigError
+from .joints import JOINTS
 
 #: XM430-W350 at 12 V, from the ROBOTIS e-Manual's specification table.
 STALL_TORQUE_NM = 4.1
@@ -43,19 +44,6 @@ ROTOR_INERTIA_KG_M2 = 1.0e-7
 TORQUE_PER_AMP = STALL_TORQUE_NM / STALL_CURRENT_A
 
 MODEL = Path(__file__).with_name("models") / "soccer_field.xml"
-
-#: Servo ids of the 20 joints, as the robot's wiring would number them.
-JOINTS: dict[int, str] = {
-    i + 1: name
-    for i, name in enumerate([
-        "neck_yaw", "neck_pitch",
-        "l_shoulder_pitch", "l_shoulder_roll", "l_elbow",
-        "r_shoulder_pitch", "r_shoulder_roll", "r_elbow",
-        "l_hip_yaw", "l_hip_roll", "l_hip_pitch", "l_knee", "l_ankle_pitch", "l_ankle_roll",
-        "r_hip_yaw", "r_hip_roll", "r_hip_pitch", "r_knee", "r_ankle_pitch", "r_ankle_roll",
-    ])
-}
-
 
 ROBOT_MODEL = MODEL.with_name("robot.xml")
 FIELD_MODEL = MODEL.with_name("field.xml")

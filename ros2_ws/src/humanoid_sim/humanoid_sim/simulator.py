@@ -55,7 +55,8 @@ from . import sensors
 from .dynamixel.bus import Bus
 from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus, make_port_link, remove_port_link
 from .errors import SimConfigError
-from .mujoco_plant import JOINTS, MujocoPlant, set_ball
+from .joints import JOINTS
+from .mujoco_plant import MujocoPlant, set_ball
 from .pacing import MAX_CATCH_UP as MAX_CATCH_UP
 from .pacing import Pacer
 from .render import OffscreenCamera

@@ -30,7 +30,8 @@ import numpy.typing as npt
 from soccer_field import KIDSIZE
 
 from .errors import SimConfigError
-from .mujoco_plant import FIELD_MODEL, JOINTS, ROBOT_MODEL, RobotPlant, set_ball, step_world
+from .joints import JOINTS
+from .mujoco_plant import FIELD_MODEL, ROBOT_MODEL, RobotPlant, set_ball, step_world
 
 TEAMS = ("blue", "red")
 PLAYERS_PER_TEAM = 3

@@ -57,7 +57,7 @@ from .driver import ServoDriver
 from .dynamixel.bus import Bus
 from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus, make_port_link, remove_port_link
 from .errors import SimConfigError
-from .mujoco_plant import JOINTS
+from .joints import JOINTS
 from .pacing import Pacer
 from .render import OffscreenRenderer
 from .sensors import CAMERA

@@ -11,7 +11,8 @@ from sensor_msgs.msg import Image
 
 from efficient_comm import Container, ManualClock
 from efficient_comm.testing import isolated_domain_id
-from humanoid_sim.match_world import DEVICE, SensorLink
+from humanoid_sim.match_devices import DEVICE
+from humanoid_sim.match_world import SensorLink
 from humanoid_sim.world_simulator import WorldSimulator
 
 

@@ -11,9 +11,9 @@ from efficient_comm.testing import TestHandle
 from humanoid_sim.driver import ServoDriver
 from humanoid_sim.dynamixel.bus import Bus
 from humanoid_sim.dynamixel.pty import PtyBus
+from humanoid_sim.joints import JOINTS
 from humanoid_sim.mujoco_plant import (
     GEAR_RATIO,
-    JOINTS,
     NO_LOAD_SPEED_RAD_S,
     ROTOR_INERTIA_KG_M2,
     STALL_CURRENT_A,

@@ -17,7 +17,7 @@ from std_msgs.msg import String
 from efficient_comm import Container, latched_qos
 from efficient_comm.testing import TestHandle, test_container
 from humanoid_sim.errors import SimConfigError
-from humanoid_sim.mujoco_plant import JOINTS
+from humanoid_sim.joints import JOINTS
 from humanoid_sim.soccer.arbiter import MotionArbiter
 from humanoid_sim.soccer.fall import FallDetector
 from humanoid_sim.world import (

@@ -19,7 +19,7 @@ from debug_probes import JpegCompressor
 from efficient_comm import Container
 
 from ..driver import ServoDriver
-from ..mujoco_plant import JOINTS
+from ..joints import JOINTS
 from ..simulator import Simulator
 from .arbiter import MotionArbiter
 from .behaviour import HeadBehaviour

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from efficient_comm import Container
 
 from ..errors import SimConfigError
-from ..mujoco_plant import JOINTS
+from ..joints import JOINTS
 from .walk import standing_height
 from .walk_rig import SAMPLE_S, WalkingRobot, torso_pose
 

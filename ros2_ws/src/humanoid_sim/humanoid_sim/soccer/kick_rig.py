@@ -25,7 +25,8 @@ from efficient_comm import Container
 from efficient_comm.testing import TestHandle
 
 from ..driver import ServoDriver
-from ..mujoco_plant import BALL_RADIUS_M, JOINTS, NO_LOAD_SPEED_RAD_S, MujocoPlant
+from ..joints import JOINTS
+from ..mujoco_plant import BALL_RADIUS_M, NO_LOAD_SPEED_RAD_S, MujocoPlant
 from ..simulator import Simulator
 from .arbiter import MotionArbiter
 from .compose import add_body

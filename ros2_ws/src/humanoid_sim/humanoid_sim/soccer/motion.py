@@ -7,7 +7,7 @@ are clamped to the neck's range. Which motion moves the body is the arbiter's ch
 
 from __future__ import annotations
 
-from ..mujoco_plant import JOINTS
+from ..joints import JOINTS
 
 STANCE: dict[str, float] = {name: 0.0 for name in JOINTS.values()} | {
     "l_hip_pitch": -0.35, "l_knee": 0.7, "l_ankle_pitch": -0.35,

@@ -23,7 +23,8 @@ from efficient_comm import Container
 from efficient_comm.testing import TestHandle
 
 from ..driver import ServoDriver
-from ..mujoco_plant import JOINTS, NO_LOAD_SPEED_RAD_S, MujocoPlant
+from ..joints import JOINTS
+from ..mujoco_plant import NO_LOAD_SPEED_RAD_S, MujocoPlant
 from ..simulator import Simulator
 from .compose import add_body
 from .fall import FallDetector
