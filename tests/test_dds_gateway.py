@@ -140,11 +140,16 @@ def test_publish_from_another_thread_reaches_callbacks_in_the_executor_thread() 
         assert threads == [worker.ident] * 3
 
 
+#: Where an executor's thread waits for DDS work: its wait set (efficient_comm._reader_wait),
+#: or rclpy's executor's.
+_DDS_WAITS = {"NodesWait.wait", "Executor._wait_for_ready_callbacks"}
+
+
 def _waiting_in_rclpy(thread_id: int) -> bool:
-    """Whether the thread sits in rclpy's wait for DDS work (its executor's wait set)."""
+    """Whether the thread sits in a wait for DDS work (a wait set's)."""
     frame = sys._current_frames().get(thread_id)
     while frame is not None:
-        if frame.f_code.co_name == "_wait_for_ready_callbacks":
+        if frame.f_code.co_qualname in _DDS_WAITS:
             return True
         frame = frame.f_back
     return False

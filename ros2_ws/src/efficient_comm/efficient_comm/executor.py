@@ -573,24 +573,29 @@ class ConsecutiveExecutor:
         main thread. The events (publication matched, message lost) are taken through
         rclpy's wait every :data:`DDS_EVENTS_POLL_NS`, when the wait above ends for it.
         """
-        now = time.monotonic_ns()
-        if now >= self._events_due:
-            self._events_due = now + DDS_EVENTS_POLL_NS
-            if self._run_dds_ready(dds, 0.0):
-                return  # something ran: the caller looks at its timers first
         nodes = self._nodes_wait
         if nodes is None:
             from ._reader_wait import NodesWait
 
             nodes = self._nodes_wait = NodesWait(dds)
-        subs, guards, other = nodes.wait(min(timeout_s, (self._events_due - now) / 1e9))
-        for guard in guards:
-            if guard.callback is not None:  # rclpy calls a triggered guard's callback
-                guard.callback()
-        for sub in subs:
-            take_samples(sub, limit=MAX_TAKES)
-        if other:
-            self._run_dds_ready(dds, 0.0)
+        now = time.monotonic_ns()
+        deadline = now + round(timeout_s * 1e9)
+        while True:  # until something came, or the timeout
+            if now >= self._events_due:
+                self._events_due = now + DDS_EVENTS_POLL_NS
+                if self._run_dds_ready(dds, 0.0):
+                    return  # something ran: the caller looks at its timers first
+            subs, guards, other = nodes.wait(max(0, min(deadline, self._events_due) - now) / 1e9)
+            for guard in guards:
+                if guard.callback is not None:  # rclpy calls a triggered guard's callback
+                    guard.callback()
+            for sub in subs:
+                take_samples(sub, limit=MAX_TAKES)
+            if other:
+                self._run_dds_ready(dds, 0.0)
+            now = time.monotonic_ns()
+            if subs or guards or other or now >= deadline:
+                return
 
     def _run_dds_ready(self, dds: RclpyExecutor, timeout_s: float) -> int:
         """One DDS wait (up to ``timeout_s``), then every callback it found ready, and of
