@@ -120,3 +120,15 @@ def test_the_command_line_imports_no_simulation() -> None:
     loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                             timeout=60, check=True).stdout.strip()
     assert loaded == "[]", loaded
+
+
+def test_a_match_robot_process_imports_no_world() -> None:
+    """A robot of the team match runs robot software only: its process does not load the
+    world's simulator, renderer or video encoder (it did, for three constants: about two
+    seconds of each robot's start on a loaded machine)."""
+    probe = ("import sys\nimport humanoid_sim.match_robot\n"
+             "print(sorted({m.split('.')[0] for m in sys.modules} & {'mujoco', 'av'}"
+             " | ({'humanoid_sim.match_world'} & set(sys.modules))))")
+    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                            timeout=60, check=True).stdout.strip()
+    assert loaded == "[]", loaded
