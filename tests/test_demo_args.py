@@ -3,6 +3,7 @@ from the seed, and every bad argument refused with one line and exit status 2.""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import subprocess
@@ -111,24 +112,27 @@ def test_the_demo_films_the_match_and_refuses_a_video_it_cannot_write(tmp_path: 
     assert lines[0].startswith("soccer_demo: error: --video: cannot write the match video")
 
 
+def _loaded_after(module: str, watched: set[str]) -> set[str]:
+    """Which of ``watched`` (top-level packages, or full module names) a fresh Python has
+    loaded once it imported ``module``."""
+    probe = ("import importlib, json, sys\n"
+             f"importlib.import_module({module!r})\n"
+             "print(json.dumps(sorted(set(sys.modules) | {m.split('.')[0] for m in sys.modules})))")
+    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                            timeout=60, check=True).stdout
+    return watched & set(json.loads(loaded))
+
+
 def test_the_command_line_imports_no_simulation() -> None:
     """A bad argument and ``--help`` answer before the simulation is imported (it took about
     two seconds each, a minute for this file's cases on a loaded machine)."""
-    probe = ("import sys\nfrom humanoid_sim import demo\n"
-             "print(sorted({m.split('.')[0] for m in sys.modules} & {'mujoco', 'rclpy', "
-             "'efficient_comm', 'cv2', 'numpy'}))")
-    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                            timeout=60, check=True).stdout.strip()
-    assert loaded == "[]", loaded
+    assert _loaded_after("humanoid_sim.demo",
+                         {"mujoco", "rclpy", "efficient_comm", "cv2", "numpy"}) == set()
 
 
 def test_a_match_robot_process_imports_no_world() -> None:
     """A robot of the team match runs robot software only: its process does not load the
     world's simulator, renderer or video encoder (it did, for three constants: about two
     seconds of each robot's start on a loaded machine)."""
-    probe = ("import sys\nimport humanoid_sim.match_robot\n"
-             "print(sorted({m.split('.')[0] for m in sys.modules} & {'mujoco', 'av'}"
-             " | ({'humanoid_sim.match_world'} & set(sys.modules))))")
-    loaded = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                            timeout=60, check=True).stdout.strip()
-    assert loaded == "[]", loaded
+    assert _loaded_after("humanoid_sim.match_robot",
+                         {"mujoco", "av", "humanoid_sim.match_world"}) == set()
