@@ -17,6 +17,7 @@ from efficient_comm.handle import NodeHandle
 from efficient_comm.testing import isolated_domain_id, ros_env
 from efficient_comm_interfaces.msg import ExecutorStats
 from robot_recorder import read_messages
+from robot_recorder_interfaces.msg import RecorderStatus
 from robot_recorder_interfaces.srv import Start, Stop
 from throttle_publisher import ThrottledSubscription, ThrottleOptions
 
@@ -42,6 +43,13 @@ class Watcher:
         ]
         self.start = node.create_client(Start, f"{NS}/recorder/start")
         self.stop = node.create_client(Stop, f"{NS}/recorder/stop")
+        self.recorder: list[Any] = []
+        node.create_subscription(RecorderStatus, f"{NS}/recorder/status", self.recorder.append)
+
+    def recorded(self, topic: str) -> int:
+        """Messages of ``topic`` the recorder's last status says it wrote."""
+        last = self.recorder[-1].topics if self.recorder else ()
+        return next((t.messages for t in last if t.name == topic), 0)
 
 
 def _call(container: Container, client: Any, request: Any) -> Any:
@@ -83,12 +91,16 @@ def test_demo_robot_publishes_stats_throttles_its_world_topics_and_records(
         assert not bags.exists() or not any(bags.iterdir())  # idle until told
         started = _call(container, w.start, Start.Request())
         assert started.success, started.message
-        container.spin_for(2.0)
+        # Until every topic asserted below is in the bag (the ball's estimate comes only while
+        # the camera sees the ball, and the recorder says so once a second).
+        wanted = (f"{NS}/ball/estimate", f"{NS}/ground_truth/robot", f"{NS}/joint_states")
+        assert container.spin_until(lambda: all(map(w.recorded, wanted)), timeout_s=30), (
+            w.recorder[-1:])
         stopped = _call(container, w.stop, Stop.Request())
         assert stopped.success, stopped.message
     recorded = {m.topic for m in read_messages(started.bag)}
     assert Path(started.bag).parent == bags
-    assert {f"{NS}/ball/estimate", f"{NS}/ground_truth/robot", f"{NS}/joint_states"} <= recorded
+    assert set(wanted) <= recorded
 
 
 def test_a_bad_namespace_is_refused_in_one_line(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import ParameterError, to_msg
+from efficient_comm import ManualClock, ParameterError, to_msg
 from efficient_comm.testing import TestHandle
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.arbiter import MotionArbiter
@@ -143,6 +143,23 @@ def test_kick_refuses_requests_unless_standing_and_idle() -> None:
     for name, value in STANCE.items():
         assert first[name] == pytest.approx(value, abs=1e-3)
         assert last[name] == pytest.approx(value, abs=1e-6)
+
+
+def test_a_kick_late_timer_still_takes_the_kicks_duration() -> None:
+    """Its timer's rounds 40 ms apart, not 10 (a loaded real-time process): the kick is
+    played against the clock, not slowed to four times its length."""
+    node, kick = _kick_node()
+    clock = node.container.executor.clock
+    assert isinstance(clock, ManualClock)
+    node.inject("motion/kick/request", String(data="right"))
+    started, rounds = clock.now_ns(), 0
+    while kick.active and rounds < 1000:
+        clock.set_ns(clock.now_ns() + 40_000_000)
+        kick.cycle()
+        rounds += 1
+    took_s = (clock.now_ns() - started) / 1e9
+    assert kick.kicks == 1
+    assert took_s == pytest.approx(KickMotion("right").duration, abs=0.05)  # to a round
 
 
 def test_kick_is_aborted_by_a_fall() -> None:

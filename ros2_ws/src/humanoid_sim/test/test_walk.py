@@ -11,10 +11,11 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from efficient_comm import ParameterError
+from efficient_comm import ManualClock, ParameterError
 from efficient_comm.testing import TestHandle
 from humanoid_sim.errors import SimConfigError
 from humanoid_sim.soccer.leg_ik import leg_ik
+from humanoid_sim.soccer.motion import MAX_STEP_S
 from humanoid_sim.soccer.spline import BUMP, SMOOTH_STEP, Knot, QuinticSpline
 from humanoid_sim.soccer.walk import PARAMETERS, Gait, GaitParameters, WalkEngine
 
@@ -148,3 +149,28 @@ def test_a_fall_stops_the_walk_and_its_commands() -> None:
     node.inject("fall/state", String(data="standing"))
     node.advance(0.1)
     assert len(node.published("motion/walk")) > sent and engine.gait.amplitude == 0.0
+
+
+def test_the_gait_keeps_pace_with_the_clock_when_cycles_run_late() -> None:
+    """A loaded real-time process runs the 100 Hz cycle at 25 Hz: the gait still advances by
+    the time that passed (the body's physics did), and a stall moves it by a few periods only."""
+    on_time, late = TestHandle("walk"), TestHandle("walk")
+    engines = WalkEngine(on_time), WalkEngine(late)
+    twist = Twist()
+    twist.linear.x = 0.2
+    for node in (on_time, late):
+        node.inject("cmd_vel", twist)
+    on_time.advance(1.01)
+    clock = late.container.executor.clock
+    assert isinstance(clock, ManualClock)
+    engines[1].cycle()
+    for _ in range(25):  # the timer's rounds 40 ms apart, not 10
+        clock.set_ns(clock.now_ns() + 40_000_000)
+        engines[1].cycle()
+    assert engines[1].gait.phase == pytest.approx(engines[0].gait.phase, abs=0.02)
+    assert engines[1].gait.odometry[0] == pytest.approx(engines[0].gait.odometry[0], rel=0.1)
+    before = engines[1].gait.phase
+    clock.set_ns(clock.now_ns() + 2_000_000_000)  # a 2 s stall
+    engines[1].cycle()
+    advanced = (engines[1].gait.phase - before) % 1.0
+    assert advanced == pytest.approx(MAX_STEP_S * engines[1].gait.p.freq)

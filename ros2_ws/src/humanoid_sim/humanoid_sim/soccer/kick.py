@@ -48,13 +48,13 @@ from dataclasses import asdict, dataclass
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import bind_parameters, latched_qos, to_msg
+from efficient_comm import bind_parameters, from_msg, latched_qos, to_msg
 from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
 from .fall import STANDING
 from .leg_ik import LIMITS, LegAngles, UnreachableError, foot_pose, leg_ik
-from .motion import STANCE
+from .motion import STANCE, Cadence
 from .spline import Knot, QuinticSpline
 
 LATCHED = latched_qos()
@@ -300,6 +300,7 @@ class Kick:
                                           on_change=self._on_parameters)
         self.p = self.parameters.value
         self.period_s = 1.0 / rate
+        self.cadence, self._imu_cadence = Cadence(self.period_s), Cadence(self.period_s)
         self.motion: KickMotion | None = None
         self.t = 0.0
         self.motion_state = "stand"
@@ -341,6 +342,8 @@ class Kick:
             self.motion = KickMotion(side, self.p)
             self.motion.set_imu(self._imu, 0.0)
             self.t = 0.0
+            self.cadence.restart()
+            self._imu_cadence.restart()
             self.node.logger.info(f"kick: {side} foot")
             self.active_pub.publish(Bool(data=True))
 
@@ -357,7 +360,7 @@ class Kick:
     def _on_imu(self, imu: Imu) -> None:
         self._imu = ImuSample.from_imu(imu)
         if self.motion is not None:
-            self.motion.set_imu(self._imu, self.period_s)
+            self.motion.set_imu(self._imu, self._imu_cadence.step_s(from_msg(imu.header.stamp)))
 
     def _end(self) -> None:
         self.motion = None
@@ -366,10 +369,11 @@ class Kick:
     def cycle(self) -> None:
         if self.motion is None:
             return
-        self.t += self.period_s
+        now_ns = self.node.clock.now_ns()
+        self.t += self.cadence.step_s(now_ns)
         goals = self.motion.goals(self.t)
         command = JointState(name=list(goals), position=list(goals.values()))
-        command.header.stamp = to_msg(self.node.clock.now_ns())
+        command.header.stamp = to_msg(now_ns)
         self.pub.publish(command)
         if self.t >= self.motion.duration - 1e-9:
             self.kicks += 1

@@ -44,12 +44,12 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, String
 
-from efficient_comm import bind_parameters, latched_qos, to_msg
+from efficient_comm import bind_parameters, from_msg, latched_qos, to_msg
 from efficient_comm.handle import NodeHandle
 
 from ..errors import SimConfigError
 from .leg_ik import HIP_OFFSET, SOLE_BELOW_FOOT, leg_ik
-from .motion import STANCE
+from .motion import STANCE, Cadence
 from .spline import BUMP, SMOOTH_STEP
 
 LATCHED = latched_qos()
@@ -294,6 +294,7 @@ class WalkEngine:
                                           on_change=self._on_parameters)
         self.gait = Gait(self.parameters.value)
         self.period_s = 1.0 / rate
+        self.cadence, self._imu_cadence = Cadence(self.period_s), Cadence(self.period_s)
         self.standing = True
         self.cycles = 0
         self.pub = node.create_publisher(JointState, output, qos=10)
@@ -319,12 +320,14 @@ class WalkEngine:
         self.gait.set_command(*values)
 
     def _on_imu(self, imu: Imu) -> None:
-        self.gait.set_gyro(imu.angular_velocity.y, imu.angular_velocity.x, self.period_s)
+        dt = self._imu_cadence.step_s(from_msg(imu.header.stamp))
+        self.gait.set_gyro(imu.angular_velocity.y, imu.angular_velocity.x, dt)
 
     def _on_posture(self, posture: String) -> None:
         self.standing = posture.data == "standing"
         if not self.standing:
             self.gait.stop_now()
+            self.cadence.restart()
             self._set_active(False)
 
     def _set_active(self, active: bool) -> None:
@@ -336,8 +339,9 @@ class WalkEngine:
         if not self.standing:
             return
         self.cycles += 1
-        goals = self.gait.update(self.period_s)
-        now = to_msg(self.node.clock.now_ns())
+        now_ns = self.node.clock.now_ns()
+        goals = self.gait.update(self.cadence.step_s(now_ns))
+        now = to_msg(now_ns)
         command = JointState(name=list(goals), position=list(goals.values()))
         command.header.stamp = now
         self.pub.publish(command)
