@@ -83,9 +83,25 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def free_port(host: str) -> int:
-    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
+    """A port on ``host`` that stays free for the web server (``--port 0``).
+
+    A port merely found free was taken by another process before the server bound it (a
+    full test run saw "address already in use" for the port the GUI had just announced).
+    So the port is left in TIME_WAIT by one connection to itself: the kernel hands it to
+    no other ``bind(0)`` or outgoing connection for a minute, while a server that binds it
+    with ``SO_REUSEADDR`` (uvicorn does) gets it at once.
+    """
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family) as listener:
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind((host, 0))
+        listener.listen(1)
+        address = listener.getsockname()
+        with socket.socket(family) as client:
+            client.connect(address)
+            accepted, _ = listener.accept()
+            accepted.close()  # closed first on this side: its end waits in TIME_WAIT
+        return int(address[1])
 
 
 def _check_bindable(host: str, port: int) -> None:
