@@ -8,7 +8,10 @@ entry per handle.
   project's two-core machine, several times a step; in a profile of a lockstep team match
   it was a third of each robot's main-thread CPU, and as much of the world's.
 * :class:`NodesWait`: every subscription, service, client, timer and guard of a
-  container's nodes, the executor's DDS wait in real time (``ConsecutiveExecutor``).
+  container's nodes, the executor's DDS wait in real time (``ConsecutiveExecutor``), also
+  in the relay thread of a process that receives through shared memory
+  (:class:`~efficient_comm.shm.ShmWait`); what it found is a :class:`DdsReady`, run by
+  the executor's thread.
 
 Each wait puts the same handles in again (rcl empties a wait set on every wait); samples
 of ready subscriptions are taken all at once (:func:`~efficient_comm.executor.take_samples`).
@@ -19,6 +22,7 @@ triggers, as its executors' do.
 from __future__ import annotations
 
 import contextlib
+from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.context import Context
@@ -32,7 +36,7 @@ from rclpy.subscription import Subscription
 
 from .executor import take_samples
 
-__all__ = ["NodesWait", "ReaderWait"]
+__all__ = ["DdsReady", "NodesWait", "ReaderWait"]
 
 _PUBLISHER_MATCHED = QoSPublisherEventType.RCL_PUBLISHER_MATCHED
 
@@ -104,6 +108,26 @@ def _valid(sub: Subscription) -> bool:
         return False
 
 
+@dataclass(slots=True)
+class DdsReady:
+    """What a :class:`NodesWait` found, for the executor's thread to run
+    (:meth:`~efficient_comm.executor.ConsecutiveExecutor.run_dds_items`)."""
+
+    #: Ready subscriptions, their samples not taken yet.
+    subs: list[Any] = field(default_factory=list)
+    #: Triggered guard conditions (their callbacks not run yet).
+    guards: list[Any] = field(default_factory=list)
+    #: A service, client or rclpy timer is ready: rclpy's executor runs it.
+    other: bool = False
+    #: Publishers' "matched" events, taken: ``(handler, data)``, callbacks not run yet.
+    events: list[tuple[Any, Any]] = field(default_factory=list)
+    #: Time for rclpy's wait over the other QoS events (``DDS_EVENTS_POLL_NS``).
+    poll_events: bool = False
+
+    def __bool__(self) -> bool:
+        return bool(self.subs or self.guards or self.other or self.events or self.poll_events)
+
+
 class NodesWait:
     """Wait on every subscription, service, client, rclpy timer and guard condition of an
     rclpy executor's nodes, with one wait set rebuilt only when those change.
@@ -115,9 +139,9 @@ class NodesWait:
     on the project's machine, against 0.8 ms here; in profiles of the team match that
     wait was a third of the world's main thread and a quarter of each robot's. QoS events
     are left out (hundreds of them; the caller runs rclpy's wait now and then for those)
-    but for the publishers' "matched" events, which are run here at once: a composed
-    publisher writes DDS only while a reader is matched (efficient_comm.bus), so a late
-    event would drop what a new subscriber should get.
+    but for the publishers' "matched" events, which are taken here for the caller to run
+    at once: a composed publisher writes DDS only while a reader is matched
+    (efficient_comm.bus), so a late event would drop what a new subscriber should get.
     """
 
     def __init__(self, executor: Any) -> None:
@@ -148,11 +172,10 @@ class NodesWait:
         self._timers = [e for n in nodes for e in n._timers]
         self._guards = [e for n in nodes for e in n._guards] + [self._sigint]
 
-    def wait(self, timeout_s: float) -> tuple[list[Any], list[Any], bool]:
-        """Wait up to ``timeout_s``; returns the ready subscriptions (their samples not
-        taken), the triggered guard conditions, and whether a service, client or rclpy
-        timer is ready (for rclpy's executor to run). Raises rclpy's
-        ExternalShutdownException once the context is shut down."""
+    def wait(self, timeout_s: float) -> DdsReady:
+        """Wait up to ``timeout_s``; returns what is ready, nothing run or taken but the
+        "matched" events' data. Raises rclpy's ExternalShutdownException once the context
+        is shut down."""
         if not self._context.ok():
             raise ExternalShutdownException()
         self._refresh()
@@ -166,7 +189,7 @@ class NodesWait:
                     held.enter_context(handler)
             except InvalidHandle:  # destroyed meanwhile: look again next time
                 self._key = None
-                return [], [], False
+                return DdsReady()
             context = self._context.handle
             if context is None:
                 raise ExternalShutdownException()
@@ -198,10 +221,8 @@ class NodesWait:
                          or wait_set.get_ready_entities("client")
                          or wait_set.get_ready_entities("timer"))
             matched = [h for h in self._matched if h.is_ready(wait_set)]
-        for handler in matched:  # what rclpy's executor does with a ready event
-            if (data := handler.take_data()) is not None:
-                handler.callback(data)
-        return subs, guards, other
+        events = [(h, data) for h in matched if (data := h.take_data()) is not None]
+        return DdsReady(subs, guards, other, events)
 
     def close(self) -> None:
         with contextlib.suppress(InvalidHandle, ValueError):

@@ -44,7 +44,7 @@ from .stats import CallbackStats, StatsRegistry, StatsSnapshot
 if TYPE_CHECKING:
     from rclpy.executors import Executor as RclpyExecutor
 
-    from ._reader_wait import NodesWait
+    from ._reader_wait import DdsReady, NodesWait
     from .bus import LocalSubscription
     from .handle import Clock, ClockKind, Logger
     from .simtime import LockstepParticipant
@@ -258,31 +258,49 @@ class ConsecutiveExecutor:
         self._own_wait = wait
         self._wake()
 
-    def dds_ready(self, timeout_s: float, *, stop: Callable[[], bool]) -> list[tuple[Any, Any]]:
-        """Wait up to ``timeout_s`` (or until ``stop()`` holds after a wake-up) for DDS, and
-        return the ready ``(handler, entity)`` pairs, without running them: an
-        :class:`OwnWait`'s relay thread calls this, the executor's thread runs them
-        (:meth:`run_dds_items`). Raises rclpy's ``ShutdownException`` once DDS is shut down.
-        """
-        from rclpy.executors import ConditionReachedException, TimeoutException
+    def dds_ready(self, timeout_s: float, *,
+                  stop: Callable[[], bool] = lambda: False) -> DdsReady | None:
+        """Wait up to ``timeout_s`` (or until ``stop()`` holds after a wake-up) for DDS,
+        and return what is ready without running it (None: nothing came), for
+        :meth:`run_dds_items` in the executor's thread: the executor's own real-time wait
+        and an :class:`OwnWait`'s relay thread both call this.
 
+        The wait is :class:`~efficient_comm._reader_wait.NodesWait`'s, on a wait set kept
+        across waits: rclpy's executor builds one per wait from every entity with its QoS
+        event handlers, milliseconds of Python that were a third of a real-time world's
+        main thread (and, in a relay thread, 20 % of a core beside a 30 Hz camera over
+        shared memory). Every :data:`DDS_EVENTS_POLL_NS` it returns early with
+        ``poll_events`` for rclpy's wait over the other QoS events (message lost,
+        incompatible QoS). Raises rclpy's ``ExternalShutdownException`` once DDS is shut
+        down.
+        """
         dds = self._dds
         if dds is None:
-            return []
-        items: list[tuple[Any, Any]] = []
-        ready: Iterator[tuple[Any, Any, Any]] = dds._wait_for_ready_callbacks(
-            timeout_sec=timeout_s, condition=stop)
-        try:
-            for handler, entity, _ in ready:
-                items.append((handler, entity))
-        except (TimeoutException, ConditionReachedException):
-            pass
-        return items
+            return None
+        nodes = self._nodes_wait
+        if nodes is None:
+            from ._reader_wait import NodesWait
+
+            nodes = self._nodes_wait = NodesWait(dds)
+        now = time.monotonic_ns()
+        deadline = now + round(timeout_s * 1e9)
+        while True:
+            if now >= self._events_due:
+                self._events_due = now + DDS_EVENTS_POLL_NS
+                from ._reader_wait import DdsReady
+
+                return DdsReady(poll_events=True)
+            ready = nodes.wait(max(0, min(deadline, self._events_due) - now) / 1e9)
+            if ready:
+                return ready
+            now = time.monotonic_ns()
+            if now >= deadline or stop():
+                return None
 
     def wake_dds(self) -> None:
         """End a :meth:`dds_ready` wait now (any thread)."""
-        if self._dds is not None:
-            self._dds.wake()
+        if self._dds_wake is not None:
+            self._dds_wake()
 
     def create_timer(
         self, period_s: float, callback: Callable[[], None], *, stats: CallbackStats, logger: Logger
@@ -557,44 +575,23 @@ class ConsecutiveExecutor:
                 own.poll()
             self._last_dds_poll = time.monotonic_ns()
         elif self._dds is not None:
-            self._dds_wait(self._dds, timeout_s)
+            self._dds_wait(timeout_s)
             self._last_dds_poll = time.monotonic_ns()
         else:
             self._wake_event.wait(timeout_s)
             self._wake_event.clear()
 
-    def _dds_wait(self, dds: RclpyExecutor, timeout_s: float) -> None:
-        """Wait up to ``timeout_s`` on DDS and run what came: the subscriptions' samples
-        taken here directly, services, clients and rclpy timers through rclpy's executor.
-
-        The wait is :class:`~efficient_comm._reader_wait.NodesWait`'s, on a wait set kept
-        across waits: rclpy's executor builds one per wait from every entity with its QoS
-        event handlers, milliseconds of Python that were a third of a real-time world's
-        main thread. The events (publication matched, message lost) are taken through
-        rclpy's wait every :data:`DDS_EVENTS_POLL_NS`, when the wait above ends for it.
-        """
-        nodes = self._nodes_wait
-        if nodes is None:
-            from ._reader_wait import NodesWait
-
-            nodes = self._nodes_wait = NodesWait(dds)
-        now = time.monotonic_ns()
-        deadline = now + round(timeout_s * 1e9)
-        while True:  # until something came, or the timeout
-            if now >= self._events_due:
-                self._events_due = now + DDS_EVENTS_POLL_NS
-                if self._run_dds_ready(dds, 0.0):
-                    return  # something ran: the caller looks at its timers first
-            subs, guards, other = nodes.wait(max(0, min(deadline, self._events_due) - now) / 1e9)
-            for guard in guards:
-                if guard.callback is not None:  # rclpy calls a triggered guard's callback
-                    guard.callback()
-            for sub in subs:
-                take_samples(sub, limit=MAX_TAKES)
-            if other:
-                self._run_dds_ready(dds, 0.0)
-            now = time.monotonic_ns()
-            if subs or guards or other or now >= deadline:
+    def _dds_wait(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` on DDS (:meth:`dds_ready`) and run what came; a round
+        for the QoS events that ran nothing goes on waiting until the timeout."""
+        deadline = time.monotonic_ns() + round(timeout_s * 1e9)
+        while True:
+            ready = self.dds_ready(max(0, deadline - time.monotonic_ns()) / 1e9)
+            if ready is None:
+                return
+            if self.run_dds_items(ready) or not ready.poll_events:
+                return  # something came: the caller looks at its timers first
+            if time.monotonic_ns() >= deadline:
                 return
 
     def _run_dds_ready(self, dds: RclpyExecutor, timeout_s: float) -> int:
@@ -627,15 +624,15 @@ class ConsecutiveExecutor:
                     cost = time.monotonic_ns() - start
                     self._dds_poll_interval = max(DDS_POLL_INTERVAL_NS,
                                                   int(cost / DDS_POLL_SHARE))
-            ran = self.run_dds_items((handler, entity) for handler, entity, _ in
+            ran = self._run_handlers((handler, entity) for handler, entity, _ in
                                      itertools.chain((first,), ready))
         except (StopIteration, TimeoutException, ShutdownException):
             pass
         return ran
 
-    def run_dds_items(self, items: Iterable[tuple[Any, Any]]) -> int:
-        """Run ready DDS handlers (rclpy's), and of each ready subscription every sample its
-        reader holds (up to :data:`MAX_TAKES`); returns how many callbacks ran."""
+    def _run_handlers(self, items: Iterable[tuple[Any, Any]]) -> int:
+        """Run ready rclpy handlers, and of each ready subscription every sample its reader
+        holds (up to :data:`MAX_TAKES`); returns how many callbacks ran."""
         from rclpy.subscription import Subscription
 
         ran = 0
@@ -655,6 +652,23 @@ class ConsecutiveExecutor:
                 for handler, _ in pending:
                     handler.cancel()
             raise
+        return ran
+
+    def run_dds_items(self, ready: DdsReady) -> int:
+        """Run what :meth:`dds_ready` found (executor thread): the "matched" events, the
+        guard conditions' callbacks, every sample each ready subscription's reader holds
+        (up to :data:`MAX_TAKES` more), and services, clients, rclpy timers and the other
+        QoS events through rclpy's executor; returns how many callbacks ran."""
+        for handler, data in ready.events:  # what rclpy's executor does with a ready event
+            handler.callback(data)
+        ran = len(ready.events)
+        for guard in ready.guards:
+            if guard.callback is not None:  # rclpy calls a triggered guard's callback
+                guard.callback()
+        for sub in ready.subs:
+            ran += take_samples(sub, limit=MAX_TAKES)
+        if (ready.other or ready.poll_events) and self._dds is not None:
+            ran += self._run_dds_ready(self._dds, 0.0)
         return ran
 
     def _poll_dds(self) -> None:

@@ -69,6 +69,7 @@ from ._qos import is_transient_local
 from .typenames import type_name
 
 if TYPE_CHECKING:
+    from ._reader_wait import DdsReady
     from .bus import LocalPublisher, LocalSubscription
     from .executor import ConsecutiveExecutor
     from .handle import Logger
@@ -638,9 +639,9 @@ class ShmWait:
     and a round of rclpy's wait-set Python: most of a 1 MiB message's latency. Here the
     executor's thread itself blocks in an iceoryx2 ``WaitSet`` over every subscription's
     listener and an eventfd, and receives a chunk as it wakes; DDS is what is relayed: a
-    thread waits in rclpy's wait (:meth:`ConsecutiveExecutor.dds_ready`), hands the ready
-    handlers over through the eventfd and waits for the executor's thread to have run
-    them before it waits again, so rclpy's entities are never waited on by two threads at
+    thread waits on the DDS entities (:meth:`ConsecutiveExecutor.dds_ready`), hands what
+    is ready over through the eventfd and waits for the executor's thread to have run it
+    before it waits again, so rclpy's entities are never waited on by two threads at
     once. The eventfd is also the executor's wake-up for another thread's publish.
     """
 
@@ -662,7 +663,7 @@ class ShmWait:
         # thread, then None), whether the executor's thread takes from DDS itself (paused),
         # and whether the relay is parked (not in a DDS wait).
         self._cond = threading.Condition()
-        self._items: list[tuple[Any, Any]] | None = None
+        self._items: DdsReady | None = None
         self._paused = False
         self._parked = False
         self._running = True
@@ -785,9 +786,7 @@ class ShmWait:
         self._executor.wake_dds()
         self._relay.join(timeout=5.0)
         with self._cond:
-            items, self._items = self._items, None
-        for handler, _ in items or ():  # found, never to run: their coroutines are closed
-            handler.cancel()
+            self._items = None  # found, never to run
         self._guards = []
         self._fd_guard = self._waitset = None
         with self._lock:

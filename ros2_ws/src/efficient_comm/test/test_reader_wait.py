@@ -124,12 +124,13 @@ def test_a_wait_after_shutdown_raises_as_rclpy_executors_do(nodes: tuple[Any, An
     waiter.close()
 
 
-def test_a_nodes_wait_takes_samples_says_when_rclpys_work_is_ready_and_runs_matched_events(
+def test_a_nodes_wait_says_what_is_ready_and_takes_matched_events_for_the_caller(
         nodes: tuple[Any, Any]) -> None:
     """NodesWait (a real-time container's DDS wait): samples of ready subscriptions are left
     to the caller, a service request is reported for rclpy's executor, and a publisher's
-    "matched" event runs its callback at once (a composed publisher writes DDS only while
-    a reader is matched)."""
+    "matched" event is taken for the caller to run at once (a composed publisher writes DDS
+    only while a reader is matched); nothing runs in the waiting thread (a shared-memory
+    process's relay thread waits here for the executor's thread)."""
     from rclpy.event_handler import PublisherEventCallbacks
     from rclpy.executors import SingleThreadedExecutor
 
@@ -157,22 +158,24 @@ def test_a_nodes_wait_takes_samples_says_when_rclpys_work_is_ready_and_runs_matc
             waiter.wait(0.1)
         pub.publish(String(data="hi"))
         assert pub.wait_for_all_acked()
-        subs, _, other = waiter.wait(10.0)
-        assert [s.topic_name for s in subs] == [topic] and not other
-        assert take_samples(subs[0]) == 1 and got == ["hi"]
+        ready = waiter.wait(10.0)
+        assert [s.topic_name for s in ready.subs] == [topic] and not ready.other
+        assert got == [] and take_samples(ready.subs[0]) == 1 and got == ["hi"]
 
         client = peer.create_client(ListComponents, service)
         assert client.wait_for_service(timeout_sec=10.0)
         client.call_async(ListComponents.Request())
         end = time.monotonic() + 10.0
-        while not waiter.wait(0.5)[2]:  # the request: for rclpy's executor to serve
+        while not waiter.wait(0.5).other:  # the request: for rclpy's executor to serve
             assert time.monotonic() < end, "the request never showed"
 
         peer.create_subscription(String, out.topic_name, lambda _m: None, _qos())
         end = time.monotonic() + 10.0
-        while not matched:  # run by the wait itself, not by rclpy's executor
-            assert time.monotonic() < end, "the matched event never ran"
-            waiter.wait(0.5)
+        while not (events := waiter.wait(0.5).events):
+            assert time.monotonic() < end, "the matched event never came"
+        assert matched == []  # taken, not run
+        [(handler, data)] = events
+        handler.callback(data)
         assert matched == [1]
     finally:
         waiter.close()
