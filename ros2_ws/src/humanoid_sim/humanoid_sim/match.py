@@ -42,7 +42,8 @@ by the sender's, :data:`TEAM_LINK_LATENCY_S` later; docs/HUMANOID_SIM.md, "What 
 ``--team-link off``: no robot connects to a
 teammate, as a cut link. ``--team-link-cut-at SECONDS``: the link fails mid-game, once the
 world's (simulated) time reaches SECONDS: every robot is told to close its end
-(:func:`cut_team_link`) and plays on alone.
+(:func:`cut_team_link`) and plays on alone; in lockstep each robot closes it itself at
+that simulated time, so a cut match repeats too.
 
 A bad argument is refused with one line and exit status 2. Exit status 0: every process
 ran to the end; 1: one ended early (named in the report).
@@ -384,13 +385,19 @@ def _link_figures(status: dict[str, Any]) -> tuple[float, float, float, float]:
 
 
 def cut_team_link(children: dict[str, Child], sim_s: float) -> float:
-    """The team link fails: SIGUSR1 to every robot still running, which closes its end
-    (:class:`.match_robot.TeamLinkCut`; sent once every robot is ready, so that each has
-    its handler); the world's time it happened at, also printed."""
+    """The team link fails (in real time): SIGUSR1 to every robot still running, which
+    closes its end (:class:`.match_robot.TeamLinkCut`; sent once every robot is ready, so
+    that each has its handler); the world's time it happened at, also printed."""
     for child in children.values():
         if child.ended is None and child.proc.poll() is None:
             with contextlib.suppress(ProcessLookupError):
                 child.proc.send_signal(signal.SIGUSR1)
+    return announce_cut(sim_s)
+
+
+def announce_cut(sim_s: float) -> float:
+    """Print when the team link failed (in lockstep the robots cut it themselves at the
+    plan's ``team_link_cut_at_s``, at their first step from then on)."""
     print(f"team link cut at {sim_s:.1f} s simulated: each robot plays alone", flush=True)
     return sim_s
 
@@ -587,6 +594,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 plan["team_peers"] = [m for m in robots if m.startswith(team) and m != robot
                                       and args.team_link == "on"]
                 plan["team_latency_s"] = TEAM_LINK_LATENCY_S
+                # In lockstep each robot cuts its end itself at that simulated time: a
+                # signal sent when the match saw the world's time pass it arrived a load-
+                # dependent while later (the game did not repeat; an offline check of the
+                # cut's time failed in a full run).
+                plan["team_link_cut_at_s"] = args.team_link_cut_at if args.lockstep else None
                 children[robot] = _start(robot, "humanoid_sim.match_robot", plan,
                                          domain=domains[robot], log_dir=args.out_dir)
             print("localization: " + ", ".join(f"{r} {s}" for r, s in sources.items()),
@@ -650,7 +662,8 @@ def _run(world: Child, children: dict[str, Child], args: argparse.Namespace,
         if (args.team_link_cut_at is not None and args.link_cut_s is None
                 and world.status.get("sim_time_s", 0.0) >= args.team_link_cut_at
                 and all(c.ready.is_set() or c.ended for c in children.values())):
-            args.link_cut_s = cut_team_link(children, world.status["sim_time_s"])
+            args.link_cut_s = (announce_cut(args.team_link_cut_at) if args.lockstep
+                               else cut_team_link(children, world.status["sim_time_s"]))
         for state, sim_s in world.status.get("states", [])[told:]:
             print(f"game state {state} at {sim_s:.1f} s simulated", flush=True)
             told += 1

@@ -27,7 +27,8 @@ In lockstep the team link delivers each teammate's message at a simulated time f
 the step it was sent in (``team_latency_s`` later; rf_bridge's ``lockstep_team_link``),
 waiting for the plan's ``team_peers``: a seed's game repeats with teammates too.
 
-SIGUSR1 (what the match sends at ``--team-link-cut-at``): the team link fails. The robot
+SIGUSR1 (what the match sends at ``--team-link-cut-at`` in real time; in lockstep the plan's
+``team_link_cut_at_s`` does it at that simulated time): the team link fails. The robot
 unloads its rf_bridge, whose Zenoh session closes, so nothing more is sent to or heard from
 its teammates; its team layer then finds them gone after its timeout and the robot plays
 alone (:class:`TeamLinkCut`).
@@ -163,19 +164,31 @@ def main(argv: list[str] | None = None) -> int:
             publish(msg)
 
     class TeamLinkCut:
-        """The team link failing on SIGUSR1: the handler only sets a flag (it runs between
-        any two bytecodes of the main thread, perhaps inside the executor); a timer, on the
-        executor, unloads rf_bridge (the component manager's unload service does the same
-        from a callback), and the status says ``link_cut`` from then on."""
+        """The team link failing on SIGUSR1, or in lockstep at the plan's simulated
+        ``team_link_cut_at_s`` (the world's time: this robot's clock is skewed off it). The
+        handler only sets a flag (it runs between any two bytecodes of the main thread,
+        perhaps inside the executor); a timer, on the executor, unloads rf_bridge (the
+        component manager's unload service does the same from a callback), and the status
+        says ``link_cut`` from then on."""
 
         def __init__(self, node: NodeHandle) -> None:
             self.asked = threading.Event()
             self.cut = False
             signal.signal(signal.SIGUSR1, lambda *_: self.asked.set())
+            at_s = plan.get("team_link_cut_at_s")
+            self.at_ns = None if at_s is None else round(at_s * 1e9)
+            self.clock = node.clock
             self.timer = node.create_timer(0.1, self._check)
 
+        def _due(self) -> bool:
+            if self.at_ns is None:
+                return False
+            now: int = self.clock.now_ns()
+            world = self.clock.base_of(now) if isinstance(self.clock, SkewedClock) else now
+            return bool(world >= self.at_ns)
+
         def _check(self) -> None:
-            if self.asked.is_set() and not self.cut:
+            if (self.asked.is_set() or self._due()) and not self.cut:
                 self.cut = True
                 container.unload(bridge.unique_id)
                 self.timer.cancel()
