@@ -180,3 +180,42 @@ def test_a_nodes_wait_says_what_is_ready_and_takes_matched_events_for_the_caller
     finally:
         waiter.close()
         executor.shutdown()
+
+
+def test_a_nodes_wait_leaves_parameter_services_to_the_callers_poll() -> None:
+    """A node's parameter services (seven a node, most of a container's entities) are not in
+    the wait set: a request to one is not reported, rclpy's wait (the caller's poll every
+    ``DDS_EVENTS_POLL_NS``) answers it."""
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.executors import SingleThreadedExecutor
+
+    domain = isolated_domain_id()
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    name = f"params_{unique_topic('n').strip('/')}"
+    node = rclpy.create_node(name, context=context, enable_rosout=False)  # services on
+    peer = _node("peer", domain)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    peer_executor = SingleThreadedExecutor(context=peer.context)
+    peer_executor.add_node(peer)
+    waiter = NodesWait(executor)
+    try:
+        client = peer.create_client(GetParameters, f"/{name}/get_parameters")
+        assert client.wait_for_service(timeout_sec=10.0)
+        future = client.call_async(GetParameters.Request(names=["use_sim_time"]))
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            assert not waiter.wait(0.1).other, "a parameter request woke the wait"
+        end = time.monotonic() + 10.0
+        while not future.done():
+            assert time.monotonic() < end, "rclpy's wait did not answer the request"
+            executor.spin_once(timeout_sec=0.1)
+            peer_executor.spin_once(timeout_sec=0.1)
+        assert future.result() is not None and len(future.result().values) == 1
+    finally:
+        waiter.close()
+        executor.shutdown()
+        peer_executor.shutdown()
+        _close(peer)
+        _close(node)
