@@ -110,7 +110,7 @@ def _python(code: str, *args: str, env: dict[str, str], **kw: Any) -> subprocess
 
 
 
-def graph_answers(env: dict[str, str]) -> dict[str, float]:
+def graph_answers(env: dict[str, str], cases: list[str]) -> dict[str, float]:
     peers = []
     names = [f"peer{i}" for i in range(PEERS)]
     topics = [f"/bench_topic{i}" for i in range(PEERS)]
@@ -133,7 +133,7 @@ def graph_answers(env: dict[str, str]) -> dict[str, float]:
             expected = topics if verb == "topic" else ["/" + n for n in names]
             out[f"{verb}_list_complete"] = float(
                 set(expected) <= set(result.stdout.split()))
-        out.update(daemon_answers(env, topics[0]))
+        out.update(daemon_answers(env, topics[0], cases))
         return out
     finally:
         for p in peers:
@@ -157,11 +157,12 @@ def _timed(args: list[str], env: dict[str, str]) -> tuple[float, str]:
     return time.perf_counter() - t0, f"{result.returncode}\n{result.stdout}{result.stderr}"
 
 
-def daemon_answers(env: dict[str, str], topic: str) -> dict[str, float]:
+def daemon_answers(env: dict[str, str], topic: str, cases: list[str]) -> dict[str, float]:
     """Cold, warm and --no-daemon wall times per case (and whether warm == --no-daemon)."""
     out: dict[str, float] = {}
     stop = [ros2_path(), "daemon", "stop"]
-    for case, template in DAEMON_CASES.items():
+    for case in cases:
+        template = DAEMON_CASES[case]
         args = [a.format(topic=topic) for a in template]
         subprocess.run(stop, env=env, capture_output=True, timeout=60, check=True)
         out[f"{case}_cold_s"], _ = _timed(args, env)
@@ -218,7 +219,15 @@ def main() -> int:
     parser.add_argument("--out", default=str(ROOT / "bench" / "out" / "cli_bench.json"))
     parser.add_argument("--listen", type=float, default=LISTEN_S,
                         help=f"seconds each rate measurement publishes (default: {LISTEN_S})")
+    parser.add_argument("--cases", default=",".join(DAEMON_CASES),
+                        help="the graph daemon's cases to time, comma-separated (default: "
+                        "all of them: " + ", ".join(DAEMON_CASES) + ")")
     args = parser.parse_args()
+    args.cases = [c for c in args.cases.split(",") if c]
+    unknown = sorted(set(args.cases) - set(DAEMON_CASES))
+    if unknown or not args.cases:
+        parser.error(f"--cases: {', '.join(unknown) or 'none given'}: choose from "
+                     + ", ".join(DAEMON_CASES))
     runs: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as daemons:
         try:
@@ -234,7 +243,7 @@ def _runs(args: argparse.Namespace, tmp: Path, daemons: Path) -> list[dict[str, 
     for i in range(args.repeat):
         env = cli_env(isolated_domain_id())
         env[DAEMON_DIR_ENV] = str(daemons)
-        run: dict[str, Any] = {"graph": graph_answers(env)}
+        run: dict[str, Any] = {"graph": graph_answers(env, args.cases)}
         run["string_1khz"] = keeping_up(env, "string", 1000.0, tmp, args.listen)
         run["image_30hz_1mib"] = keeping_up(env, "image", 30.0, tmp, args.listen)
         runs.append(run)
@@ -270,6 +279,8 @@ def _report(runs: list[dict[str, Any]], out: str) -> None:
           "warm / --no-daemon | cold / --no-daemon | warm == --no-daemon |")
     print("|---|---|---|---|---|---|---|")
     for case, template in DAEMON_CASES.items():
+        if f"{case}_same" not in runs[0]["graph"]:
+            continue  # not timed (--cases)
         cold, warm, direct = (med("graph", f"{case}_{k}_s")
                               for k in ("cold", "warm", "no_daemon"))
         same = sum(r["graph"][f"{case}_same"] for r in runs)
