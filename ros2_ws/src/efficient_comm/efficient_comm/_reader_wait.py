@@ -8,10 +8,8 @@ entry per handle.
   project's two-core machine, several times a step; in a profile of a lockstep team match
   it was a third of each robot's main-thread CPU, and as much of the world's.
 * :class:`NodesWait`: every subscription, service, client, timer and guard of a
-  container's nodes, the executor's DDS wait in real time (``ConsecutiveExecutor``), also
-  in the relay thread of a process that receives through shared memory
-  (:class:`~efficient_comm.shm.ShmWait`); what it found is a :class:`DdsReady`, run by
-  the executor's thread.
+  container's nodes, the executor's DDS wait in real time (``ConsecutiveExecutor``); what
+  it found is a :class:`DdsReady`, which the executor runs.
 
 Each wait puts the same handles in again (rcl empties a wait set on every wait); samples
 of ready subscriptions are taken all at once (:func:`~efficient_comm.executor.take_samples`).
@@ -120,7 +118,7 @@ def _valid(sub: Subscription) -> bool:
 @dataclass(slots=True)
 class DdsReady:
     """What a :class:`NodesWait` found, for the executor's thread to run
-    (:meth:`~efficient_comm.executor.ConsecutiveExecutor.run_dds_items`)."""
+    (``ConsecutiveExecutor._run_dds_items``)."""
 
     #: Ready subscriptions, their samples not taken yet.
     subs: list[Any] = field(default_factory=list)

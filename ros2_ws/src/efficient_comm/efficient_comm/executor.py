@@ -18,15 +18,13 @@ Timers run on the executor's clock (real ROS time, a :class:`ManualClock` advanc
 process moves, stepped the same way: see :mod:`efficient_comm.simtime`, also for lockstep).
 DDS entities (subscriptions from other processes, services, clients, graph events) are
 waited on through an rclpy executor inside, only when the container talks DDS; a guard
-condition in that wait set lets another thread's publish wake it at once. A source rclpy's
-wait set cannot hold (shared memory's listeners) brings an :class:`OwnWait` the thread
-blocks in instead, which relays DDS from a thread of its own. A callback that raises is
-logged and counted; the others go on.
+condition in that wait set lets another thread's publish wake it at once (and shared
+memory's watch thread, :mod:`efficient_comm.shm`). A callback that raises is logged and
+counted; the others go on.
 """
 
 from __future__ import annotations
 
-import contextlib
 import heapq
 import itertools
 import threading
@@ -70,30 +68,6 @@ MAX_TAKES = 64
 
 class _Runnable(Protocol):
     def run_one(self, executor: ConsecutiveExecutor) -> None: ...
-
-
-class OwnWait(Protocol):
-    """A wait the executor's thread blocks in instead of rclpy's, for a source that rclpy's
-    wait set cannot hold (:mod:`efficient_comm.shm`'s iceoryx2 listeners). It must still
-    hear DDS: it relays :meth:`ConsecutiveExecutor.dds_ready` from a thread of its own and
-    hands what that found to :meth:`ConsecutiveExecutor.run_dds_items` in the executor's
-    thread."""
-
-    def wait(self, timeout_s: float) -> None:
-        """Block up to ``timeout_s`` (executor thread); run what woke it."""
-
-    def poll(self) -> None:
-        """Run what is ready, without blocking (executor thread)."""
-
-    def wake(self) -> None:
-        """End the current or next :meth:`wait` (any thread)."""
-
-    def pause(self) -> contextlib.AbstractContextManager[None]:
-        """While in this context, the relay does not wait on DDS (the executor's thread
-        takes from it itself: :meth:`ConsecutiveExecutor.take_dds`)."""
-
-    def stop(self) -> None:
-        """Stop relaying DDS (the executor leaves it)."""
 
 
 class _Task:
@@ -213,7 +187,6 @@ class ConsecutiveExecutor:
         self._wake_event = threading.Event()
         self._dds: RclpyExecutor | None = None
         self._dds_wake: Callable[[], None] | None = None
-        self._own_wait: OwnWait | None = None
         self._nodes_wait: NodesWait | None = None
         self._events_due = 0
         self._last_dds_poll = 0
@@ -241,9 +214,6 @@ class ConsecutiveExecutor:
 
     def detach_dds(self) -> None:
         """Stop waiting on DDS (the container is leaving it); later waits are plain."""
-        own, self._own_wait = self._own_wait, None
-        if own is not None:
-            own.stop()
         nodes, self._nodes_wait = self._nodes_wait, None
         if nodes is not None:
             nodes.close()
@@ -251,25 +221,14 @@ class ConsecutiveExecutor:
         self._dds = None
         self._wake_event.set()
 
-    def attach_own_wait(self, wait: OwnWait) -> None:
-        """Block in ``wait`` instead of rclpy's wait from now on (needs DDS attached)."""
-        if self._dds is None:
-            raise ExecutorError("an own wait relays DDS: attach DDS first")
-        self._own_wait = wait
-        self._wake()
-
-    def dds_ready(self, timeout_s: float, *,
-                  stop: Callable[[], bool] = lambda: False) -> DdsReady | None:
-        """Wait up to ``timeout_s`` (or until ``stop()`` holds after a wake-up) for DDS,
-        and return what is ready without running it (None: nothing came), for
-        :meth:`run_dds_items` in the executor's thread: the executor's own real-time wait
-        and an :class:`OwnWait`'s relay thread both call this.
+    def _dds_ready(self, timeout_s: float) -> DdsReady | None:
+        """Wait up to ``timeout_s`` for DDS and return what is ready without running it
+        (None: nothing came), for :meth:`_run_dds_items`.
 
         The wait is :class:`~efficient_comm._reader_wait.NodesWait`'s, on a wait set kept
         across waits: rclpy's executor builds one per wait from every entity with its QoS
         event handlers, milliseconds of Python that were a third of a real-time world's
-        main thread (and, in a relay thread, 20 % of a core beside a 30 Hz camera over
-        shared memory). Every :data:`DDS_EVENTS_POLL_NS` it returns early with
+        main thread. Every :data:`DDS_EVENTS_POLL_NS` it returns early with
         ``poll_events`` for rclpy's wait over the other QoS events (message lost,
         incompatible QoS). Raises rclpy's ``ExternalShutdownException`` once DDS is shut
         down.
@@ -294,13 +253,8 @@ class ConsecutiveExecutor:
             if ready:
                 return ready
             now = time.monotonic_ns()
-            if now >= deadline or stop():
+            if now >= deadline:
                 return None
-
-    def wake_dds(self) -> None:
-        """End a :meth:`dds_ready` wait now (any thread)."""
-        if self._dds_wake is not None:
-            self._dds_wake()
 
     def create_timer(
         self, period_s: float, callback: Callable[[], None], *, stats: CallbackStats, logger: Logger
@@ -549,10 +503,7 @@ class ConsecutiveExecutor:
     def _wake(self) -> None:
         if self._lockstep is not None and self._lockstep.joined:
             self._lockstep.wake()
-        own = self._own_wait
-        if own is not None:
-            own.wake()
-        elif self._dds_wake is not None:
+        if self._dds_wake is not None:
             self._dds_wake()
         else:
             self._wake_event.set()
@@ -567,14 +518,7 @@ class ConsecutiveExecutor:
                 self._run_dds_ready(self._dds, 0.0)
                 self._last_dds_poll = time.monotonic_ns()
             return
-        own = self._own_wait
-        if own is not None:
-            if timeout_s > 0:
-                own.wait(timeout_s)
-            else:
-                own.poll()
-            self._last_dds_poll = time.monotonic_ns()
-        elif self._dds is not None:
+        if self._dds is not None:
             self._dds_wait(timeout_s)
             self._last_dds_poll = time.monotonic_ns()
         else:
@@ -582,14 +526,14 @@ class ConsecutiveExecutor:
             self._wake_event.clear()
 
     def _dds_wait(self, timeout_s: float) -> None:
-        """Wait up to ``timeout_s`` on DDS (:meth:`dds_ready`) and run what came; a round
+        """Wait up to ``timeout_s`` on DDS (:meth:`_dds_ready`) and run what came; a round
         for the QoS events that ran nothing goes on waiting until the timeout."""
         deadline = time.monotonic_ns() + round(timeout_s * 1e9)
         while True:
-            ready = self.dds_ready(max(0, deadline - time.monotonic_ns()) / 1e9)
+            ready = self._dds_ready(max(0, deadline - time.monotonic_ns()) / 1e9)
             if ready is None:
                 return
-            if self.run_dds_items(ready) or not ready.poll_events:
+            if self._run_dds_items(ready) or not ready.poll_events:
                 return  # something came: the caller looks at its timers first
             if time.monotonic_ns() >= deadline:
                 return
@@ -654,8 +598,8 @@ class ConsecutiveExecutor:
             raise
         return ran
 
-    def run_dds_items(self, ready: DdsReady) -> int:
-        """Run what :meth:`dds_ready` found (executor thread): the "matched" events, the
+    def _run_dds_items(self, ready: DdsReady) -> int:
+        """Run what :meth:`_dds_ready` found (executor thread): the "matched" events, the
         guard conditions' callbacks, every sample each ready subscription's reader holds
         (up to :data:`MAX_TAKES` more), and services, clients, rclpy timers and the other
         QoS events through rclpy's executor; returns how many callbacks ran."""
@@ -824,8 +768,7 @@ class ConsecutiveExecutor:
         if dds is None:
             return 0
         ran = 0
-        own = self._own_wait
-        with self._owning(), own.pause() if own is not None else contextlib.nullcontext():
+        with self._owning():
             while True:
                 try:
                     handler, _, _ = dds.wait_for_ready_callbacks(0.0)

@@ -9,8 +9,9 @@ into a loaned chunk, next to the rest of the message pickled (small: header, siz
 encoding; see :class:`_Rest`); each subscribing process reads the chunk in place: the
 message it gets holds a read-only numpy array over the shared chunk, and the chunk stays its
 until the last reference to that array is gone (iceoryx2 never reuses a chunk a reader
-holds). The receiving executor's thread waits on iceoryx2 itself, so a chunk wakes the
-thread that runs the callback, once; DDS is relayed to it (:class:`ShmWait`).
+holds). A thread of the receiving process waits on iceoryx2 and posts each ready
+subscription's receive to the executor, whose thread waits on DDS as without the
+transport (:class:`ShmWatch`).
 
 Turned on per container (``Container(shm=True)``) or for every container of a process by
 ``EFFICIENT_COMM_SHM=1``; ``shm_threshold_bytes`` (``EFFICIENT_COMM_SHM_THRESHOLD``) is the
@@ -50,7 +51,6 @@ import ctypes
 import functools
 import io
 import itertools
-import math
 import os
 import pickle
 import re
@@ -58,7 +58,7 @@ import secrets
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -66,10 +66,10 @@ import numpy as np
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from ._qos import is_transient_local
+from .executor import take_samples
 from .typenames import type_name
 
 if TYPE_CHECKING:
-    from ._reader_wait import DdsReady
     from .bus import LocalPublisher, LocalSubscription
     from .executor import ConsecutiveExecutor
     from .handle import Logger
@@ -127,13 +127,14 @@ class _Header(ctypes.Structure):
         ("dds_seq", ctypes.c_uint64),  # DDS's sequence number of the DDS copy, 0: none
         ("dds_t0", ctypes.c_int64),  # wall-clock window of the DDS write (its source stamp)
         ("dds_t1", ctypes.c_int64),
+        ("sent", ctypes.c_int64),  # wall clock at the send: orders it among DDS samples
         ("meta_len", ctypes.c_uint32),  # bytes of the rest of the message (_Rest)
         ("array_offset", ctypes.c_uint32),
     )
 
     @staticmethod
     def type_name() -> str:  # iceoryx2 matches both sides' header types by this name
-        return "efficient_comm.ShmHeader.2"  # .2: the rest pickled, no longer CDR
+        return "efficient_comm.ShmHeader.3"  # .2: the rest pickled; .3: the send time
 
 
 @dataclass(frozen=True)
@@ -291,22 +292,21 @@ class ShmTransport:
         self._services: dict[str, tuple[Any, Any]] = {}
         self._local_subs: dict[str, int] = {}  # service -> this process's shm subscribers
         self._lock = threading.Lock()
-        self._wait: ShmWait | None = None  # the executor's, from the first subscription
+        self._watch: ShmWatch | None = None  # from the first subscription
         self._publishers: list[ShmPublisher] = []
         self._told: set[str] = set()  # topics whose fallback was logged
 
     def listen(self, sub: ShmSubscription) -> None:
-        """Have the executor's thread wait on ``sub``'s listener (and relay DDS)."""
+        """Have ``sub``'s chunks wake the executor (:class:`ShmWatch`)."""
         with self._lock:
-            if self._wait is None:
-                self._wait = ShmWait(self.iox2, self.executor)
-                self.executor.attach_own_wait(self._wait)
-        self._wait.add(sub)
+            if self._watch is None:
+                self._watch = ShmWatch(self.iox2, self.executor)
+        self._watch.add(sub)
 
     def unlisten(self, sub: ShmSubscription, listener: Any) -> None:
         """``sub`` is gone; its listener is deleted once the executor no longer waits on it."""
-        if self._wait is not None:
-            self._wait.remove(sub, listener)
+        if self._watch is not None:
+            self._watch.remove(sub, listener)
         else:
             listener.delete()
 
@@ -397,8 +397,8 @@ class ShmTransport:
             return None
 
     def close(self) -> None:
-        if self._wait is not None:
-            self._wait.stop()
+        if self._watch is not None:
+            self._watch.stop()
         with self._lock:
             self._services.clear()
         self.node = None  # iceoryx2 removes the node when its last port is gone
@@ -503,9 +503,10 @@ class ShmPublisher:
         header.publisher, header.pid, header.seq = self._id, self._pid, next(self._seq)
         header.meta_len, header.array_offset = len(meta), offset
         header.dds_seq = header.dds_t0 = header.dds_t1 = 0
+        header.sent = time.time_ns()
         if write_dds:  # announced before it is written, so no reader can get it first
             header.dds_seq = self._dds_seq + 1
-            header.dds_t0 = time.time_ns()
+            header.dds_t0 = header.sent
             header.dds_t1 = header.dds_t0 + _DDS_WINDOW_NS
         sample.assume_init().send()
         self.shm_sends += 1
@@ -550,20 +551,37 @@ class ShmSubscription:
         self._last: dict[int, int] = {}  # publisher -> last sequence number
         self._expected: deque[tuple[int, int, int]] = deque(maxlen=_REMEMBER)  # DDS copies
         self._delivered: deque[tuple[int, int]] = deque(maxlen=_REMEMBER)  # from DDS
+        # Chunks received, not yet delivered: (send time, message), in send order.
+        self._pending: deque[tuple[int, Any]] = deque()
         self._pid = os.getpid()
         self._running = True
         transport.listen(self)
         transport.executor.post(self.drain)  # a first receive connects the port
 
     def drain(self) -> None:
-        """Deliver every chunk waiting (executor thread)."""
+        """Deliver every message waiting, from DDS and shared memory, in the order they
+        were sent (executor thread; what :class:`ShmWatch` posts when a chunk came)."""
+        reader = self._sub.dds
+        if reader is not None:
+            take_samples(reader)  # each one through from_dds, chunks sent before it first
+        self._receive()
+        self._deliver_until(None)
+
+    def _receive(self) -> None:
         while self._running:
             sample = self._port.receive()
             if sample is None:
                 return
+            sent = _Header.from_address(sample.user_header_ptr).sent
             msg = self._decode(sample)
             if msg is not None:
-                self._transport.executor.receive_remote(self._remote, msg)
+                self._pending.append((sent, msg))
+
+    def _deliver_until(self, stamp: int | None) -> None:
+        """Deliver the chunks sent before ``stamp`` (wall-clock ns; None: all)."""
+        pending = self._pending
+        while pending and (stamp is None or pending[0][0] <= stamp):
+            self._transport.executor.receive_remote(self._remote, pending.popleft()[1])
 
     def _decode(self, sample: Any) -> Any | None:
         header = _Header.from_address(sample.user_header_ptr)
@@ -609,13 +627,16 @@ class ShmSubscription:
     def from_dds(self, msg: Any, info: Any) -> None:
         """The DDS reader's callback: deliver unless shared memory carries this message.
 
-        What shared memory holds is delivered first: a publisher's earlier chunks were sent
-        before this DDS sample was written, so the order stays the publisher's, and a chunk
-        announcing this very sample's DDS copy is seen before the sample.
+        Shared memory is received first, so that a chunk announcing this very sample's DDS
+        copy is seen before the sample; of its chunks, those sent before this sample was
+        written (its source timestamp, the same machine's clock) are delivered before it,
+        the later ones after it: each subscriber gets a publisher's messages in the order
+        they were published, whichever path each took.
         """
-        self.drain()
         seq = info.get("publication_sequence_number", 0) if isinstance(info, dict) else 0
         stamp = info.get("source_timestamp", 0) if isinstance(info, dict) else 0
+        self._receive()
+        self._deliver_until(stamp)
         for copy in self._expected:
             if copy[0] == seq and copy[1] <= stamp <= copy[2]:
                 self._expected.remove(copy)
@@ -630,202 +651,107 @@ class ShmSubscription:
         self._port.delete()
 
 
-class ShmWait:
-    """The executor's wait while its process receives through shared memory.
+class ShmWatch:
+    """Wakes the executor for shared-memory chunks: a thread blocks in an iceoryx2
+    ``WaitSet`` over every subscription's listener and, for each that fired, posts its
+    :meth:`ShmSubscription.drain` to the executor (:meth:`ConsecutiveExecutor.post`, which
+    wakes the executor's DDS wait through its guard condition). The executor's thread waits
+    on DDS as it does without the transport, and runs every callback.
 
     rclpy's wait set takes rcl entities only, and iceoryx2 gives Python no file descriptor
-    for a listener, so one of the two needs a thread. A thread per listener that woke the
-    executor out of rclpy's wait (a guard condition) made each message two thread wake-ups
-    and a round of rclpy's wait-set Python: most of a 1 MiB message's latency. Here the
-    executor's thread itself blocks in an iceoryx2 ``WaitSet`` over every subscription's
-    listener and an eventfd, and receives a chunk as it wakes; DDS is what is relayed: a
-    thread waits on the DDS entities (:meth:`ConsecutiveExecutor.dds_ready`), hands what
-    is ready over through the eventfd and waits for the executor's thread to have run it
-    before it waits again, so rclpy's entities are never waited on by two threads at
-    once. The eventfd is also the executor's wake-up for another thread's publish.
+    for a listener, so one side needs a thread. It used to be the other side: the executor's
+    thread blocked in the WaitSet (one wake-up a chunk) and a thread relayed DDS to it. But a
+    robot takes many small DDS messages for each large one (a 100 Hz IMU, joint states,
+    the team link, beside a 30 Hz camera): the relay woke for every DDS sample, 15 % of a
+    core in a team match's robot, every DDS message paid a second wake-up, and the walking
+    robot fell more often (SHM.md, "The wake-up"). Now the second wake-up is the chunk's.
     """
 
     def __init__(self, iox2: Any, executor: ConsecutiveExecutor) -> None:
         self._iox2 = iox2
         self._executor = executor
-        self._fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
-        # Subscriptions come and go in any thread (under _lock); the WaitSet is the
-        # executor thread's alone, rebuilt there before its next wait (_dirty), and a gone
+        self._fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)  # rebuild or stop
+        # Subscriptions come and go in any thread (under _lock); the WaitSet is the watch
+        # thread's alone, rebuilt there before its next wait (_dirty), and a gone
         # subscription's listener is deleted only then, once no WaitSet holds it (_retired).
         self._lock = threading.Lock()
         self._subs: list[ShmSubscription] = []
         self._retired: list[Any] = []
         self._dirty = True
-        self._waitset: Any = None
-        self._fd_guard: Any = None
-        self._guards: list[tuple[Any, ShmSubscription]] = []
-        # The relay's state, under _cond: DDS handlers it found (run by the executor's
-        # thread, then None), whether the executor's thread takes from DDS itself (paused),
-        # and whether the relay is parked (not in a DDS wait).
-        self._cond = threading.Condition()
-        self._items: DdsReady | None = None
-        self._paused = False
-        self._parked = False
         self._running = True
-        self._error: BaseException | None = None  # what ended the relay, raised in _run
-        self._relay = threading.Thread(target=self._relay_dds, daemon=True, name="dds relay")
-        self._relay.start()
-
-    # -- subscriptions (any thread) --------------------------------------------------------
+        self._thread = threading.Thread(target=self._watch, daemon=True, name="shm watch")
+        self._thread.start()
 
     def add(self, sub: ShmSubscription) -> None:
         with self._lock:
             self._subs.append(sub)
             self._dirty = True
-        self.wake()
+        self._poke()
 
     def remove(self, sub: ShmSubscription, listener: Any) -> None:
         """``sub`` is gone; its ``listener`` is deleted once no WaitSet holds it."""
         with self._lock:
             if sub in self._subs:
                 self._subs.remove(sub)
-            self._retired.append(listener)
-            self._dirty = True
-        self.wake()
-
-    def _rebuild(self) -> None:
-        iox2 = self._iox2
-        with self._lock:
-            subs, retired, self._retired = list(self._subs), self._retired, []
-            self._dirty = False
-        self._guards = []
-        self._fd_guard = self._waitset = None  # the old WaitSet and its guards first
-        for listener in retired:
+            running = self._running
+            if running:
+                self._retired.append(listener)
+                self._dirty = True
+        if running:
+            self._poke()
+        else:  # no WaitSet left
             with contextlib.suppress(Exception):
                 listener.delete()
-        waitset = (iox2.WaitSetBuilder.new()
-                   .signal_handling_mode(iox2.SignalHandlingMode.Disabled)
-                   .create(iox2.ServiceType.Ipc))
-        self._fd_guard = waitset.attach_notification_fd(
-            iox2.FileDescriptor.non_owning_new(self._fd))
-        self._guards = [(waitset.attach_notification(sub.listener), sub) for sub in subs]
-        self._waitset = waitset
-
-    # -- the executor's thread -------------------------------------------------------------
-
-    def wait(self, timeout_s: float) -> None:
-        """Wait up to ``timeout_s`` (the executor's next timer deadline) for a chunk, a
-        relayed DDS callback or a wake-up.
-
-        iceoryx2 waits whole milliseconds, rounded up (measured: 5.3 ms took 6.2, 0.5 ms
-        1.1), which made a 100 Hz timer fire 0.3 ms late by the median, against 0.01 ms in
-        rclpy's wait. So it is asked for the whole milliseconds only, and what is left of a
-        deadline below one is slept (waking for nothing else: at most a millisecond) and
-        then polled.
-        """
-        if self._dirty:
-            self._rebuild()
-        whole_ms = math.floor(min(timeout_s, 3600.0) * 1000)
-        if whole_ms <= 0 < timeout_s:
-            time.sleep(timeout_s)
-        fired, _ = self._waitset.wait_and_process_with_timeout(
-            self._iox2.Duration.from_millis(max(whole_ms, 0)))
-        ready = [sub for guard, sub in self._guards
-                 if any(event.has_event_from(guard) for event in fired)]
-        for sub in ready:
-            sub.listener.try_wait()  # consumed, or the WaitSet wakes at once again
-        self._run(ready)
-
-    def poll(self) -> None:
-        if self._dirty:
-            self._rebuild()
-        self._run([sub for _, sub in self._guards])
-
-    def _run(self, subs: list[ShmSubscription]) -> None:
-        """Shared memory first (a publisher's chunks before its later DDS samples), then
-        what the relay found on DDS."""
-        with contextlib.suppress(BlockingIOError):
-            os.eventfd_read(self._fd)
-        for sub in subs:
-            sub.drain()
-        if self._error is not None:  # raised from the spin, as rclpy's own wait's would be
-            error, self._error = self._error, None
-            raise error
-        items = self._items
-        if items is not None:
-            try:
-                self._executor.run_dds_items(items)
-            finally:
-                with self._cond:  # the relay waits again only now: one waiter at a time
-                    self._items = None
-                    self._cond.notify_all()
-
-    @contextlib.contextmanager
-    def pause(self) -> Iterator[None]:
-        with self._cond:
-            self._paused = True
-        self._executor.wake_dds()
-        with self._cond:
-            self._cond.wait_for(lambda: self._parked, timeout=5.0)
-        self._run([])  # what the relay had found
-        try:
-            yield
-        finally:
-            with self._cond:
-                self._paused = False
-                self._cond.notify_all()
-
-    # -- any thread --------------------------------------------------------------------------
-
-    def wake(self) -> None:
-        with contextlib.suppress(OSError):  # closed
-            os.eventfd_write(self._fd, 1)
 
     def stop(self) -> None:
-        """End the relay (the executor leaves DDS or the transport closes)."""
-        with self._cond:
+        """End the thread (the transport closes); every listener it held is deleted."""
+        with self._lock:
             if not self._running:
                 return
             self._running = False
-            self._cond.notify_all()
-        self._executor.wake_dds()
-        self._relay.join(timeout=5.0)
-        with self._cond:
-            self._items = None  # found, never to run
-        self._guards = []
-        self._fd_guard = self._waitset = None
-        with self._lock:
-            retired, self._retired = self._retired, []
-        for listener in retired:
-            with contextlib.suppress(Exception):
-                listener.delete()
+        self._poke()
+        self._thread.join(timeout=5.0)
+
+    def _poke(self) -> None:
+        with contextlib.suppress(OSError):  # closed
+            os.eventfd_write(self._fd, 1)
 
     def __del__(self) -> None:
-        os.close(self._fd)  # not in stop(): a late wake() must not write to a reused fd
+        os.close(self._fd)  # not in stop(): a late _poke() must not write to a reused fd
 
-    # -- the relay thread --------------------------------------------------------------------
-
-    def _relay_dds(self) -> None:
-        cond = self._cond
-        while True:
-            with cond:
-                while self._running and (self._paused or self._items is not None):
-                    self._parked = True
-                    cond.notify_all()
-                    cond.wait()
-                self._parked = False
-                if not self._running:
-                    break
-            try:
-                items = self._executor.dds_ready(_WAKE_MS / 1000, stop=self._stopping)
-            except Exception as exc:
-                if self._running and type(exc).__name__ not in (
-                        "ShutdownException", "ExternalShutdownException"):
-                    self._error = exc  # not a shutdown: the executor's thread raises it
-                    self.wake()
-                break
-            if items:
-                with cond:
-                    self._items = items
-                self.wake()
-        with cond:
-            self._parked = True
-            cond.notify_all()
-
-    def _stopping(self) -> bool:
-        return not self._running or self._paused
+    def _watch(self) -> None:
+        iox2 = self._iox2
+        guards: list[tuple[Any, ShmSubscription]] = []
+        waitset: Any = None
+        fd_guard: Any = None
+        timeout = iox2.Duration.from_millis(_WAKE_MS)
+        try:
+            while self._running:
+                if self._dirty:
+                    with self._lock:
+                        subs, retired, self._retired = list(self._subs), self._retired, []
+                        self._dirty = False
+                    guards, fd_guard, waitset = [], None, None  # the old WaitSet's first
+                    for listener in retired:
+                        with contextlib.suppress(Exception):
+                            listener.delete()
+                    waitset = (iox2.WaitSetBuilder.new()
+                               .signal_handling_mode(iox2.SignalHandlingMode.Disabled)
+                               .create(iox2.ServiceType.Ipc))
+                    fd_guard = waitset.attach_notification_fd(
+                        iox2.FileDescriptor.non_owning_new(self._fd))
+                    guards = [(waitset.attach_notification(sub.listener), sub) for sub in subs]
+                fired, _ = waitset.wait_and_process_with_timeout(timeout)
+                with contextlib.suppress(BlockingIOError):
+                    os.eventfd_read(self._fd)
+                for guard, sub in guards:
+                    if any(event.has_event_from(guard) for event in fired):
+                        sub.listener.try_wait()  # consumed, or the WaitSet wakes at once again
+                        self._executor.post(sub.drain)
+        finally:
+            del guards, fd_guard, waitset  # the WaitSet before the listeners it holds
+            with self._lock:
+                retired, self._retired = self._retired, []
+            for listener in retired:
+                with contextlib.suppress(Exception):
+                    listener.delete()
