@@ -90,15 +90,16 @@ def parse_report(text: str, robots: int, *, lockstep: bool = False) -> dict[str,
     }
 
 
-def run_match(robots: str, *, duration_s: float, camera_hz: float, lockstep: bool = False
-              ) -> dict[str, Any]:
+def run_match(robots: str, *, duration_s: float, camera_hz: float, lockstep: bool = False,
+              transport: str = "shm") -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="match_bench_") as tmp:
         report = Path(tmp, "report.md")
         load = os.getloadavg()[0]
         subprocess.run(
             [sys.executable, "-m", "humanoid_sim.match", "--robots", robots, "--duration",
              str(duration_s), "--camera-hz", str(camera_hz), "--stats-period", "5",
-             "--ready-s", "1", "--out-dir", tmp, "--report", str(report)]
+             "--ready-s", "1", "--out-dir", tmp, "--report", str(report),
+             "--camera-transport", transport]
             + (["--lockstep"] if lockstep else []),
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             timeout=duration_s * (300 if lockstep else 1) + 300, check=False)
@@ -119,30 +120,37 @@ def main() -> int:
     ap.add_argument("--camera-hz", type=float, default=30.0)
     ap.add_argument("--sizes", default=",".join(SIZES),
                     help=f"--robots values, comma-separated (default {','.join(SIZES)})")
+    ap.add_argument("--camera-transport", default="shm",
+                    help="real time: how the camera images reach the robots, shm or dds, or "
+                    "both (shm,dds: a row each, the DDS one named \"<size> dds\"); lockstep "
+                    "runs take DDS (default shm)")
     ap.add_argument("--quick", action="store_true",
                     help="one short one-robot match in real time and one in lockstep")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = ap.parse_args()
     sizes = args.sizes.split(",")
     if args.quick:
-        args.repeat, args.duration, args.lockstep_duration, sizes = 1, 45.0, 1.0, ["1v0"]
+        args.repeat, args.duration, args.lockstep_duration, sizes = 1, 20.0, 1.0, ["1v0"]
     unknown = [s for s in sizes if s not in SIZES]
     if unknown:
         ap.error(f"--sizes: {', '.join(unknown)} not among {', '.join(SIZES)}")
-    kinds = [(size, False) for size in sizes]
+    transports = args.camera_transport.split(",")
+    if bad := [t for t in transports if t not in ("shm", "dds")]:
+        ap.error(f"--camera-transport: {', '.join(bad)} is not shm or dds")
+    kinds = [(size, False, t) for size in sizes for t in transports]
     if args.lockstep_duration > 0:
-        kinds += [(size, True) for size in sizes]
+        kinds += [(size, True, "dds") for size in sizes]
     runs: dict[str, list[dict[str, Any]]] = {_key(*k): [] for k in kinds}
     for _ in range(args.repeat):  # interleaved
-        for size, lockstep in kinds:
-            runs[_key(size, lockstep)].append(run_match(
+        for size, lockstep, transport in kinds:
+            runs[_key(size, lockstep, transport)].append(run_match(
                 size, duration_s=args.lockstep_duration if lockstep else args.duration,
-                camera_hz=args.camera_hz, lockstep=lockstep))
+                camera_hz=args.camera_hz, lockstep=lockstep, transport=transport))
 
     def med(key: str, part: str) -> float:
         return float(statistics.median(r[part] for r in runs[key]))
 
-    base = _key(sizes[0], False)
+    base = _key(*kinds[0])
     loads = [x for rs in runs.values() for r in rs for x in r["load"]]
     print(f"medians of {args.repeat} run(s) (real time: {args.duration:g} s wall; lockstep: "
           f"{args.lockstep_duration:g} s simulated), cameras at {args.camera_hz:g} Hz; load "
@@ -166,9 +174,10 @@ def main() -> int:
     return 0
 
 
-def _key(size: str, lockstep: bool) -> str:
-    """A row's name: the --robots value, and " lockstep" for lockstep runs."""
-    return f"{size} lockstep" if lockstep else size
+def _key(size: str, lockstep: bool, transport: str = "shm") -> str:
+    """A row's name: the --robots value, and " lockstep" for lockstep runs, " dds" for real
+    time with the camera images over DDS."""
+    return f"{size} lockstep" if lockstep else f"{size} dds" if transport == "dds" else size
 
 
 if __name__ == "__main__":

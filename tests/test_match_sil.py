@@ -2,10 +2,11 @@
 its own on its own DDS domain, the world in another (real time, cameras at 5 Hz).
 
 One run (to keep it short): every robot comes up and receives its camera and IMU from the
-world, the game goes initial -> ready -> set -> playing and the robots see it, the team
-link carries bytes within the budget; then one robot's process is killed: the match names
-it and goes on (the world keeps stepping), and Ctrl-C (SIGINT) ends every process with a
-report that has a row per robot.
+world, the camera through shared memory, while a plain rclpy reader on one robot's domain
+gets the same images over DDS; the game goes initial -> ready -> set -> playing and the
+robots see it, the team link carries bytes within the budget; then one robot's process is
+killed: the match names it and goes on (the world keeps stepping), and Ctrl-C (SIGINT) ends
+every process with a report that has a row per robot.
 """
 
 from __future__ import annotations
@@ -13,9 +14,14 @@ from __future__ import annotations
 import os
 import re
 import signal
+import time
 from pathlib import Path
 
 import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from sensor_msgs.msg import Image
 
 from ._match import MatchProcess, report_rows
 
@@ -49,6 +55,24 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _plain_images(domain: int, topic: str, *, count: int, timeout_s: float) -> list[Image]:
+    """Images a plain rclpy subscriber (no efficient_comm) gets on ``domain``."""
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    got: list[Image] = []
+    try:
+        node = rclpy.create_node(f"plain_reader_{os.getpid()}", context=context)
+        node.create_subscription(Image, topic, got.append, 2)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        deadline = time.monotonic() + timeout_s
+        while len(got) < count and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.2)
+    finally:
+        context.try_shutdown()
+    return got
+
+
 @pytest.mark.timeout(150)
 def test_two_teammates_play_in_their_own_processes_and_a_killed_one_is_named(
         tmp_path: Path) -> None:
@@ -59,7 +83,7 @@ def test_two_teammates_play_in_their_own_processes_and_a_killed_one_is_named(
                        "--out-dir", str(tmp_path / "out"), "--report", str(report)],
                       cwd=tmp_path) as match:
         try:
-            match.until(r"^soccer match: blue1, blue2", 60)
+            started = match.until(r"^soccer match: blue1, blue2, .* blue1 (\d+)", 60)
             children = _children(match.proc.pid)
             assert set(children) == {"world", "blue1", "blue2"}, children
             # Both robots see the referee's game; the team link carries their messages.
@@ -68,6 +92,12 @@ def test_two_teammates_play_in_their_own_processes_and_a_killed_one_is_named(
             states = [line.split()[2] for line in match.lines
                       if line.startswith("game state ")]
             assert states[:4] == ["initial", "ready", "set", "playing"], states
+            # The camera crosses to blue1's process through shared memory; DDS still
+            # carries it to a plain reader on blue1's domain, whole.
+            images = _plain_images(int(started[1]), "/blue1/device/camera/image_raw",
+                                   count=2, timeout_s=20)
+            assert len(images) == 2, len(images)
+            assert all(len(i.data) == i.step * i.height > 0 for i in images)
             # Killed: named, and the world goes on stepping.
             os.killpg(children["blue2"], signal.SIGKILL)
             match.until(r"^blue2: its process ended \(killed by signal 9", 10)
@@ -102,3 +132,11 @@ def test_two_teammates_play_in_their_own_processes_and_a_killed_one_is_named(
         rate, peak = (float(v) for v in re.findall(r"[\d.]+", row[7])[:2])
         assert 0 < rate <= BUDGET and peak <= BUDGET, (name, text)
     assert "seed 0" in text
+    # The frames crossed through shared memory; DDS copies went to the plain reader of
+    # blue1's camera, and to a robot only while its DDS reader had matched and its
+    # shared-memory subscriber was not yet connected (start-up: a frame or two).
+    camera = re.search(r"^Camera images to the robots through shared memory .*: "
+                       r"blue1 (\d+) \((\d+)\), blue2 (\d+) \((\d+)\)\.$", text, re.M)
+    assert camera, text
+    shm1, dds1, shm2, dds2 = (int(v) for v in camera.groups())
+    assert shm1 > 0 and shm2 > 0 and dds1 >= 2 and dds2 < shm2 / 2, camera[0]

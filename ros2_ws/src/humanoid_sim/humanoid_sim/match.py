@@ -77,7 +77,7 @@ from efficient_comm import stop_on_sigterm
 from efficient_comm.testing import isolated_domain_id, ros_env, stop_process_group
 from soccer_field import KIDSIZE
 
-from .arguments import EXIT_OK, DemoArguments, finite_number
+from .arguments import EXIT_OK, TRANSPORTS, DemoArguments, finite_number
 from .match_recording import (
     ClockSkew,
     RecordingPaths,
@@ -301,6 +301,10 @@ def _parser() -> DemoArguments:
                         default=2.0, help="seconds between live lines (default 2)")
     parser.add_argument("--camera-hz", type=finite_number(low=0, high=60, what="0 to 60 Hz"),
                         default=30.0, help="each robot's camera rate (default 30)")
+    parser.add_argument("--camera-transport", choices=TRANSPORTS, default="shm",
+                        help="how each camera image crosses from the world's process to its "
+                        "robot's: shm (shared memory, the default) or dds; with --lockstep "
+                        "always dds (a step counts its messages through DDS)")
     parser.add_argument("--ready-s", type=finite_number(low=1, what="seconds >= 1"), default=45.0,
                         help="the referee's longest ready (default 45, the GameController's)")
     parser.add_argument("--localization", type=localization_choice,
@@ -354,7 +358,14 @@ def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict
     return {"robots": list(robots), "domains": domains, "world": world, "step_hz": 100.0,
             "referee": {"robots": list(robots), "ready_s": args.ready_s},
             "status_period_s": status_period_s, "lockstep": args.lockstep,
-            "end_s": args.duration if args.lockstep else 0.0}
+            "end_s": args.duration if args.lockstep else 0.0,
+            "camera_transport": camera_transport(args)}
+
+
+def camera_transport(args: argparse.Namespace) -> str:
+    """What carries the camera images to the robots: ``--camera-transport``, but DDS in
+    lockstep (the shared-memory transport stays off there: docs/SHM.md)."""
+    return "dds" if args.lockstep else str(args.camera_transport)
 
 
 def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
@@ -521,8 +532,21 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
               "a core: " + ", ".join(
                   f"{n} {children[n].status.get('imu_hz', 0.0):.1f} Hz "
                   f"{children[n].status.get('cpu_pct', 0.0):.0f} %"
-                  for n in robots if n in children) + ".", ""]
+                  for n in robots if n in children) + ".",
+              "", camera_line(s, camera_transport(args)), ""]
     return "\n".join(lines)
+
+
+def camera_line(status: dict[str, Any], transport: str) -> str:
+    """How the camera images reached the robots' processes: through shared memory, per
+    robot the frames the world sent so and those it also wrote to DDS (for a plain reader
+    on the robot's domain, such as ``ros2 topic echo``), or over DDS."""
+    if transport != "shm":
+        return "Camera images to the robots over DDS."
+    traffic = status.get("camera_traffic") or {}
+    return ("Camera images to the robots through shared memory (frames sent so, of them "
+            "also written to DDS for a plain reader): " + ", ".join(
+                f"{r} {shm} ({dds})" for r, (shm, dds) in traffic.items()) + ".")
 
 
 def world_cpu_line(status: dict[str, Any]) -> str:
@@ -594,6 +618,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 plan["team_peers"] = [m for m in robots if m.startswith(team) and m != robot
                                       and args.team_link == "on"]
                 plan["team_latency_s"] = TEAM_LINK_LATENCY_S
+                plan["camera_transport"] = camera_transport(args)
                 # In lockstep each robot cuts its end itself at that simulated time: a
                 # signal sent when the match saw the world's time pass it arrived a load-
                 # dependent while later (the game did not repeat; an offline check of the

@@ -268,7 +268,8 @@ def main(argv: list[str] | None = None) -> int:
     with Container(f"{name}_robot", namespace=ns, dds=True, serve=False, stats_namespace=ns,
                    clock_offset_s=clock.get("offset_s", 0.0),
                    clock_drift_ppm=clock.get("drift_ppm", 0.0),
-                   lockstep=name if lockstep else None) as container:
+                   lockstep=name if lockstep else None,
+                   shm=plan.get("camera_transport") == "shm") as container:
         driver: ServoDriver = container.add(
             ServoDriver, name="servo_driver", namespace=ns,
             parameters={"port": plan["port"], "ids": list(JOINTS),

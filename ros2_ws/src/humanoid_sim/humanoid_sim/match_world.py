@@ -42,6 +42,7 @@ import os
 import struct
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -87,7 +88,7 @@ class SensorLink:
     """
 
     def __init__(self, node: NodeHandle, *, robot: str, domain_id: int, truth_every: int,
-                 world: WorldSimulator) -> None:
+                 world: WorldSimulator, camera_shm: bool = False) -> None:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.rnode = rclpy.create_node(f"{robot}_sensors", namespace=f"/{robot}",
@@ -104,12 +105,19 @@ class SensorLink:
         self.device_pubs: list[Any] = []  # what a lockstep step flushes
         #: IMU messages sent while the robot's reader was matched: what it should hear.
         self.imu_sent = 0
+        self.camera: Container | None = None
+        self._camera_thread: threading.Thread | None = None
         for msg_type, source, target, qos in pairs:
-            pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
             if msg_type is Image:
+                pub = (self._shm_camera(robot, domain_id, f"{DEVICE}/{target}", qos)
+                       if camera_shm else
+                       self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos))
                 node.observe_in_process(Image, source, pub.publish)
                 world.add_camera_demand(robot, functools.partial(_has_reader, pub))
+                if camera_shm:
+                    continue  # real time only: nothing for a lockstep step to flush
             else:
+                pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
                 relay = self._imu(pub) if msg_type is Imu else pub.publish
                 node.create_subscription(msg_type, source, relay, qos=qos)
             self.device_pubs.append(pub)
@@ -120,6 +128,30 @@ class SensorLink:
                                  lambda m: self._truth(pose_pub, m), qos=10)
         node.create_subscription(PoseStamped, "/ground_truth/ball",
                                  lambda m: self._truth(ball_pub, m, count=False), qos=10)
+
+    def _shm_camera(self, robot: str, domain_id: int, topic: str, qos: Any) -> Any:
+        """The camera's publisher on a container of its own on the robot's domain, with the
+        shared-memory transport: the robot's process on this machine reads each frame in
+        place (no CDR, no copy but the one into the chunk), and DDS still carries it to
+        anyone else there (a ``ros2 topic echo``, the GUI). Its executor runs in a thread
+        of its own: it only follows DDS's matched events, which tell the publisher whether
+        a plain reader also wants the frame."""
+        self.camera = Container(f"{robot}_camera", namespace=f"/{robot}", domain_id=domain_id,
+                                serve=False, stats_period_s=0, shm=True)
+        handle = self.camera.add(lambda n: n, name=f"{robot}_camera", namespace=f"/{robot}")
+        self._camera_thread = threading.Thread(target=self.camera.spin,
+                                               name=f"{robot}_camera", daemon=True)
+        self._camera_thread.start()
+        return handle.create_publisher(Image, topic, qos=qos)
+
+    def camera_traffic(self) -> tuple[int, int]:
+        """Frames sent to the robot through shared memory, and frames written to DDS (for
+        plain readers); (0, 0) without the transport."""
+        shm = self.camera.shm if self.camera is not None else None
+        if shm is None:
+            return 0, 0
+        sent = list(shm.traffic().values())
+        return sum(t.shm_sends for t in sent), sum(t.dds_writes for t in sent)
 
     def _imu(self, pub: Any) -> Any:
         def relay(msg: Imu) -> None:
@@ -156,6 +188,11 @@ class SensorLink:
                                     f"did not acknowledge within {timeout_s:g} s")
 
     def close(self) -> None:
+        if self.camera is not None:
+            self.camera.shutdown()
+            if self._camera_thread is not None:
+                self._camera_thread.join(timeout=10)
+            self.camera.close()
         self.rnode.destroy_node()
         self.context.try_shutdown()
 
@@ -188,7 +225,8 @@ def main(argv: list[str] | None = None) -> int:
         links: dict[str, SensorLink] = {
             robot: container.add(functools.partial(
                 SensorLink, robot=robot, domain_id=plan["domains"][robot],
-                truth_every=round(plan["step_hz"] / 10.0), world=world),
+                truth_every=round(plan["step_hz"] / 10.0), world=world,
+                camera_shm=plan.get("camera_transport") == "shm"),
                                  name=f"{robot}_link")
             for robot in robots}
         truth = GroundTruthLog(robots)
@@ -235,6 +273,7 @@ def main(argv: list[str] | None = None) -> int:
                 "at_state_start": truth.at_start,
                 "ticks": status["ticks"], "tick_hz": round(status["tick_hz"], 1),
                 "imu_sent": {r: link.imu_sent for r, link in links.items()},
+                "camera_traffic": {r: link.camera_traffic() for r, link in links.items()},
                 "cpu_s": {k: round(v, 3) for k, v in status["cpu_s"].items()},
             }), flush=True)
 
