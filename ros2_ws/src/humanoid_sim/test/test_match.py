@@ -8,7 +8,13 @@ import math
 
 import pytest
 
-from humanoid_sim.match import bridge_config, robot_names, start_poses
+from humanoid_sim.match import (
+    bridge_config,
+    camera_line,
+    camera_transport,
+    robot_names,
+    start_poses,
+)
 from humanoid_sim.world import DEFAULT_START
 from soccer_field import KIDSIZE
 
@@ -50,3 +56,13 @@ def test_a_robots_bridge_file_listens_and_connects_to_its_teammates_within_budge
     assert team["connect"] == ["tcp/127.0.0.1:7000"]
     assert team["budget_bytes_per_s"] == 2048
     assert config["topics"][0]["ros2"] == "team/messages"
+
+
+def test_the_camera_goes_through_shared_memory_in_real_time_and_over_dds_in_lockstep() -> None:
+    chosen = argparse.Namespace(camera_transport="shm", lockstep=False)
+    assert camera_transport(chosen) == "shm"
+    assert camera_transport(argparse.Namespace(camera_transport="shm", lockstep=True)) == "dds"
+    assert camera_transport(argparse.Namespace(camera_transport="dds", lockstep=False)) == "dds"
+    status = {"camera_traffic": {"blue1": [298, 10], "blue2": [301, 0]}}
+    assert camera_line(status, "shm").endswith(": blue1 298 (10), blue2 301 (0).")
+    assert camera_line(status, "dds") == "Camera images to the robots over DDS."

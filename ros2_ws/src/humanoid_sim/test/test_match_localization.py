@@ -140,7 +140,7 @@ def test_the_report_gives_each_robots_source_and_errors() -> None:
                                                                  "position_error_mean_m":
                                                                  math.nan}}})}
     args = argparse.Namespace(seed=0, out_dir=Path("out"), lockstep=False,
-                              team_link="on")
+                              team_link="on", camera_transport="shm")
     text = report(["blue1", "red1"], args,
                   child("world", {}), robots, 10.0)
     assert ("- blue1: particle_filter, 12 estimates; position error mean 0.500 m, p95 "
