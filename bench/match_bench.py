@@ -121,9 +121,8 @@ def main() -> int:
     ap.add_argument("--sizes", default=",".join(SIZES),
                     help=f"--robots values, comma-separated (default {','.join(SIZES)})")
     ap.add_argument("--camera-transport", default="shm",
-                    help="real time: how the camera images reach the robots, shm or dds, or "
-                    "both (shm,dds: a row each, the DDS one named \"<size> dds\"); lockstep "
-                    "runs take DDS (default shm)")
+                    help="how the camera images reach the robots, shm or dds, or both "
+                    "(shm,dds: a row each, the DDS one named \"<size> dds\") (default shm)")
     ap.add_argument("--quick", action="store_true",
                     help="one short one-robot match in real time and one in lockstep")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
@@ -139,7 +138,7 @@ def main() -> int:
         ap.error(f"--camera-transport: {', '.join(bad)} is not shm or dds")
     kinds = [(size, False, t) for size in sizes for t in transports]
     if args.lockstep_duration > 0:
-        kinds += [(size, True, "dds") for size in sizes]
+        kinds += [(size, True, t) for size in sizes for t in transports]
     runs: dict[str, list[dict[str, Any]]] = {_key(*k): [] for k in kinds}
     for _ in range(args.repeat):  # interleaved
         for size, lockstep, transport in kinds:
@@ -175,9 +174,9 @@ def main() -> int:
 
 
 def _key(size: str, lockstep: bool, transport: str = "shm") -> str:
-    """A row's name: the --robots value, and " lockstep" for lockstep runs, " dds" for real
-    time with the camera images over DDS."""
-    return f"{size} lockstep" if lockstep else f"{size} dds" if transport == "dds" else size
+    """A row's name: the --robots value, " lockstep" for lockstep runs, " dds" for the
+    camera images over DDS."""
+    return size + (" lockstep" if lockstep else "") + (" dds" if transport == "dds" else "")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,9 @@ the other's load, and from their reports:
 
 * the same seed gives the same game across processes, with teammates: the ground-truth
   fingerprint (every robot's and the ball's exact pose each 0.1 s simulated) is equal for
-  the two runs (the team link delivers in lockstep at a step fixed by the sender's); the
+  the two runs (the team link delivers in lockstep at a step fixed by the sender's), one
+  with the cameras through shared memory, the other over DDS (each frame crosses in one
+  step either way); the
   seed drew the start (red1 in the centre circle, where seed 0's default start is not),
   and a fingerprint tells starts apart (``test/test_world.py`` of humanoid_sim: a third
   match of another seed, once run for that, cost a third more);
@@ -58,9 +60,11 @@ _STATE = re.compile(r"^- (\w+) from ([\d.]+) s: (.*)$")
 _ROBOT = re.compile(r"(\w+) at \((-?[\d.]+), (-?[\d.]+)\) moved ([\d.]+) m")
 
 
-def _start(tmp: Path, seed: int, tag: str) -> tuple[MatchProcess, Path]:
+def _start(tmp: Path, seed: int, tag: str, *, camera: str = "shm"
+           ) -> tuple[MatchProcess, Path]:
     report = tmp / f"{tag}.md"
     return MatchProcess(["--robots", "2v1", "--lockstep", "--seed", str(seed),
+                         "--camera-transport", camera,
                          "--duration", str(SIM_S), "--ready-s", "1", "--camera-hz", "5",
                          # Roles without hysteresis: every team message may move a role.
                          "--role-margin", "0", "--role-hold", "0",
@@ -97,7 +101,9 @@ def _fingerprint(text: str) -> str:
 
 @pytest.mark.timeout(1500)
 def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> None:
-    runs = {tag: _start(tmp_path, SEED, tag) for tag in ("a", "b")}
+    # Run b takes its cameras over DDS: a frame crosses in one step either way.
+    runs = {tag: _start(tmp_path, SEED, tag, camera="shm" if tag == "a" else "dds")
+            for tag in ("a", "b")}
     outputs = _wait(runs)
     texts = {}
     for tag, (match, report) in runs.items():
@@ -110,6 +116,16 @@ def test_seeded_lockstep_matches_repeat_and_obey_the_referee(tmp_path: Path) -> 
     # The same seed, the same game, teammates' messages and all (on the code before team
     # messages were delivered in lockstep, seed 314's two runs had different fingerprints).
     assert _fingerprint(texts["a"]) == _fingerprint(texts["b"]), (texts["a"], texts["b"])
+    # The same game with the cameras through shared memory (a: none of the frames over
+    # DDS) and over DDS (b): a chunk sent in a step is taken at the next step's intake, as
+    # a DDS sample is.
+    camera = re.search(r"^Camera images to the robots through shared memory .*: (.*)\.$",
+                       texts["a"], re.M)
+    assert camera, texts["a"]
+    sent = re.findall(r"(\w+) (\d+) \((\d+)\)", camera[1])
+    assert {r for r, _, _ in sent} == ROBOTS, camera[0]
+    assert all(int(shm) > 0 and dds == "0" for _, shm, dds in sent), camera[0]
+    assert "Camera images to the robots over DDS." in texts["b"], texts["b"]
     # Seed 314 starts red1 in the centre circle (seed 0, or a seed ignored, starts it at
     # (1, 0), outside), where the team without the kick-off may not stand: the referee
     # places it for the kick-off.

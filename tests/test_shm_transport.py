@@ -264,17 +264,16 @@ ONE_WAIT = textwrap.dedent("""
         poster.start()
         posted = c.executor.spin_until(lambda: bool(ran), timeout_s=30)
         poster.join()
-        c.take_dds()  # the executor takes from DDS itself: the relay steps aside
+        c.take_dds()  # the executor takes from DDS itself
         here = posted and ran[0] == threading.get_ident()
         print("threads", grown, "posted", "here" if here else "elsewhere", "took", flush=True)
 """)
 
 
 def test_subscriptions_share_the_executors_one_wait() -> None:
-    """Four shared-memory subscriptions add one thread (the DDS relay), not one each: the
-    executor's thread waits on their listeners itself, so a chunk wakes it directly; a
-    call posted from another thread still runs in the executor's thread, and a direct
-    DDS take (a lockstep world's) works beside the relay."""
+    """Four shared-memory subscriptions add one thread (the watch over their listeners),
+    not one each; a call posted from another thread still runs in the executor's thread,
+    and a direct DDS take (a lockstep world's) works beside the watch."""
     env = ros_env(isolated_domain_id())
     done = subprocess.run([sys.executable, "-c", ONE_WAIT], env=env, capture_output=True,
                           text=True, timeout=120)

@@ -150,6 +150,12 @@ class LocalPublisher:
         """Subscribers this publisher reaches: in this process, plus matched DDS readers."""
         return sum(not s.observer for s in self._subs) + self.dds_matched
 
+    def shm_subscription_count(self) -> int:
+        """Subscribers in other processes this publisher reaches through shared memory,
+        connected now (0 without the transport, :mod:`efficient_comm.shm`); each is also
+        among :meth:`get_subscription_count`'s matched DDS readers once DDS discovered it."""
+        return int(self.shm.remote_readers) if self.shm is not None else 0
+
     def wait_for_all_acked(self, timeout: Duration = _NO_LIMIT) -> bool:
         """Whether DDS readers acknowledged everything (in-process ones need not)."""
         return self.dds is None or bool(self.dds.wait_for_all_acked(timeout))

@@ -165,7 +165,7 @@ class Container(Closing):
         self.bus = Bus(self.executor)
         self.shm: ShmTransport | None = None
         if shm if shm is not None else enabled_from_env():
-            self.shm = self._start_shm(lockstep, shm_threshold_bytes)
+            self.shm = self._start_shm(shm_threshold_bytes)
         self._rclpy_executor: SingleThreadedExecutor | None = None
         if self.context is not None:
             self._rclpy_executor = SingleThreadedExecutor(context=self.context)
@@ -190,11 +190,9 @@ class Container(Closing):
         if stats_period_s > 0:
             self._start_stats(stats_period_s, stats_namespace)
 
-    def _start_shm(self, lockstep: str | None, threshold: int | None) -> ShmTransport | None:
+    def _start_shm(self, threshold: int | None) -> ShmTransport | None:
         """The shared-memory transport, or None with one log line saying why not."""
-        why = ("the container has no DDS" if self.context is None
-               else "lockstep counts a step's messages through DDS" if lockstep is not None
-               else "")
+        why = "the container has no DDS" if self.context is None else ""
         if not why:
             try:
                 return ShmTransport(

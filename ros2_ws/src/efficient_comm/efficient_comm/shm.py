@@ -38,8 +38,7 @@ publisher never blocks on a reader (iceoryx2's safe overflow), so a dead reader 
 nobody; a dead publisher's chunks a reader still holds stay readable.
 
 **Fallbacks**, each said once in the endpoint's log: a type without exactly one array of
-numbers, a transient-local publisher (DDS keeps the history for late joiners), a lockstep
-container (a step's messages are counted through DDS's acknowledgements), iceoryx2 missing
+numbers, a transient-local publisher (DDS keeps the history for late joiners), iceoryx2 missing
 or failing: DDS carries the topic, as without the transport. Publishers and subscribers
 pair up only with the same message type, reliability and DDS domain.
 """
@@ -303,6 +302,14 @@ class ShmTransport:
                 self._watch = ShmWatch(self.iox2, self.executor)
         self._watch.add(sub)
 
+    def drain(self) -> None:
+        """Deliver what every subscription has waiting (executor thread): a lockstep
+        intake round takes shared memory with DDS, so a chunk sent in a step is delivered
+        at the next, as a DDS sample is (:mod:`efficient_comm.simtime`)."""
+        watch = self._watch
+        for sub in watch.subscriptions() if watch is not None else ():
+            sub.drain()
+
     def unlisten(self, sub: ShmSubscription, listener: Any) -> None:
         """``sub`` is gone; its listener is deleted once the executor no longer waits on it."""
         if self._watch is not None:
@@ -516,6 +523,12 @@ class ShmPublisher:
             self._pub.dds.publish(msg)
 
     @property
+    def remote_readers(self) -> int:
+        """Shared-memory subscribers of this topic in other processes (connected now)."""
+        subscribers = self._pubsub.dynamic_config.number_of_subscribers
+        return int(subscribers - self._transport.local_subscribers(self.name))
+
+    @property
     def dds_writes(self) -> int:
         """Messages this publisher also wrote to DDS (for plain peers, or small ones): 0
         while shared memory serves every reader."""
@@ -702,6 +715,10 @@ class ShmWatch:
         else:  # no WaitSet left
             with contextlib.suppress(Exception):
                 listener.delete()
+
+    def subscriptions(self) -> list[ShmSubscription]:
+        with self._lock:
+            return list(self._subs)
 
     def stop(self) -> None:
         """End the thread (the transport closes); every listener it held is deleted."""

@@ -320,11 +320,15 @@ class LockstepParticipant:
     def take(self) -> int:
         """Take every sample the container's DDS readers hold (the intake round), without
         a wait set: each reader of a composed subscription is asked until it is empty, and
-        its samples go where its callback puts them (held for the step). Returns how many.
+        its samples go where its callback puts them (held for the step); then every chunk
+        shared memory holds (iceoryx2's send has put it into the reader's queue when it
+        returns, so what a peer sent in the step is there). Returns how many DDS samples.
         """
         taken = 0
         for reader in self._container.bus.dds_readers():
             taken += take_samples(reader)
+        if self._container.shm is not None:  # chunks are sent before the step ends too
+            self._container.shm.drain()
         return taken
 
     def done_intake(self, t_ns: int) -> None:

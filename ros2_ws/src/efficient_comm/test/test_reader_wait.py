@@ -129,8 +129,8 @@ def test_a_nodes_wait_says_what_is_ready_and_takes_matched_events_for_the_caller
     """NodesWait (a real-time container's DDS wait): samples of ready subscriptions are left
     to the caller, a service request is reported for rclpy's executor, and a publisher's
     "matched" event is taken for the caller to run at once (a composed publisher writes DDS
-    only while a reader is matched); nothing runs in the waiting thread (a shared-memory
-    process's relay thread waits here for the executor's thread)."""
+    only while a reader is matched); nothing runs in the wait itself (the executor runs
+    what it found, in its order)."""
     from rclpy.event_handler import PublisherEventCallbacks
     from rclpy.executors import SingleThreadedExecutor
 

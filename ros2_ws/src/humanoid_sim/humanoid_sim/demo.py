@@ -122,8 +122,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.split and (args.lockstep or args.no_dds):
         parser.error(f"--split runs two processes in real time: not with "
-                     f"{'--lockstep' if args.lockstep else '--no-dds'} (a lockstep container "
-                     f"has no shared memory; without DDS the processes cannot meet)")
+                     f"{'--lockstep' if args.lockstep else '--no-dds'} (the demo's "
+                     f"lockstep is one process on a manual clock; without DDS the "
+                     f"processes cannot meet)")
     # The simulation is imported once the arguments are known good (see .arguments).
     from ._demo_run import run
 

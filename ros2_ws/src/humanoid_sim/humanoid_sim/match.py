@@ -303,8 +303,7 @@ def _parser() -> DemoArguments:
                         default=30.0, help="each robot's camera rate (default 30)")
     parser.add_argument("--camera-transport", choices=TRANSPORTS, default="shm",
                         help="how each camera image crosses from the world's process to its "
-                        "robot's: shm (shared memory, the default) or dds; with --lockstep "
-                        "always dds (a step counts its messages through DDS)")
+                        "robot's: shm (shared memory, the default) or dds")
     parser.add_argument("--ready-s", type=finite_number(low=1, what="seconds >= 1"), default=45.0,
                         help="the referee's longest ready (default 45, the GameController's)")
     parser.add_argument("--localization", type=localization_choice,
@@ -359,13 +358,7 @@ def world_plan(robots: Sequence[str], args: argparse.Namespace, *, domains: dict
             "referee": {"robots": list(robots), "ready_s": args.ready_s},
             "status_period_s": status_period_s, "lockstep": args.lockstep,
             "end_s": args.duration if args.lockstep else 0.0,
-            "camera_transport": camera_transport(args)}
-
-
-def camera_transport(args: argparse.Namespace) -> str:
-    """What carries the camera images to the robots: ``--camera-transport``, but DDS in
-    lockstep (the shared-memory transport stays off there: docs/SHM.md)."""
-    return "dds" if args.lockstep else str(args.camera_transport)
+            "camera_transport": args.camera_transport}
 
 
 def robot_plan(robot: str, *, start: tuple[float, float, float], port: str,
@@ -533,7 +526,7 @@ def report(robots: Sequence[str], args: argparse.Namespace, world: Child,
                   f"{n} {children[n].status.get('imu_hz', 0.0):.1f} Hz "
                   f"{children[n].status.get('cpu_pct', 0.0):.0f} %"
                   for n in robots if n in children) + ".",
-              "", camera_line(s, camera_transport(args)), ""]
+              "", camera_line(s, args.camera_transport), ""]
     return "\n".join(lines)
 
 
@@ -618,7 +611,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 plan["team_peers"] = [m for m in robots if m.startswith(team) and m != robot
                                       and args.team_link == "on"]
                 plan["team_latency_s"] = TEAM_LINK_LATENCY_S
-                plan["camera_transport"] = camera_transport(args)
+                plan["camera_transport"] = args.camera_transport
                 # In lockstep each robot cuts its end itself at that simulated time: a
                 # signal sent when the match saw the world's time pass it arrived a load-
                 # dependent while later (the game did not repeat; an offline check of the

@@ -107,6 +107,7 @@ class SensorLink:
         self.imu_sent = 0
         self.camera: Container | None = None
         self._camera_thread: threading.Thread | None = None
+        self._camera_pub: Any = None
         for msg_type, source, target, qos in pairs:
             if msg_type is Image:
                 pub = (self._shm_camera(robot, domain_id, f"{DEVICE}/{target}", qos)
@@ -114,8 +115,6 @@ class SensorLink:
                        self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos))
                 node.observe_in_process(Image, source, pub.publish)
                 world.add_camera_demand(robot, functools.partial(_has_reader, pub))
-                if camera_shm:
-                    continue  # real time only: nothing for a lockstep step to flush
             else:
                 pub = self.rnode.create_publisher(msg_type, f"{DEVICE}/{target}", qos)
                 relay = self._imu(pub) if msg_type is Imu else pub.publish
@@ -142,7 +141,8 @@ class SensorLink:
         self._camera_thread = threading.Thread(target=self.camera.spin,
                                                name=f"{robot}_camera", daemon=True)
         self._camera_thread.start()
-        return handle.create_publisher(Image, topic, qos=qos)
+        self._camera_pub = handle.create_publisher(Image, topic, qos=qos)
+        return self._camera_pub
 
     def camera_traffic(self) -> tuple[int, int]:
         """Frames sent to the robot through shared memory, and frames written to DDS (for
@@ -173,11 +173,17 @@ class SensorLink:
         samples of one run and not of another (seen: 13 of 600 under load), so the game
         did not repeat."""
         deadline = time.monotonic() + timeout_s
-        while missing := [p.topic_name for p in self.device_pubs if not _has_reader(p)]:
+        while missing := [p.topic_name for p in self.device_pubs if not self._connected(p)]:
             if time.monotonic() > deadline:
                 raise LockstepError(f"lockstep: no reader of {', '.join(missing)} within "
                                     f"{timeout_s:g} s")
             time.sleep(0.05)  # DDS discovery has no event rclpy exposes here
+
+    def _connected(self, pub: Any) -> bool:
+        """Whether the robot's reader of ``pub`` gets what it writes from now on: matched on
+        DDS and, for the camera through shared memory, its subscriber connected too."""
+        via_shm = self.camera is not None and pub is self._camera_pub
+        return _has_reader(pub) and (not via_shm or pub.shm_subscription_count() > 0)
 
     def flush(self, timeout_s: float) -> None:
         """Wait until the robot's readers have what this link wrote (lockstep: what the
@@ -200,6 +206,8 @@ class SensorLink:
 def _has_reader(pub: Any) -> bool:
     """Whether an rclpy publisher has a matched reader (DDS discovery: no event needed)."""
     return bool(pub.get_subscription_count())
+
+
 
 
 def main(argv: list[str] | None = None) -> int:

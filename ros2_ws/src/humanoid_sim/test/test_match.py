@@ -11,7 +11,6 @@ import pytest
 from humanoid_sim.match import (
     bridge_config,
     camera_line,
-    camera_transport,
     robot_names,
     start_poses,
 )
@@ -58,11 +57,7 @@ def test_a_robots_bridge_file_listens_and_connects_to_its_teammates_within_budge
     assert config["topics"][0]["ros2"] == "team/messages"
 
 
-def test_the_camera_goes_through_shared_memory_in_real_time_and_over_dds_in_lockstep() -> None:
-    chosen = argparse.Namespace(camera_transport="shm", lockstep=False)
-    assert camera_transport(chosen) == "shm"
-    assert camera_transport(argparse.Namespace(camera_transport="shm", lockstep=True)) == "dds"
-    assert camera_transport(argparse.Namespace(camera_transport="dds", lockstep=False)) == "dds"
+def test_the_report_says_how_the_camera_images_went() -> None:
     status = {"camera_traffic": {"blue1": [298, 10], "blue2": [301, 0]}}
     assert camera_line(status, "shm").endswith(": blue1 298 (10), blue2 301 (0).")
     assert camera_line(status, "dds") == "Camera images to the robots over DDS."
