@@ -168,3 +168,67 @@ def test_robots_on_domains_of_their_own_step_together(tmp_path: Path) -> None:
     heard = [line.split()[:4] for line in world.stdout.splitlines() if " value " in line]
     assert heard == [[str(t * DT_NS), name, "tick", str(t)]
                      for t in range(1, steps + 1) for name in sorted(domains)]
+
+
+PUBLISH_ONCE = """
+import sys, time, rclpy
+from rclpy.qos import QoSProfile
+from std_msgs.msg import String
+rclpy.init()
+node = rclpy.create_node("once")
+pub = node.create_publisher(String, sys.argv[1], QoSProfile(depth=10))
+deadline = time.monotonic() + 30
+while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+    time.sleep(0.01)
+pub.publish(String(data="once"))
+sys.exit(0 if pub.wait_for_all_acked() else 1)
+"""
+
+
+def test_a_message_from_a_publisher_gone_before_the_intake_looked_is_delivered() -> None:
+    """The intake takes only from readers a publisher was matched with (the others are
+    asked for their publishers, which is cheaper): a plain rclpy publisher that writes once
+    and is gone before the participant looked (as ``ros2 topic pub --once`` is) left its
+    message in a reader the intake skips; the executor's DDS poll between steps takes it,
+    and the next step delivers it."""
+    import threading
+
+    from std_msgs.msg import String
+
+    from efficient_comm import Container, StepCoordinator
+    from efficient_comm.executor import matched_publishers
+    from efficient_comm.handle import NodeHandle
+
+    domain = isolated_domain_id()
+    topic = f"/quiet_{domain}"
+    heard: list[str] = []
+
+    class Ear:
+        def __init__(self, node: NodeHandle) -> None:
+            node.create_subscription(String, topic, lambda m: heard.append(m.data), qos=10)
+
+    with Container("solo_container", lockstep="solo", domain_id=domain,
+                   stats_period_s=0) as container, \
+            StepCoordinator(["solo"], domain_id=domain) as steps:
+        container.add(Ear, name="ear")
+        spinner = threading.Thread(target=container.spin, daemon=True)
+        spinner.start()
+        try:
+            steps.wait_ready(timeout_s=30)
+            steps.advance(0.01)  # the first intake: nothing matched
+            once = subprocess.run([sys.executable, "-c", PUBLISH_ONCE, topic],
+                                  env=ros_env(domain), timeout=60, check=False)
+            assert once.returncode == 0  # written and acknowledged: in the reader's history
+            (reader,) = container.bus.dds_readers()
+            deadline = time.monotonic() + 30
+            while matched_publishers(reader) and time.monotonic() < deadline:
+                time.sleep(0.01)  # DDS forgets the writer on its own schedule
+            assert matched_publishers(reader) == 0
+            assert heard == []  # held: only a step delivers
+            deadline = time.monotonic() + 30
+            while not heard and time.monotonic() < deadline:
+                steps.advance(0.01)
+            assert heard == ["once"], heard
+        finally:
+            container.shutdown()
+            spinner.join(timeout=10)

@@ -819,6 +819,19 @@ def take_samples(sub: Any, *, limit: int | None = None) -> int:
     return taken
 
 
+def matched_publishers(sub: Any) -> int:
+    """How many publishers DDS has matched with ``sub``'s reader (0 once it is destroyed):
+    rclpy's ``get_publisher_count`` without its Python wrapper, a fifth of the cost of
+    asking an empty reader for a sample (the lockstep intake asks every reader each step)."""
+    invalid, _ = _rclpy_names()
+    handle = sub.handle
+    try:
+        with handle:
+            return int(handle.get_publisher_count())
+    except invalid:
+        return 0
+
+
 _RCLPY_NAMES: tuple[type[Exception], Any] | None = None
 
 
