@@ -15,12 +15,13 @@ as root, a skipped one fails the run, since CI is where they are meant to run.
 import faulthandler
 import importlib.util
 import os
+import resource
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -169,6 +170,8 @@ def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
     nothing about the lock it waits on; so, where gdb exists, a watcher process (below) adds
     every thread's native stack to the same file shortly before the exit.
     """
+    global _cpu_mark
+    _cpu_mark = _cpu_now()
     marker = item.get_closest_marker("timeout")
     timeout = float(marker.args[0]) if marker and marker.args else float(
         item.config.getini("timeout") or 0)
@@ -189,6 +192,31 @@ def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
             _native_stacks_at(None, dump)
             faulthandler.cancel_dump_traceback_later()
     dump.unlink(missing_ok=True)
+
+
+def _cpu_now() -> float:
+    """CPU seconds of this process and of the programs it started and waited for."""
+    own, children = (resource.getrusage(who) for who in
+                     (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+_cpu_mark = 0.0
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]
+                              ) -> Generator[None, Any, None]:
+    """Each phase's report carries the CPU seconds it took (``cpu_s`` in its user
+    properties, which xdist hands to the controller): on two saturated cores a test's wall
+    time says how long it waited as much as what it cost, and only less CPU makes the
+    suite shorter (issue 18). Counted: the worker (every thread) and the programs the
+    phase started and waited for; not programs left running (a session's browser)."""
+    global _cpu_mark
+    outcome = yield
+    now = _cpu_now()
+    outcome.get_result().user_properties.append(("cpu_s", round(now - _cpu_mark, 3)))
+    _cpu_mark = now
 
 
 #: The watcher: told "<seconds> <file>" it appends gdb's stacks of every thread of its parent
@@ -252,6 +280,8 @@ _lane_tests: dict[str, set[str]] = {}
 #: Seconds per "<lane> <node id>": the serial lanes' sums are a floor under the wall time,
 #: the parallel lane's is shared among the workers.
 _test_seconds: dict[str, float] = {}
+#: CPU seconds per test file (every phase and rerun; see pytest_runtest_makereport).
+_file_cpu: dict[str, float] = {}
 #: What each first attempt of a test run again said (node id, the end of its report): with
 #: ``--reruns`` a flaky test's failure was otherwise shown nowhere, only ``RERUN <id>``.
 _rerun_reports: list[tuple[str, str]] = []
@@ -265,6 +295,10 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     _lane_tests.setdefault(lane, set()).add(report.nodeid)
     key = f"{lane} {report.nodeid}"
     _test_seconds[key] = _test_seconds.get(key, 0.0) + report.duration
+    cpu = dict(report.user_properties).get("cpu_s")
+    if isinstance(cpu, (int, float)):
+        name = f"{lane} {report.nodeid.partition('::')[0]}"
+        _file_cpu[name] = _file_cpu.get(name, 0.0) + cpu
     if str(report.outcome) == "rerun":  # pytest-rerunfailures' mark on a failed first attempt
         text = report.longreprtext.rstrip().splitlines()[-RERUN_LINES:]
         _rerun_reports.append((f"{report.nodeid} ({report.when})", "\n".join(text)))
@@ -308,8 +342,12 @@ def _slowest_lines(count: int = 20) -> list[str]:
         else:
             serial[key] = seconds
     lines = []
-    for title, table in (("slowest tests of the serial lanes:", serial),
-                         ("slowest files of the parallel lane:", files)):
+    tables = [("slowest tests of the serial lanes:", serial),
+              ("slowest files of the parallel lane:", files)]
+    if _file_cpu:
+        tables.append((f"most CPU by file ({sum(_file_cpu.values()):.0f} s in all; the "
+                       "worker and the programs it waited for):", _file_cpu))
+    for title, table in tables:
         lines.append(title)
         lines += [f"{seconds:7.1f} s  {key}"
                   for key, seconds in sorted(table.items(), key=lambda item: -item[1])[:count]]

@@ -127,3 +127,30 @@ def test_a_rerun_tests_first_failure_is_shown_in_the_summary(tmp_path: Path) -> 
     summary = run.stdout.partition("first attempts of the tests run again")[2]
     assert "tests/test_b_flaky.py::test_fails_once (call)" in summary, run.stdout[-3000:]
     assert "the first attempt's own words" in summary, run.stdout[-3000:]
+
+
+#: A test that spends about half a second of CPU in a program it starts and waits for.
+BUSY_CHILD = '''
+import subprocess, sys
+
+
+def test_busy_child() -> None:
+    subprocess.run([sys.executable, "-c",
+                    "import time\\nend = time.process_time() + 0.5\\n"
+                    "while time.process_time() < end: pass"], check=True)
+'''
+
+
+def test_the_summary_gives_each_files_cpu_the_programs_it_waited_for_included(
+        tmp_path: Path) -> None:
+    """On two saturated cores a test's wall time says as much about what ran beside it as
+    about its cost; the summary adds CPU seconds per file, counting the programs a test
+    started and waited for."""
+    folder = _tests(tmp_path, {"test_a_quick.py": QUICK, "test_b_busy.py": BUSY_CHILD})
+    run = _run(folder)
+    assert run.returncode == 0, run.stdout[-3000:]
+    table = run.stdout.partition("most CPU by file")[2]
+    cpu = {line.split()[-1]: float(line.split()[0]) for line in table.splitlines()[1:]
+           if line.strip().endswith(".py")}
+    assert cpu["tests/test_b_busy.py"] >= 0.5, run.stdout[-3000:]
+    assert cpu["tests/test_a_quick.py"] < cpu["tests/test_b_busy.py"], run.stdout[-3000:]
