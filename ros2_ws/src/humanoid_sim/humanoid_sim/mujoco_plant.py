@@ -113,7 +113,8 @@ class RobotPlant:
         if torque and not was_on:  # start slewing from where the joint is now
             self.data.ctrl[self._actuator[dxl_id]] = self.data.qpos[self._joint[dxl_id].qposadr[0]]
         self._goal[dxl_id] = (torque, goal_rad, max_speed_rad_s)
-        self._set_torque(dxl_id, on=torque)
+        if torque != was_on:  # gains as they were otherwise (off for all at the start)
+            self._set_torque(dxl_id, on=torque)
         self._slew = None  # rebuilt at the next step: a sync write commands every servo
 
     @property

@@ -16,6 +16,7 @@ makes that byte plain storage.
 from __future__ import annotations
 
 import math
+import struct
 
 from . import control_table as ct
 from .plant import Plant
@@ -27,7 +28,22 @@ _ID = ct.BY_NAME["id"].address
 _PRESENT = tuple(ct.BY_NAME[name] for name in (
     "present_position", "present_velocity", "present_current", "present_temperature",
     "present_input_voltage", "moving", "realtime_tick"))
+#: How each of them is written into the table (little-endian, the item's size and sign).
+_PRESENT_PACK = tuple(
+    (struct.Struct("<" + {1: "b", 2: "h", 4: "i"}[f.size] if f.signed
+                   else "<" + {1: "B", 2: "H", 4: "I"}[f.size]), f.address)
+    for f in _PRESENT)
 _HOMING, _MOVING_THRESHOLD = ct.BY_NAME["homing_offset"], ct.BY_NAME["moving_threshold"]
+_TORQUE, _PROFILE_VELOCITY = ct.BY_NAME["torque_enable"], ct.BY_NAME["profile_velocity"]
+_GOAL_POSITION, _MODE = ct.BY_NAME["goal_position"], ct.BY_NAME["operating_mode"]
+_MIN_POSITION, _MAX_POSITION = ct.BY_NAME["min_position_limit"], ct.BY_NAME["max_position_limit"]
+#: Each item by (address, size): a write of exactly one whole item (a driver's goals, torque)
+#: is checked without the general path's per-byte bookkeeping (_check_one).
+_WHOLE = {(f.address, f.size): f for f in ct.FIELDS}
+#: The limit item each goal item is bounded by (control_table.GOAL_LIMITS), by goal name.
+_GOAL_LIMIT = {goal: ct.BY_NAME[limit] for goal, limit in ct.GOAL_LIMITS.items()}
+#: The items the plant's command is made of (names): a write of another leaves it as it is.
+_COMMANDED = frozenset(f.name for f in (_TORQUE, _PROFILE_VELOCITY, _GOAL_POSITION, _HOMING))
 #: Speed when profile_velocity is 0 ("infinite" on a real servo): the no-load speed.
 NO_LOAD_SPEED_RAD_S = 46 * 2 * math.pi / 60
 
@@ -138,9 +154,8 @@ class Servo:
                   # Milliseconds of the plant's time, not the wall clock's: in lockstep a
                   # driver that reads the tick must read the same whatever the load.
                   round(self.plant.time_s * 1000) % 32768)
-        for field, value in zip(_PRESENT, values, strict=True):
-            table[field.address : field.address + field.size] = value.to_bytes(
-                field.size, "little", signed=field.signed)
+        for (packer, address), value in zip(_PRESENT_PACK, values, strict=True):
+            packer.pack_into(table, address, value)
 
     # -- writes ---------------------------------------------------------------------------
 
@@ -194,6 +209,15 @@ class Servo:
         return Error.NONE
 
     def write(self, address: int, data: bytes) -> int:
+        field = _WHOLE.get((address, len(data)))
+        if field is not None and self._map(address, len(data)) is None:
+            error = self._check_one(field, data)
+            if error:
+                return error
+            self.table[address : address + len(data)] = data
+            if field.name in _COMMANDED:
+                self._command()
+            return Error.NONE
         error, writes = self._plan(address, data)
         if error:
             return error
@@ -202,13 +226,36 @@ class Servo:
         self._command()
         return Error.NONE
 
+    def _check_one(self, field: ct.Field, data: bytes) -> int:
+        """:meth:`_check` of a write of exactly ``field``, the same rules in the same order:
+        a driver writes its goals to twenty servos a hundred times a second, and the
+        general path (a trial copy of the table, the items owning each byte) was most of
+        the emulator's work."""
+        if not field.writable:
+            return Error.ACCESS
+        table = self.table
+        if field.address < ct.EEPROM_END and table[_TORQUE.address]:
+            return Error.ACCESS  # EEPROM is locked while torque is on
+        value = int.from_bytes(data, "little", signed=field.signed)
+        if (field.low is not None and value < field.low) or (
+                field.high is not None and value > field.high):
+            return Error.DATA_RANGE
+        limit = _GOAL_LIMIT.get(field.name)
+        if limit is not None and abs(value) > self._value(table, limit):
+            return Error.DATA_LIMIT
+        if field is _GOAL_POSITION and self._value(table, _MODE) == ct.POSITION_MODE and not (
+                self._value(table, _MIN_POSITION) <= value <= self._value(table, _MAX_POSITION)):
+            return Error.DATA_LIMIT
+        return Error.NONE
+
     def _command(self) -> None:
-        profile = self.get("profile_velocity")
+        table = self.table
+        profile = self._value(table, _PROFILE_VELOCITY)
         speed = (profile * ct.RPM_PER_UNIT * 2 * math.pi / 60) if profile else NO_LOAD_SPEED_RAD_S
-        goal_ticks = self.get("goal_position") - self.get("homing_offset")
+        goal_ticks = self._value(table, _GOAL_POSITION) - self._value(table, _HOMING)
         self.plant.command(
             self.joint,
-            torque=bool(self.get("torque_enable")),
+            torque=bool(table[_TORQUE.address]),
             goal_rad=(goal_ticks - ct.CENTER_TICKS) / ct.TICKS_PER_RAD,
             max_speed_rad_s=speed,
         )
