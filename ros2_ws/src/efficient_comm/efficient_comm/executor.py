@@ -58,6 +58,10 @@ DDS_POLL_INTERVAL_NS = 1_000_000
 #: ...but a poll (an rclpy wait-set round over every node's entities, 0.2-0.6 ms) may take
 #: at most this share of busy time, so the interval grows with the measured poll cost.
 DDS_POLL_SHARE = 0.05
+#: A lockstep participant polls the rest of DDS between steps at most this often (services,
+#: parameters, QoS events, readers that no publisher was matched with at the intake): the
+#: wall-clock share above kept a robot's 5 % busy with it, while its steps need none of it.
+LOCKSTEP_DDS_POLL_NS = 100_000_000
 #: Between real-time waits on DDS, its QoS events (publication matched, message lost) are
 #: taken this often through rclpy's wait (see ConsecutiveExecutor._dds_wait).
 DDS_EVENTS_POLL_NS = 250_000_000
@@ -514,7 +518,8 @@ class ConsecutiveExecutor:
             # The barrier's rounds on their own small wait set; the rest of DDS (services,
             # events; the composed readers are taken at intake) in a poll now and then.
             lockstep.wait(timeout_s)
-            if time.monotonic_ns() - self._last_dds_poll > self._dds_poll_interval:
+            if time.monotonic_ns() - self._last_dds_poll > max(self._dds_poll_interval,
+                                                                LOCKSTEP_DDS_POLL_NS):
                 self._run_dds_ready(self._dds, 0.0)
                 self._last_dds_poll = time.monotonic_ns()
             return
