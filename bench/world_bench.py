@@ -15,7 +15,7 @@ the same run:
 * ``render_separate``: the same frames from one GL context per camera, as one-robot
   simulators side by side would draw them: what sharing the context saves;
 * ``render_fine``: the same frames at MuJoCo's default tessellation (the one-robot
-  simulator's until 2026-11-27), what the field's coarser ``<visual><quality>`` saves.
+  simulator's), what the world's coarser ``RENDER_QUALITY`` saves.
 
 The sum per step against 10 ms is the real-time factor physics and cameras alone would allow
 (bus emulation and robot software come on top). Run:
@@ -43,8 +43,8 @@ ORDER = ("blue1", "blue2", "blue3", "red1", "red2", "red3")
 STEP_S = 0.01
 CAMERA_HZ = 30.0
 WIDTH, HEIGHT = 320, 240
-#: MuJoCo's default ``<visual><quality>`` (numslices, numstacks, numquads); the field's
-#: (models/field.xml) are coarser.
+#: MuJoCo's default ``<visual><quality>`` (numslices, numstacks, numquads); the world uses
+#: ``humanoid_sim.world.RENDER_QUALITY``.
 MUJOCO_QUALITY = (28, 16, 4)
 
 

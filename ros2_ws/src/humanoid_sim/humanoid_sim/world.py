@@ -44,6 +44,8 @@ TEAM_COLOURS: dict[str, tuple[float, float, float, float]] = {
 #: Start poses closer than this (torso to torso) would put two robots inside each other
 #: (shoulder to shoulder a robot is 0.24 m wide, toe to heel 0.13 m long).
 MIN_START_DISTANCE_M = 0.3
+#: The world's ``<visual><quality numslices numstacks numquads>`` (MuJoCo's: 28, 16, 4).
+RENDER_QUALITY = (16, 8, 1)
 _NAME = re.compile(r"^(blue|red)([1-9][0-9]*)$")
 
 
@@ -108,8 +110,14 @@ def build_model(robots: Mapping[str, Pose2D]) -> mujoco.MjModel:
     # The world steps as the robot's model was tuned to (the field has no say).
     spec.option.timestep = robot_options.timestep
     spec.option.integrator = robot_options.integrator
-    # The field's <visual><quality> (coarse tessellation, no multisampling: a software
-    # rasteriser's frame with six robots in view 24.7 -> 6.2 ms) holds for the whole world.
+    # Coarser tessellation of spheres, capsules and cylinders, and the ground as one quad:
+    # with six robots in view the software rasteriser's triangles, not the pixels, were
+    # most of a frame (23 -> 10 ms; 10 -> 7 ms with one robot; bench/world_bench.py). A
+    # 16-gon ball reads 1.3 % smaller than a circle; colours and lines stay as they were.
+    # No multisampling either: the field's <visual><quality offsamples="0"/>.
+    spec.visual.quality.numslices = RENDER_QUALITY[0]
+    spec.visual.quality.numstacks = RENDER_QUALITY[1]
+    spec.visual.quality.numquads = RENDER_QUALITY[2]
     for name, pose in robots.items():
         robot = mujoco.MjSpec.from_file(str(ROBOT_MODEL))
         robot.option.integrator = spec.option.integrator  # nothing left to disagree on
