@@ -81,6 +81,9 @@ class RobotPlant:
         self._kp = {i: float(model.actuator_gainprm[a, 0]) for i, a in self._actuator.items()}
         self._kv = {i: float(-model.actuator_biasprm[a, 2]) for i, a in self._actuator.items()}
         self._dof = {i: int(j.dofadr[0]) for i, j in self._joint.items()}
+        # Plain ints: a joint view's ``qposadr[0]`` makes an array each time, and the servo
+        # bus asks every joint's state every cycle.
+        self._qpos = {i: int(j.qposadr[0]) for i, j in self._joint.items()}
         self._damping = {i: float(model.dof_damping[d]) for i, d in self._dof.items()}
         self._goal: dict[int, tuple[bool, float, float]] = {}
         # Set-point slewing for all torqued joints at once: actuator index, goal, speed.
@@ -111,7 +114,7 @@ class RobotPlant:
             return
         was_on = self._goal.get(dxl_id, (False, 0.0, 0.0))[0]
         if torque and not was_on:  # start slewing from where the joint is now
-            self.data.ctrl[self._actuator[dxl_id]] = self.data.qpos[self._joint[dxl_id].qposadr[0]]
+            self.data.ctrl[self._actuator[dxl_id]] = self.data.qpos[self._qpos[dxl_id]]
         self._goal[dxl_id] = (torque, goal_rad, max_speed_rad_s)
         if torque != was_on:  # gains as they were otherwise (off for all at the start)
             self._set_torque(dxl_id, on=torque)
@@ -174,12 +177,10 @@ class RobotPlant:
                 - float(self.model.dof_damping[dof]) * float(self.data.qvel[dof]))
 
     def state(self, dxl_id: int) -> JointState:
-        joint = self._joint[dxl_id]
-        return JointState(
-            position_rad=float(self.data.qpos[joint.qposadr[0]]),
-            velocity_rad_s=float(self.data.qvel[joint.dofadr[0]]),
-            current_a=abs(self.motor_torque(dxl_id)) / TORQUE_PER_AMP,
-        )
+        data = self.data
+        return JointState(position_rad=float(data.qpos[self._qpos[dxl_id]]),
+                          velocity_rad_s=float(data.qvel[self._dof[dxl_id]]),
+                          current_a=abs(self.motor_torque(dxl_id)) / TORQUE_PER_AMP)
 
     @property
     def time_s(self) -> float:
