@@ -305,6 +305,21 @@ def browser(request: pytest.FixtureRequest, chromium_session: list[Any]) -> Iter
             reset_browser(driver, chromium_session)
 
 
+def reload(driver: Any, *, alive: Sequence[Process] = (), timeout_s: float = 60.0) -> None:
+    """Reload the page as NiceGUI does when its handshake fails (``location.reload()``) and
+    wait until the document is a new one.
+
+    Not WebDriver's ``refresh()``: chromedriver blocks in it until the new page has loaded
+    completely, and on a loaded machine it once stayed there for pytest's whole timeout
+    (120 s), where the test's own waits, with deadlines and the server's log on failure,
+    are the ones that should judge the page. The old document's marker going away is what
+    tells the new document from the old one, whose text the waits would otherwise read.
+    """
+    driver.execute_script("window.__before_reload = true; location.reload();")
+    wait_for(lambda: driver.execute_script("return window.__before_reload !== true;"),
+             timeout_s=timeout_s, what="the reloaded page", alive=alive)
+
+
 def page_text(driver: Any) -> str:
     from selenium.webdriver.common.by import By
 

@@ -21,6 +21,7 @@ from ._gui import (
     fake_robot,
     gui,
     present,
+    reload,
     screenshot,
     text_of,
     wait_for,
@@ -87,7 +88,7 @@ def test_a_reload_keeps_the_tabs_layout_and_each_views_settings(tmp_path: Path,
                  and "use_sim_time" in text_of(browser, f"params-{key}"),
                  what="the typed filters", alive=alive)
 
-        browser.refresh()  # what NiceGUI does when its handshake or rewind fails
+        reload(browser, alive=alive)  # what NiceGUI does when its handshake or rewind fails
 
         wait_for(lambda: "Parameters" in text_of(browser, "panel-2"),
                  what="the tab's three panels after the reload", alive=alive)
@@ -144,7 +145,7 @@ def test_a_reload_echoes_and_plots_what_the_topics_view_showed(tmp_path: Path,
         wait_for(lambda: "window_ns" in _select_text(browser, f"topics-plot-field-{key}"),
                  what="the plotted field", alive=alive)
 
-        browser.refresh()
+        reload(browser, alive=alive)
 
         wait_for(lambda: stats in text_of(browser, f"topics-echo-title-{key}"),
                  what="the echoed topic after the reload", alive=alive)
