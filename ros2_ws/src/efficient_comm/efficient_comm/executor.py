@@ -42,7 +42,7 @@ from .stats import CallbackStats, StatsRegistry, StatsSnapshot
 if TYPE_CHECKING:
     from rclpy.executors import Executor as RclpyExecutor
 
-    from ._reader_wait import DdsReady, NodesWait
+    from ._reader_wait import DdsReady, NodesWait, PolledWait
     from .bus import LocalSubscription
     from .handle import Clock, ClockKind, Logger
     from .simtime import LockstepParticipant
@@ -192,6 +192,7 @@ class ConsecutiveExecutor:
         self._dds: RclpyExecutor | None = None
         self._dds_wake: Callable[[], None] | None = None
         self._nodes_wait: NodesWait | None = None
+        self._polled_wait: PolledWait | None = None
         self._events_due = 0
         self._last_dds_poll = 0
         self._dds_poll_interval = DDS_POLL_INTERVAL_NS
@@ -221,6 +222,7 @@ class ConsecutiveExecutor:
         nodes, self._nodes_wait = self._nodes_wait, None
         if nodes is not None:
             nodes.close()
+        self._polled_wait = None
         self._dds_wake = None
         self._dds = None
         self._wake_event.set()
@@ -616,9 +618,26 @@ class ConsecutiveExecutor:
                 guard.callback()
         for sub in ready.subs:
             ran += take_samples(sub, limit=MAX_TAKES)
-        if (ready.other or ready.poll_events) and self._dds is not None:
+        if self._dds is not None and ready.other:
             ran += self._run_dds_ready(self._dds, 0.0)
+        elif self._dds is not None and ready.poll_events:
+            ran += self._poll_rest(self._dds)
         return ran
+
+    def _poll_rest(self, dds: RclpyExecutor) -> int:
+        """The poll for what the DDS wait leaves out (parameter services, QoS events) on a
+        wait set kept for it (:class:`~efficient_comm._reader_wait.PolledWait`); through
+        rclpy's executor while it has tasks of its own (they run in its wait) or where
+        that cannot serve a node's waitables."""
+        if dds._tasks:  # rclpy's own tasks (a client's response, awaited) run in its wait
+            return self._run_dds_ready(dds, 0.0)
+        polled = self._polled_wait
+        if polled is None:
+            from ._reader_wait import PolledWait
+
+            polled = self._polled_wait = PolledWait(dds)
+        ran = polled.poll()
+        return self._run_dds_ready(dds, 0.0) if ran is None else ran
 
     def _poll_dds(self) -> None:
         """Take what DDS has for us without waiting, at most once per poll interval: a

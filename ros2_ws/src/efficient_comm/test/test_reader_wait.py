@@ -1,5 +1,6 @@
-"""The lockstep barrier's wait (efficient_comm._reader_wait): one wait set for its life,
-every sample of each ready subscription taken, woken by its guard from another thread."""
+"""The waits of efficient_comm._reader_wait: the lockstep barrier's (one wait set for its
+life, every sample of each ready subscription taken, woken by its guard from another
+thread), the executor's (NodesWait) and its poll for the rest (PolledWait)."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from efficient_comm._qos import latched_qos
-from efficient_comm._reader_wait import NodesWait, ReaderWait
+from efficient_comm._reader_wait import NodesWait, PolledWait, ReaderWait
 from efficient_comm.executor import take_samples
 from efficient_comm.testing import isolated_domain_id, unique_topic
 
@@ -215,6 +216,48 @@ def test_a_nodes_wait_leaves_parameter_services_to_the_callers_poll() -> None:
         assert future.result() is not None and len(future.result().values) == 1
     finally:
         waiter.close()
+        executor.shutdown()
+        peer_executor.shutdown()
+        _close(peer)
+        _close(node)
+
+
+def test_the_poll_answers_parameter_requests_without_rclpys_wait() -> None:
+    """What NodesWait leaves out is polled on a wait set of its own (PolledWait): a peer's
+    parameter request is answered with rclpy's executor never asked to wait (its wait over
+    every entity cost 5.9 ms a poll in a robot's container). Its QoS events ("message
+    lost") are polled the same way: tests/test_ros2_bag_compat.py counts a recorder's."""
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.executors import SingleThreadedExecutor
+
+    domain = isolated_domain_id()
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    name = f"polled_{unique_topic('n').strip('/')}"
+    node = rclpy.create_node(name, context=context, enable_rosout=False)  # services on
+    node.create_subscription(String, unique_topic("events"), lambda m: None, _qos())
+    peer = _node("peer", domain)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+
+    def never(*args: Any, **kwargs: Any) -> Any:
+        raise AssertionError("rclpy's executor was asked to wait")
+
+    executor._wait_for_ready_callbacks = never  # type: ignore[method-assign]
+    peer_executor = SingleThreadedExecutor(context=peer.context)
+    peer_executor.add_node(peer)
+    polled = PolledWait(executor)
+    try:
+        client = peer.create_client(GetParameters, f"/{name}/get_parameters")
+        assert client.wait_for_service(timeout_sec=10.0)
+        future = client.call_async(GetParameters.Request(names=["use_sim_time"]))
+        end = time.monotonic() + 10.0
+        while not future.done():
+            assert time.monotonic() < end, "the poll did not answer the request"
+            polled.poll()
+            peer_executor.spin_once(timeout_sec=0.05)
+        assert future.result() is not None and len(future.result().values) == 1
+    finally:
         executor.shutdown()
         peer_executor.shutdown()
         _close(peer)
