@@ -220,3 +220,40 @@ def test_a_container_on_a_manual_clock_hears_remote_peers_while_it_advances() ->
             container.advance(0.01)  # as fast as the machine allows: no wait inside
         assert listener.heard[0].data.startswith("m")
         assert ticks  # simulated time went on meanwhile
+
+
+def test_a_busy_container_answers_service_calls_when_every_poll_is_an_event_poll(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A busy executor's DDS polls come at its poll interval, which grows with the poll's
+    cost (a robot's container: 330 ms). Once that exceeds ``DDS_EVENTS_POLL_NS`` every
+    poll is also the QoS events' poll; the services its DDS wait looks after must be
+    answered in those rounds too (a lockstep robot's recorder never answered ``stop``).
+    The events' period is set to 0 here: every round is such a round."""
+    from efficient_comm import executor
+    from efficient_comm.testing import ManualClock
+    from robot_recorder_interfaces.srv import Stop
+
+    monkeypatch.setattr(executor, "DDS_EVENTS_POLL_NS", 0)
+    domain = isolated_domain_id()
+    service = unique_topic("stop")
+    calls: list[int] = []
+
+    def answer(request: Any, response: Any) -> Any:
+        calls.append(1)
+        response.success = True
+        return response
+
+    with (
+        Container("busy", domain_id=domain, clock=ManualClock(), serve=False,
+                  stats_period_s=0) as container,
+        peer(domain, "caller") as caller,
+    ):
+        container.add(lambda n: n.create_service(Stop, service, answer), name="server")
+        container.add(lambda n: n.create_timer(0.01, lambda: None), name="ticker")
+        client = caller.node.create_client(Stop, service)
+        assert caller.wait_for(client.service_is_ready, 20.0,
+                               also=lambda _: container.advance(0.01))
+        future = client.call_async(Stop.Request())
+        assert caller.wait_for(future.done, 20.0, also=lambda _: container.advance(0.01)), \
+            "the container never answered the call"
+        assert future.result().success and calls == [1]

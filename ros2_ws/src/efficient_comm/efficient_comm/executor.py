@@ -234,10 +234,10 @@ class ConsecutiveExecutor:
         The wait is :class:`~efficient_comm._reader_wait.NodesWait`'s, on a wait set kept
         across waits: rclpy's executor builds one per wait from every entity with its QoS
         event handlers, milliseconds of Python that were a third of a real-time world's
-        main thread. Every :data:`DDS_EVENTS_POLL_NS` it returns early with
-        ``poll_events`` for rclpy's wait over the other QoS events (message lost,
-        incompatible QoS). Raises rclpy's ``ExternalShutdownException`` once DDS is shut
-        down.
+        main thread. Every :data:`DDS_EVENTS_POLL_NS` it looks without waiting and
+        returns with ``poll_events``, for the poll of what it leaves out (parameter
+        services, the other QoS events: message lost, incompatible QoS). Raises rclpy's
+        ``ExternalShutdownException`` once DDS is shut down.
         """
         dds = self._dds
         if dds is None:
@@ -251,10 +251,14 @@ class ConsecutiveExecutor:
         deadline = now + round(timeout_s * 1e9)
         while True:
             if now >= self._events_due:
+                # The poll's round looks at the DDS wait's entities too: an executor whose
+                # polls come further apart than DDS_EVENTS_POLL_NS (a busy one, its poll
+                # interval grown with the poll's cost) has a poll due at every round, and
+                # a service left out of those rounds was never answered.
                 self._events_due = now + DDS_EVENTS_POLL_NS
-                from ._reader_wait import DdsReady
-
-                return DdsReady(poll_events=True)
+                ready = nodes.wait(0.0)
+                ready.poll_events = True
+                return ready
             ready = nodes.wait(max(0, min(deadline, self._events_due) - now) / 1e9)
             if ready:
                 return ready
