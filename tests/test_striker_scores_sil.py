@@ -20,12 +20,11 @@ at 10 Hz (the match's tests run theirs at 5 to 10): seed 1 scored at 76.3 s simu
 The bound: seeds 1, 2 and 3 scored after 76.3, 75.2 and 75.6 simulated seconds (each
 with six kicks, walking from its half's far side to the centre mark first, no fall; at
 30 Hz, 1 % line noise); a kick cycle (walk behind the ball, line up, kick) takes about
-12 s, so :data:`BOUND_S` allows one more cycle than the slowest took. Since the field
+12 s, so :data:`BOUND_S` allows one more cycle than the slowest took. Since the camera
 renders without multisampling (models/field.xml, 2026-11-27) the seeds score after 76.7,
-75.8 and 76.1 s, six kicks each, for 27 to 32 s of CPU a seed beside a full test run (about
-50 before). Slow for a test because scoring from the centre mark takes six kicks; there is
-no shorter span that still shows it. The third seed runs only when the
-first two disagree.
+75.9 and 76.2 s, six kicks each, for 27 to 33 s of CPU a seed beside other tests (about 50
+before). Slow for a test because scoring from the centre mark takes six kicks; there is no
+shorter span that still shows it. The third seed runs only when the first two disagree.
 """
 
 from __future__ import annotations
