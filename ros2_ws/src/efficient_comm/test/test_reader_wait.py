@@ -7,6 +7,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import pytest
@@ -183,43 +184,54 @@ def test_a_nodes_wait_says_what_is_ready_and_takes_matched_events_for_the_caller
         executor.shutdown()
 
 
-def test_a_nodes_wait_leaves_parameter_services_to_the_callers_poll() -> None:
-    """A node's parameter services (seven a node, most of a container's entities) are not in
-    the wait set: a request to one is not reported, rclpy's wait (the caller's poll every
-    ``DDS_EVENTS_POLL_NS``) answers it."""
+@contextmanager
+def _parameter_request(prefix: str) -> Iterator[tuple[Any, Any, Any, Any]]:
+    """A node with its parameter services on an rclpy executor, and a peer in a participant
+    of its own that has asked it for ``use_sim_time``: ``(node, executor, peer's executor,
+    the request's future)``, all closed afterwards."""
     from rcl_interfaces.srv import GetParameters
     from rclpy.executors import SingleThreadedExecutor
 
     domain = isolated_domain_id()
     context = Context()
     rclpy.init(context=context, domain_id=domain)
-    name = f"params_{unique_topic('n').strip('/')}"
+    name = f"{prefix}_{unique_topic('n').strip('/')}"
     node = rclpy.create_node(name, context=context, enable_rosout=False)  # services on
     peer = _node("peer", domain)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     peer_executor = SingleThreadedExecutor(context=peer.context)
     peer_executor.add_node(peer)
-    waiter = NodesWait(executor)
     try:
         client = peer.create_client(GetParameters, f"/{name}/get_parameters")
         assert client.wait_for_service(timeout_sec=10.0)
-        future = client.call_async(GetParameters.Request(names=["use_sim_time"]))
-        end = time.monotonic() + 1.0
-        while time.monotonic() < end:
-            assert not waiter.wait(0.1).other, "a parameter request woke the wait"
-        end = time.monotonic() + 10.0
-        while not future.done():
-            assert time.monotonic() < end, "rclpy's wait did not answer the request"
-            executor.spin_once(timeout_sec=0.1)
-            peer_executor.spin_once(timeout_sec=0.1)
-        assert future.result() is not None and len(future.result().values) == 1
+        yield node, executor, peer_executor, client.call_async(
+            GetParameters.Request(names=["use_sim_time"]))
     finally:
-        waiter.close()
         executor.shutdown()
         peer_executor.shutdown()
         _close(peer)
         _close(node)
+
+
+def test_a_nodes_wait_leaves_parameter_services_to_the_callers_poll() -> None:
+    """A node's parameter services (seven a node, most of a container's entities) are not in
+    the wait set: a request to one is not reported, rclpy's wait (the caller's poll every
+    ``DDS_EVENTS_POLL_NS``) answers it."""
+    with _parameter_request("params") as (_, executor, peer_executor, future):
+        waiter = NodesWait(executor)
+        try:
+            end = time.monotonic() + 1.0
+            while time.monotonic() < end:
+                assert not waiter.wait(0.1).other, "a parameter request woke the wait"
+            end = time.monotonic() + 10.0
+            while not future.done():
+                assert time.monotonic() < end, "rclpy's wait did not answer the request"
+                executor.spin_once(timeout_sec=0.1)
+                peer_executor.spin_once(timeout_sec=0.1)
+            assert future.result() is not None and len(future.result().values) == 1
+        finally:
+            waiter.close()
 
 
 def test_the_poll_answers_parameter_requests_without_rclpys_wait() -> None:
@@ -227,38 +239,17 @@ def test_the_poll_answers_parameter_requests_without_rclpys_wait() -> None:
     parameter request is answered with rclpy's executor never asked to wait (its wait over
     every entity cost 5.9 ms a poll in a robot's container). Its QoS events ("message
     lost") are polled the same way: tests/test_ros2_bag_compat.py counts a recorder's."""
-    from rcl_interfaces.srv import GetParameters
-    from rclpy.executors import SingleThreadedExecutor
+    with _parameter_request("polled") as (node, executor, peer_executor, future):
+        node.create_subscription(String, unique_topic("events"), lambda m: None, _qos())
 
-    domain = isolated_domain_id()
-    context = Context()
-    rclpy.init(context=context, domain_id=domain)
-    name = f"polled_{unique_topic('n').strip('/')}"
-    node = rclpy.create_node(name, context=context, enable_rosout=False)  # services on
-    node.create_subscription(String, unique_topic("events"), lambda m: None, _qos())
-    peer = _node("peer", domain)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
+        def never(*args: Any, **kwargs: Any) -> Any:
+            raise AssertionError("rclpy's executor was asked to wait")
 
-    def never(*args: Any, **kwargs: Any) -> Any:
-        raise AssertionError("rclpy's executor was asked to wait")
-
-    executor._wait_for_ready_callbacks = never  # type: ignore[method-assign]
-    peer_executor = SingleThreadedExecutor(context=peer.context)
-    peer_executor.add_node(peer)
-    polled = PolledWait(executor)
-    try:
-        client = peer.create_client(GetParameters, f"/{name}/get_parameters")
-        assert client.wait_for_service(timeout_sec=10.0)
-        future = client.call_async(GetParameters.Request(names=["use_sim_time"]))
+        executor._wait_for_ready_callbacks = never
+        polled = PolledWait(executor)
         end = time.monotonic() + 10.0
         while not future.done():
             assert time.monotonic() < end, "the poll did not answer the request"
             polled.poll()
             peer_executor.spin_once(timeout_sec=0.05)
         assert future.result() is not None and len(future.result().values) == 1
-    finally:
-        executor.shutdown()
-        peer_executor.shutdown()
-        _close(peer)
-        _close(node)
