@@ -232,3 +232,90 @@ def test_a_message_from_a_publisher_gone_before_the_intake_looked_is_delivered()
         finally:
             container.shutdown()
             spinner.join(timeout=10)
+
+
+TALKER = """
+import sys
+from std_msgs.msg import String
+from efficient_comm import Container
+
+class Talker:
+    def __init__(self, node):
+        self.pub = node.create_publisher(String, sys.argv[1], qos=10)
+        self.ticks = 0
+        node.create_timer(0.01, self.tick)
+
+    def tick(self):
+        self.ticks += 1
+        self.pub.publish(String(data=str(self.ticks)))
+
+with Container("talker_container", lockstep="talker", stats_period_s=0) as container:
+    container.add(Talker, name="talker")
+    container.spin()
+"""
+
+#: Fast DDS's default heartbeat period (3 s): before lockstep processes set a short one,
+#: every step waited this long for a plain reader's acknowledgement. The steps' timeout
+#: below is shorter, and still hundreds of times a step's usual wait (milliseconds).
+FAST_DDS_HEARTBEAT_S = 3.0
+
+
+def test_a_plain_reader_of_a_lockstep_robot_does_not_hold_its_steps(tmp_path: Path) -> None:
+    """A plain rclpy subscriber (as ``ros2 topic hz`` or the GUI) of a lockstep container's
+    reliable topic of depth 10: each step waits until the container's messages are
+    acknowledged, and a reader acknowledges when a heartbeat comes. Fast DDS piggybacks one
+    on data only once a send buffer's worth was sent, so with its periodic heartbeat every
+    3 s, a GUI watching a lockstep match held every step for 3 s (the match crawled)."""
+    import threading
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import String
+
+    from efficient_comm import LockstepError, StepCoordinator
+
+    domain = isolated_domain_id()
+    topic = f"/talk_{domain}"
+    heard: list[str] = []
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    node = rclpy.create_node("plain_ear", context=context)
+
+    def on_talk(msg: String) -> None:
+        heard.append(msg.data)
+
+    node.create_subscription(String, topic, on_talk, 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    steps_done = 0
+    try:
+        spinner.start()
+        with open(tmp_path / "talker.log", "wb") as out, \
+                subprocess.Popen([sys.executable, "-c", TALKER, topic], env=ros_env(domain),
+                                 stdout=out, stderr=subprocess.STDOUT,
+                                 start_new_session=True) as talker, \
+                StepCoordinator(["talker"], domain_id=domain,
+                                timeout_s=FAST_DDS_HEARTBEAT_S * 0.8) as steps:
+            try:
+                steps.wait_ready(timeout_s=60)
+                deadline = time.monotonic() + 30  # the reader knows the writer
+                while node.count_publishers(topic) == 0 and time.monotonic() < deadline:
+                    time.sleep(0.01)
+                try:
+                    while steps_done < 30:
+                        steps.advance(0.01)
+                        steps_done += 1
+                except LockstepError as exc:
+                    raise AssertionError(
+                        f"step {steps_done + 1} waited for the plain reader: {exc}") from exc
+            finally:
+                stop_process_group(talker)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        context.try_shutdown()
+        spinner.join(timeout=10)
+    assert steps_done == 30
+    assert len(heard) >= 25 and heard == [str(int(heard[0]) + i) for i in range(len(heard))]

@@ -18,14 +18,24 @@ sharing one context (one participant) no longer hear each other over DDS. Nodes 
 contexts or other processes are unaffected.
 
 ``prompt_acks=True`` (what lockstep processes ask for: the step coordinator and containers
-with simulated time) also makes the process's readers acknowledge a writer's heartbeat at
-once instead of after Fast DDS's default 5 ms ``heartbeatResponseDelay``: each lockstep
-step waits until its messages are acknowledged (:mod:`efficient_comm.simtime`), and that
-delay doubled a step (14.0 ms against 6.9 ms for one participant, bench/lockstep_bench.py).
-The price is an acknowledgement per heartbeat instead of one per batch. A default
-data-reader profile of the user's own is kept as it is. Like the property, it applies to
-participants created after the first call: create a lockstep process's coordinator or
-container first.
+with simulated time) tunes the two Fast DDS timings a lockstep step waits on: each step
+waits until its messages are acknowledged (:mod:`efficient_comm.simtime`).
+
+- The process's readers acknowledge a writer's heartbeat at once instead of after Fast
+  DDS's default 5 ms ``heartbeatResponseDelay``, which doubled a step (14.0 ms against
+  6.9 ms for one participant, bench/lockstep_bench.py). The price is an acknowledgement per
+  heartbeat instead of one per batch.
+- The process's writers send a heartbeat every :data:`LOCKSTEP_HEARTBEAT_NS` instead of
+  every 3 s while a sample is unacknowledged. A reader acknowledges only when a heartbeat
+  comes, and Fast DDS piggybacks one on data only once a writer has sent a send buffer's
+  worth, so a small message waited for the periodic one: a plain ``ros2 topic hz`` or a
+  GUI subscribed to a lockstep robot's odometry held every step of the game for 3 s. A
+  writer whose samples are all acknowledged sends no periodic heartbeat: the short period
+  costs only while a step waits.
+
+Default data-reader and data-writer profiles of the user's own are kept as they are. Like
+the property, they apply to participants created after the first call: create a lockstep
+process's coordinator or container first.
 """
 
 from __future__ import annotations
@@ -43,6 +53,8 @@ from rclpy.context import Context
 from std_msgs.msg import Empty
 
 PROFILES_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
+#: A lockstep process's writers' heartbeat period while a sample is unacknowledged (ns).
+LOCKSTEP_HEARTBEAT_NS = 1_000_000
 IGNORE_LOCAL = "fastdds.ignore_local_endpoints"
 _NS = "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"
 _MARK = "efficient_comm-profile"
@@ -81,16 +93,21 @@ def _with_ignore_local(source: Path | None, *, prompt_acks: bool = False) -> str
     prop = ET.SubElement(properties, "property")
     ET.SubElement(prop, "name").text = IGNORE_LOCAL
     ET.SubElement(prop, "value").text = "true"
-    if prompt_acks and not any(
-        p.tag.endswith("data_reader") and p.get("is_default_profile") == "true"
-        for p in profiles
-    ):
-        reader = ET.SubElement(profiles, "data_reader", profile_name=f"{_MARK}-reader",
-                               is_default_profile="true")
-        delay = _child(_child(reader, "times"), "heartbeatResponseDelay")
-        ET.SubElement(delay, "sec").text = "0"
-        ET.SubElement(delay, "nanosec").text = "0"
+    if prompt_acks:
+        _default_times(profiles, "data_reader", "heartbeatResponseDelay", 0)
+        _default_times(profiles, "data_writer", "heartbeatPeriod", LOCKSTEP_HEARTBEAT_NS)
     return ET.tostring(root, encoding="unicode")
+
+
+def _default_times(profiles: ET.Element, kind: str, timing: str, nanoseconds: int) -> None:
+    """A default ``kind`` profile setting ``<times><timing>``, unless the user has one."""
+    if any(p.tag.endswith(kind) and p.get("is_default_profile") == "true" for p in profiles):
+        return
+    profile = ET.SubElement(profiles, kind, profile_name=f"{_MARK}-{kind.split('_')[1]}",
+                            is_default_profile="true")
+    value = _child(_child(profile, "times"), timing)
+    ET.SubElement(value, "sec").text = str(nanoseconds // 1_000_000_000)
+    ET.SubElement(value, "nanosec").text = str(nanoseconds % 1_000_000_000)
 
 
 def prepare_process(*, prompt_acks: bool = False) -> None:

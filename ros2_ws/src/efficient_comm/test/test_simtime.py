@@ -22,7 +22,7 @@ from efficient_comm import (
     StepCoordinator,
 )
 from efficient_comm.bus import Bus
-from efficient_comm.dds import _with_ignore_local
+from efficient_comm.dds import LOCKSTEP_HEARTBEAT_NS, _with_ignore_local
 from efficient_comm.executor import ConsecutiveExecutor
 from efficient_comm.handle import NodeHandle
 from efficient_comm.stats import CallbackStats
@@ -134,6 +134,24 @@ def test_lockstep_processes_acknowledge_heartbeats_at_once(tmp_path: Path) -> No
                    "</data_reader></profiles>")
     kept = _with_ignore_local(own, prompt_acks=True)
     assert "heartbeatResponseDelay" not in kept and "KEEP_ALL" in kept
+
+
+def test_lockstep_processes_send_heartbeats_while_a_step_waits(tmp_path: Path) -> None:
+    """A reader acknowledges on a heartbeat; Fast DDS's writers send one every 3 s unless
+    told otherwise (tests/test_lockstep.py has a plain reader that this held)."""
+    plain = _with_ignore_local(None)
+    prompt = _with_ignore_local(None, prompt_acks=True)
+    assert "heartbeatPeriod" not in plain
+    ns = f"{LOCKSTEP_HEARTBEAT_NS % 1_000_000_000}"
+    assert re.search(rf"<data_writer [^>]*><times><heartbeatPeriod><sec>0</sec>"
+                     rf"<nanosec>{ns}</nanosec>", prompt), prompt
+    own = tmp_path / "own.xml"  # a user's own default writer profile is left alone
+    own.write_text('<profiles><data_writer profile_name="mine" is_default_profile="true">'
+                   "<times><heartbeatPeriod><sec>1</sec></heartbeatPeriod></times>"
+                   "</data_writer></profiles>")
+    kept = _with_ignore_local(own, prompt_acks=True)
+    assert kept.count("heartbeatPeriod>") == 2 and "<sec>1</sec>" in kept
+    assert "heartbeatResponseDelay" in kept  # the reader's default is still added
 
 
 class _Participant:

@@ -38,10 +38,8 @@ import functools
 import hashlib
 import json
 import math
-import os
 import struct
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Sequence
@@ -62,7 +60,6 @@ from efficient_comm import (
     latched_qos,
     stop_on_sigterm,
 )
-from efficient_comm.dds import PROFILES_ENV
 from efficient_comm.handle import NodeHandle
 from robot_recorder import Recorder
 from soccer_interfaces.msg import GameState
@@ -216,10 +213,9 @@ def main(argv: list[str] | None = None) -> int:
 
     stop_on_sigterm()
     lockstep = bool(plan.get("lockstep"))
-    if lockstep:
-        prompt_heartbeats()
     with contextlib.ExitStack() as stack:
-        # Coordinators first: they prepare the process's DDS for lockstep (efficient_comm.dds).
+        # Coordinators first: they prepare the process's DDS for lockstep (efficient_comm.dds:
+        # prompt acknowledgements and heartbeats, or each step waits for them).
         coordinators = [stack.enter_context(StepCoordinator(
             [robot], domain_id=plan["domains"][robot], timeout_s=STEP_TIMEOUT_S,
             name=f"{robot}_steps")) for robot in robots] if lockstep else []
@@ -302,40 +298,6 @@ def main(argv: list[str] | None = None) -> int:
         if clocks is not None:
             clocks.close()
     return 0 if ok else 1
-
-
-#: Fast DDS profile for the world's writers in lockstep: a heartbeat every 1 ms.
-_WRITER_PROFILE = """<?xml version="1.0" encoding="UTF-8"?>
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <data_writer profile_name="match_world_writer" is_default_profile="true">
-    <times><heartbeatPeriod><sec>0</sec><nanosec>1000000</nanosec></heartbeatPeriod></times>
-  </data_writer>
-</profiles>
-"""
-
-
-def prompt_heartbeats() -> None:
-    """Make the world's DDS writers send a heartbeat every 1 ms instead of Fast DDS's 3 s.
-
-    Every lockstep step waits until each robot's readers acknowledged its sensors; a
-    reader acknowledges (or asks again for what it missed) when a heartbeat comes, and
-    with the default period a step waited up to 3 s for one (the IMU's writer, seen);
-    with 10 ms, up to a whole step of 10 ms. A writer whose samples are all acknowledged
-    sends no periodic heartbeat, so the short period costs only while a step waits. Set
-    before the process's first participant (Fast DDS reads the profile once); a profile
-    of the user's own (``FASTRTPS_DEFAULT_PROFILES_FILE``) is kept as it is.
-    """
-    if os.environ.get(PROFILES_ENV):
-        return
-    # One file for every world process (its content never changes): nothing to clean up.
-    path = os.path.join(tempfile.gettempdir(), f"match_world_writer_1ms-{os.getuid()}.xml")
-    if not os.path.exists(path):
-        fd, staging = tempfile.mkstemp(prefix="match_world_", suffix=".tmp",
-                                       dir=os.path.dirname(path))
-        with os.fdopen(fd, "w") as out:
-            out.write(_WRITER_PROFILE)
-        os.replace(staging, path)  # atomic: a concurrent world never reads half a file
-    os.environ[PROFILES_ENV] = path
 
 
 class GroundTruthLog:
