@@ -133,7 +133,7 @@ def test_beyond_loopback_pages_need_the_token(tmp_path: Path, browser) -> None:
     (["--solo", "--seed", "3"], "unrecognized arguments with --solo: --seed 3"),
     # The match (the demo without --solo): the demo's refusals, and the match's own.
     (["--robots", "1"], "--robots 1 is one robot alone, no match: --solo --robots 1"),
-    (["--lockstep", "--domains", "3,4"], "--domains, --lockstep: for --solo robots only"),
+    (["--lockstep", "--domains", "3,4"], "--domains: for --solo robots only"),
     (["--robots", "4v1", "--port", "0"], "soccer_match: error: argument --robots: '4v1'"),
 ])
 def test_the_demo_refuses_bad_options_in_one_line(args: list[str], error: str) -> None:

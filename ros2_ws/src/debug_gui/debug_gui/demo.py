@@ -17,10 +17,11 @@ second domain under their own namespaces, so the GUI shows both ways robots are 
 Either way it serves the GUI (as ``debug_gui`` would) and prints its URL. Ctrl-C, SIGTERM
 or ``--duration`` stop the GUI and every robot.
 
-Solo robots play (walk to the ball, kick, get up) in real time. A machine that cannot
-simulate them all in real time makes them late, and a late walk falls: ``--lockstep`` runs
-each robot on a manual clock instead, as fast as the machine allows (slower than real
-time on a small machine, but every robot plays as it would on a fast one).
+Robots play (walk to the ball, kick, get up) in real time. A machine that cannot simulate
+them all in real time makes them late, and a late walk falls: ``--lockstep`` runs the
+match's robots in step with its world (the match's ``--lockstep``), each solo robot on a
+manual clock, as fast as the machine allows (slower than real time on a small machine, but
+every robot plays as it would on a fast one).
 
 Each solo robot's recorder writes its bags under ``--record-dir`` (default
 ``debug_gui_recordings`` in the current directory), robot K's in ``robotK/``: a folder
@@ -67,7 +68,7 @@ MATCH_LAYOUT = Layout((Panel(kind="world"), Panel(kind="components")))
 #: How long the match may take to name its domains (it does so before its world starts).
 MATCH_DOMAINS_TIMEOUT_S = 120.0
 #: Options of the solo robots only (refused with a match).
-_SOLO_ONLY = ("domains", "lockstep", "record_dir", "log_dir")
+_SOLO_ONLY = ("domains", "record_dir", "log_dir")
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,8 +108,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--plain-robots", action="store_true",
                         help="also show plain ROS 2 robots (as debug_gui --plain-robots)")
     parser.add_argument("--lockstep", action="store_true",
-                        help="--solo: robots on manual clocks, as fast as the machine "
-                             "allows (slower than real time, but never late)")
+                        help="robots on simulated time, as fast as the machine allows "
+                             "(slower than real time, but never late): the match's "
+                             "--lockstep, or --solo robots on manual clocks")
     parser.add_argument("--record-dir", type=Path, default=None,
                         help="--solo: where the robots' recorders write bags, one folder "
                              f"per robot (default ./{DEFAULT_RECORD_DIR}; kept after the demo)")
@@ -218,6 +220,7 @@ def _match(args: argparse.Namespace, rest: Sequence[str]) -> int:
         print(f"debug_gui demo: error: {exc}", file=sys.stderr)
         return 2
     match_args = [*(["--robots", robots] if robots else []),
+                  *(["--lockstep"] if args.lockstep else []),
                   "--duration", f"{args.duration:g}", *rest]
     stop_on_sigterm()  # until the server takes over SIGTERM: the match is stopped either way
     with MatchProcess(match_args) as match:
