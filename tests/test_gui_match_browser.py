@@ -1,7 +1,7 @@
 """Issue 19, point 8: ``scripts/gui_demo.sh`` watches the team match. The demo as a user
-types it (``python -m debug_gui.demo --robots 1v1 --lockstep``), seen in a browser: the match's robots
-by name, each one's components, and the world view with both robots on one field in their
-teams' colours, their roles, and the referee's game state and score."""
+types it (``python -m debug_gui.demo --robots 1v1 --lockstep``), seen in a browser: the
+match's robots by name, each one's components, and the world view with both robots on one
+field in their teams' colours, their roles, and the referee's game state and score."""
 
 from __future__ import annotations
 
