@@ -156,12 +156,23 @@ def _waiting_in_rclpy(thread_id: int) -> bool:
 
 
 @pytest.mark.timeout(60)
-def test_a_publish_from_another_thread_ends_the_executors_wait_for_dds() -> None:
+@pytest.mark.parametrize("every_round_polls_events", [False, True])
+def test_a_publish_from_another_thread_ends_the_executors_wait_for_dds(
+        every_round_polls_events: bool, monkeypatch: pytest.MonkeyPatch) -> None:
     """A DDS container's executor waits in rclpy's wait set; another thread's publish must
     end that wait. Before, it only made rclpy rebuild its wait set and wait again until the
     poll timeout (median 48 ms; here, with no timeout, for good), so at 1 kHz and depth 10
     most messages were dropped (bench/comm_bench.py --only foreign measures both).
-    No statistics timer: its deadline would end the wait on its own."""
+    No statistics timer: its deadline would end the wait on its own.
+
+    The wait's round for the QoS events (every ``DDS_EVENTS_POLL_NS``) takes the wake-up's
+    guard condition too, and the executor went on waiting after it when no callback had
+    run: a publish that came during that round was heard only with the watchdog's message
+    (once in a full run; with every round an events round, every time)."""
+    from efficient_comm import executor
+
+    if every_round_polls_events:
+        monkeypatch.setattr(executor, "DDS_EVENTS_POLL_NS", 0)
     topic = unique_topic("foreign")
     domain = isolated_domain_id()
     with peer(domain) as p, Container("foreign", domain_id=domain, serve=False,

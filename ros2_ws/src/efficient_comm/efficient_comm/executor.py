@@ -544,7 +544,10 @@ class ConsecutiveExecutor:
             ready = self._dds_ready(max(0, deadline - time.monotonic_ns()) / 1e9)
             if ready is None:
                 return
-            if self._run_dds_items(ready) or not ready.poll_events:
+            # A triggered guard is a wake-up (another thread's publish, a new timer): the
+            # caller has work, though no callback ran here. The events round takes guards
+            # too, and going on waiting after it lost that wake-up until DDS brought more.
+            if self._run_dds_items(ready) or ready.guards or not ready.poll_events:
                 return  # something came: the caller looks at its timers first
             if time.monotonic_ns() >= deadline:
                 return
