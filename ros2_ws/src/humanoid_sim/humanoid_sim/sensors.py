@@ -80,7 +80,13 @@ def image(renderer: OffscreenRenderer, data: mujoco.MjData, *, camera: str, stam
     w, h = renderer.width, renderer.height
     buffer = array.array("B", bytes(w * h * 3))
     renderer.render(data, np.frombuffer(buffer, dtype=np.uint8).reshape(h, w, 3), camera=camera)
-    msg = Image(height=h, width=w, encoding="rgb8", step=w * 3)
+    return rgb8_image(buffer, width=w, height=h, stamp_ns=stamp_ns, frame_id=frame_id)
+
+
+def rgb8_image(buffer: array.array[int], *, width: int, height: int, stamp_ns: int,
+               frame_id: str = CAMERA) -> Image:
+    """An rgb8 Image around a drawn frame (rows top-down), which it keeps: no copy."""
+    msg = Image(height=height, width=width, encoding="rgb8", step=width * 3)
     msg.header.stamp = to_msg(stamp_ns)
     msg.header.frame_id = frame_id
     msg.data = buffer  # an array.array is taken as is: no copy, no per-byte check

@@ -12,7 +12,9 @@ Topics, relative to the component's namespace (``/`` in the world process, so a 
 topics are ``/<robot>/...``):
 
 * per robot: ``<robot>/camera/image_raw`` (rgb8, rendered only while someone wants a frame:
-  a throttled publisher; all cameras from one GL context), ``<robot>/camera/camera_info``
+  a throttled publisher; all cameras from one GL context on a render thread of their own,
+  each frame published ``camera_latency_s`` after the instant it shows and stamped with
+  that instant), ``<robot>/camera/camera_info``
   (transient local), ``<robot>/imu/data``;
 * ground truth (field frame): ``ground_truth/<robot>/pose`` (the torso) and
   ``ground_truth/ball``, throttled publishers;
@@ -22,14 +24,17 @@ topics are ``/<robot>/...``):
   border strip are refused with one logged line.
 
 CPU (:meth:`WorldSimulator.status`, ``cpu_s``): the world process's CPU seconds split into
-physics (the executor thread while it steps), rendering (that thread while it draws, and
-the software rasteriser's ``llvmpipe`` threads), bus emulation (every pty's emulator
+physics (the executor thread while it steps), rendering (that thread while it takes the
+cameras' views, the render thread while it draws them, and the software rasteriser's
+``llvmpipe`` threads), bus emulation (every pty's emulator
 thread) and the rest of the process (DDS, the sensor topics, the referee): what the match
 reports and ``bench/match_bench.py`` measures.
 
 Parameters: ``robots`` (names, ``blue1``..``red3``), per robot ``<robot>.pose`` (x, y,
 heading; default :data:`~.world.DEFAULT_START`), ``ball_position``,
-``step_hz``, ``camera_hz`` (0: no cameras), ``camera_width``, ``camera_height``, ``port_dir``,
+``step_hz``, ``camera_hz`` (0: no cameras), ``camera_width``, ``camera_height``,
+``camera_latency_s`` (default 0.02: the world steps on while a frame is drawn; 0 publishes
+it in the tick that took it, the world waiting for the draw), ``port_dir``,
 ``line_noise`` and ``seed`` (per bus, as the one-robot simulator's).
 """
 
@@ -59,7 +64,7 @@ from .dynamixel.pty import PACKET_TIMEOUT_S, PtyBus, make_port_link, remove_port
 from .errors import SimConfigError
 from .joints import JOINTS
 from .pacing import Pacer
-from .render import OffscreenRenderer
+from .render import RenderThread
 from .sensors import CAMERA
 from .simulator import SimParameters
 from .world import DEFAULT_START, Pose2D, World, team_of
@@ -122,14 +127,19 @@ class WorldSimulator:
         self.model, self.data = self.world.model, self.world.data
         self.period_s = 1.0 / step_hz
         self.camera_period_ns = round(1e9 / camera_hz) if camera_hz > 0 else 0
+        latency_s = node.declare_parameter("camera_latency_s", 0.02)
+        if not 0.0 <= latency_s <= 1.0:
+            raise SimConfigError(f"camera_latency_s is 0..1 s, got {latency_s}")
+        self.camera_latency_ns = round(latency_s * 1e9)
         self._lockstep = node.clock_kind == "manual"
         #: Held by every robot's bus while it answers, and while the world steps.
         self.lock = threading.Lock()
-        self.renderer: OffscreenRenderer | None = None
+        self.renderer: RenderThread | None = None
         self.robots: dict[str, ServedRobot] = {}
         with ExitStack() as opened:
             if camera_hz > 0:
-                self.renderer = OffscreenRenderer(self.model, width=width, height=height)
+                self.renderer = RenderThread(self.model, width=width, height=height,
+                                             name="world_render")
                 opened.callback(self.renderer.close)
             for index, name in enumerate(names):
                 pty = PtyBus(Bus(JOINTS, self.world.robots[name]), corrupt=common.line_noise,
@@ -162,6 +172,8 @@ class WorldSimulator:
             node.create_subscription(Point, "place_ball", self._on_place_ball, qos=10)
             self._pacer = Pacer(period_s=self.period_s)
             self._next_frame_ns: int | None = None
+            #: The batch being drawn: its time, its robots, when it is published.
+            self._drawing: tuple[int, list[str], int] | None = None
             self.frames = 0
             self.frames_skipped = 0
             self.render_ns = 0
@@ -263,29 +275,51 @@ class WorldSimulator:
             robot.truth_pub.publish(sensors.pose_stamped(position, quat, stamp_ns=now))
         position, quat = self.world.ball_pose()
         self.ball_pub.publish(sensors.pose_stamped(position, quat, stamp_ns=now))
+        if self._drawing is not None and now >= self._drawing[2]:
+            self._publish_images()
         if self.renderer is not None and (self._next_frame_ns is None
                                           or now >= self._next_frame_ns):
             self._next_frame_ns = (self._next_frame_ns or now) + self.camera_period_ns
             self._next_frame_ns = max(self._next_frame_ns, now)  # no burst after a stall
-            self._publish_images(now)
+            self._capture_images(now)
 
-    def _publish_images(self, now: int) -> None:
-        """Render the cameras someone wants a frame of, each robot's from the same GL context."""
+    def _capture_images(self, now: int) -> None:
+        """Take the views of the cameras someone wants a frame of; the render thread draws
+        them while the world goes on, and they are published ``camera_latency_s`` later
+        (a tick's time: in lockstep at the same step of every run, as a camera's frame
+        arrives a while after the instant it shows)."""
         assert self.renderer is not None
+        if self._drawing is not None:  # a latency beyond the camera's period
+            self._publish_images()
+        wanted = []
         for name, robot in self.robots.items():
-            if not (robot.image_pub.wants() or any(wants() for wants in robot.demands)):
+            if robot.image_pub.wants() or any(wants() for wants in robot.demands):
+                wanted.append(name)
+            else:
                 robot.image_pub.skip()  # so every_nth keeps counting the camera's frames
                 self.frames_skipped += 1
-                continue
-            started = time.perf_counter_ns()
-            cpu = time.thread_time_ns()
-            image = sensors.image(self.renderer, self.data, camera=f"{name}/{CAMERA}",
-                                  stamp_ns=now)
-            self.render_cpu_ns += time.thread_time_ns() - cpu
-            self.render_ns += time.perf_counter_ns() - started
+        if not wanted:
+            return
+        started, cpu = time.perf_counter_ns(), time.thread_time_ns()
+        self.renderer.capture(self.data, [f"{name}/{CAMERA}" for name in wanted])
+        self.render_cpu_ns += time.thread_time_ns() - cpu
+        self.render_ns += time.perf_counter_ns() - started
+        self._drawing = (now, wanted, now + self.camera_latency_ns)
+        if not self.camera_latency_ns:
+            self._publish_images()
+
+    def _publish_images(self) -> None:
+        """Publish the batch the render thread drew (waiting for it if it is not done)."""
+        assert self.renderer is not None and self._drawing is not None
+        (stamp_ns, wanted, _), self._drawing = self._drawing, None
+        images = self.renderer.collect()
+        width, height = self.renderer.width, self.renderer.height
+        for name in wanted:
+            robot = self.robots[name]
             self.frames += 1
             robot.frames += 1
-            robot.image_pub.publish(image)
+            robot.image_pub.publish(sensors.rgb8_image(
+                images[f"{name}/{CAMERA}"], width=width, height=height, stamp_ns=stamp_ns))
 
     def status(self) -> dict[str, Any]:
         return {
@@ -295,7 +329,7 @@ class WorldSimulator:
             "frames": self.frames,
             "frames_by_robot": {n: r.frames for n, r in self.robots.items()},
             "frames_skipped": self.frames_skipped,
-            "render_ms_mean": self.render_ns / self.frames / 1e6 if self.frames else 0.0,
+            "render_ms_mean": self._render_wall_ns() / self.frames / 1e6 if self.frames else 0.0,
             "physics_ms_mean": self.physics_ns / self.ticks / 1e6 if self.ticks else 0.0,
             "bus_exceptions": {n: len(r.pty.errors) for n, r in self.robots.items()},
             "ticks": self.ticks,
@@ -304,12 +338,17 @@ class WorldSimulator:
             "cpu_s": self.cpu_split(),
         }
 
+    def _render_wall_ns(self) -> int:
+        """Wall time of the frames: their views taken here, their draws on the thread."""
+        return self.render_ns + (self.renderer.draw_ns if self.renderer else 0)
+
     def cpu_split(self) -> dict[str, float]:
         """This process's CPU seconds since the first tick: physics, render, bus, other
         (the rest: DDS, the sensor topics, the referee; start-up not counted)."""
         process = time.process_time() - self._first_tick_cpu if self.ticks else 0.0
         physics = self.physics_cpu_ns / 1e9
-        render = self.render_cpu_ns / 1e9 + (rasteriser_cpu_s() if self.renderer else 0.0)
+        render = (self.render_cpu_ns + self.renderer.draw_cpu_ns) / 1e9 + rasteriser_cpu_s(
+            ) if self.renderer else 0.0
         bus = sum(_thread_cpu_s(Path(f"/proc/self/task/{r.pty.thread_id}"))
                   for r in self.robots.values() if r.pty.thread_id is not None)
         return {"physics": physics, "render": render, "bus": bus,

@@ -79,3 +79,47 @@ def test_one_renderer_draws_a_free_camera_with_its_own_multisampling() -> None:
     assert renderer.frames == {"head_camera": 1}  # a free view is nobody's camera frame
     camera = renderer.scene.camera[0]
     assert camera.forward[2] < -0.5  # looking down on the field
+
+
+def test_the_render_thread_draws_what_a_renderer_draws_while_the_world_steps_on() -> None:
+    """RenderThread: the views are taken at capture, so stepping the world before collect
+    changes nothing in the frames (pixel for pixel those a renderer draws at capture); one
+    batch at a time; closed, it refuses."""
+    import mujoco
+    import numpy as np
+
+    from humanoid_sim.errors import RenderError
+    from humanoid_sim.render import OffscreenRenderer, RenderThread
+    from humanoid_sim.world import Pose2D, World
+
+    world = World({"blue1": Pose2D(-1.5, 0.0, 0.0), "red1": Pose2D(1.0, 0.5, 3.1)},
+                  ball=(0.0, 0.0))
+    mujoco.mj_forward(world.model, world.data)
+    cameras = ["blue1/head_camera", "red1/head_camera"]
+    expected = {}
+    renderer = OffscreenRenderer(world.model, width=64, height=48)
+    for camera in cameras:
+        expected[camera] = np.zeros((48, 64, 3), dtype=np.uint8)
+        renderer.render(world.data, expected[camera], camera=camera)
+    renderer.close()
+
+    drawer = RenderThread(world.model, width=64, height=48)
+    try:
+        drawer.capture(world.data, cameras)
+        assert drawer.pending()
+        with pytest.raises(RenderError, match="collect it first"):
+            drawer.capture(world.data, cameras)
+        world.place_ball(x=-1.0, y=0.0)  # in front of blue1 now: not in the captured view
+        world.step(0.05)
+        frames = drawer.collect()
+        assert not drawer.pending() and drawer.frames == {c: 1 for c in cameras}
+        for camera in cameras:
+            image = np.frombuffer(frames[camera], dtype=np.uint8).reshape(48, 64, 3)
+            assert np.array_equal(image, expected[camera]), camera
+        assert not np.array_equal(expected[cameras[0]], expected[cameras[1]])
+        assert drawer.collect() == {}  # nothing captured since
+    finally:
+        drawer.close()
+    drawer.close()  # idempotent
+    with pytest.raises(RenderError, match="closed"):
+        drawer.capture(world.data, cameras)

@@ -3,6 +3,7 @@ and the world component serving each robot's bus, sensors and ground truth (lock
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -264,6 +265,38 @@ def test_cameras_share_one_context_and_render_only_when_asked(container: Contain
         assert (info.width, info.height) == (64, 48)
     finally:
         sim.close()
+
+
+@pytest.mark.parametrize("latency_s", [0.03, 0.0])
+def test_a_frame_arrives_camera_latency_after_the_instant_it_shows(
+        container: Container, latency_s: float) -> None:
+    """The world steps on while its render thread draws: a frame is published
+    ``camera_latency_s`` after the instant it shows (at a step, so in lockstep at the same
+    step of every run), stamped with that instant; 0 publishes it in the tick that took it."""
+    sim = WorldSimulator(TestHandle("world", container=container, parameters={
+        "robots": ["blue1"], "camera_hz": 10.0, "camera_width": 64, "camera_height": 48,
+        "camera_latency_s": latency_s}))
+    arrivals: list[tuple[int, int]] = []
+
+    def on_image(msg: Image) -> None:
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        arrivals.append((stamp, container.executor.clock.now_ns()))
+
+    TestHandle("viewer", container=container).create_subscription(
+        Image, "/blue1/camera/image_raw", on_image)
+    try:
+        container.advance(0.5)
+        assert len(arrivals) >= 4, arrivals
+        assert {arrived - stamp for stamp, arrived in arrivals} == {round(latency_s * 1e9)}
+        assert all(b[0] - a[0] == 100_000_000 for a, b in itertools.pairwise(arrivals))
+    finally:
+        sim.close()
+
+
+def test_a_camera_latency_beyond_a_second_is_refused() -> None:
+    with pytest.raises(SimConfigError, match=r"camera_latency_s is 0\.\.1 s, got 2\.0"):
+        WorldSimulator(TestHandle("world", parameters={"robots": ["blue1"],
+                                                       "camera_latency_s": 2.0}))
 
 
 def test_a_robot_camera_without_multisampling_finds_the_ball_straight_ahead() -> None:
