@@ -18,6 +18,28 @@ from efficient_comm.testing import ros_env, stop_process_group
 INSTALL = Path(__file__).resolve().parents[1] / "ros2_ws" / "install"
 
 
+#: A Fast DDS participant that announces a 2 s lease: once killed, every other participant
+#: drops it (and its endpoints) after 2 s instead of the default 20 s.
+SHORT_LEASE_XML = """<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <participant profile_name="short_lease" is_default_profile="true">
+    <rtps><builtin><discovery_config>
+      <leaseDuration><sec>2</sec></leaseDuration>
+      <leaseAnnouncement><sec>0</sec><nanosec>500000000</nanosec></leaseAnnouncement>
+    </discovery_config></builtin></rtps>
+  </participant>
+</profiles>
+"""
+
+
+def short_lease_profile(folder: Path) -> Path:
+    """Write :data:`SHORT_LEASE_XML` into ``folder``; the path, for a child process's
+    ``FASTRTPS_DEFAULT_PROFILES_FILE`` (a test of a killed peer need not wait 20 s)."""
+    path = folder / "short_lease.xml"
+    path.write_text(SHORT_LEASE_XML)
+    return path
+
+
 def executable(package: str, name: str) -> Path:
     """Where ``ros2 run package name`` finds its program."""
     path = INSTALL / package / "lib" / package / name

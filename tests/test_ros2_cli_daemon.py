@@ -23,22 +23,9 @@ import pytest
 from efficient_comm.testing import isolated_domain_id, unique_topic
 
 from ._cli import ROOT, Running, cli_env, daemons_in_tmp, ros2_path, running
+from ._ros import short_lease_profile
 
 PEER = ROOT / "tests" / "_cli_peer.py"
-
-#: A Fast DDS participant that announces a 2 s lease: once killed, every other participant
-#: drops it (and its endpoints) after 2 s instead of the default 20 s.
-SHORT_LEASE_XML = """<?xml version="1.0" encoding="UTF-8" ?>
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <participant profile_name="short_lease" is_default_profile="true">
-    <rtps><builtin><discovery_config>
-      <leaseDuration><sec>2</sec></leaseDuration>
-      <leaseAnnouncement><sec>0</sec><nanosec>500000000</nanosec></leaseAnnouncement>
-    </discovery_config></builtin></rtps>
-  </participant>
-</profiles>
-"""
-
 
 class Graph:
     def __init__(self, domain_id: int, topic: str, daemons: Path, peer: Running) -> None:
@@ -204,8 +191,7 @@ def test_a_folder_open_to_others_is_not_used(graph: Graph, tmp_path: Path) -> No
 
 def test_endpoints_of_a_killed_process_go_with_its_lease(
         graph: Graph, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    profile = tmp_path / "short_lease.xml"
-    profile.write_text(SHORT_LEASE_XML)
+    profile = short_lease_profile(tmp_path)
     doomed_topic = unique_topic("doomed")
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(profile))
     doomed = Running([sys.executable, str(PEER), doomed_topic], domain_id=graph.domain_id,

@@ -21,6 +21,8 @@ from throttle_publisher import (
     ThrottleOptions,
 )
 
+from ._ros import short_lease_profile
+
 RATE_HZ = 30.0
 
 
@@ -276,18 +278,6 @@ with Standalone(viewer, name="viewer", args=[]) as v:
 """
 
 
-SHORT_LEASE_XML = """<?xml version="1.0" encoding="UTF-8" ?>
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <participant profile_name="short_lease" is_default_profile="true">
-    <rtps><builtin><discovery_config>
-      <leaseDuration><sec>2</sec></leaseDuration>
-      <leaseAnnouncement><sec>0</sec><nanosec>500000000</nanosec></leaseAnnouncement>
-    </discovery_config></builtin></rtps>
-  </participant>
-</profiles>
-"""
-
-
 @pytest.mark.timeout(90)
 def test_a_killed_subscriber_stops_costing_within_the_lease(tmp_path: Path) -> None:
     import select
@@ -304,8 +294,7 @@ def test_a_killed_subscriber_stops_costing_within_the_lease(tmp_path: Path) -> N
                     args=[]) as a:
         # The subscriber announces a 2 s lease instead of Fast DDS's 20 s: what is tested
         # is that the source stops writing once DDS drops the peer, not how long it waits.
-        profile = tmp_path / "short_lease.xml"
-        profile.write_text(SHORT_LEASE_XML)
+        profile = short_lease_profile(tmp_path)
         proc = subprocess.Popen([sys.executable, "-c", KILLED_SUBSCRIBER, topic],
                                 env={**ros_env(domain),
                                      "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)},
